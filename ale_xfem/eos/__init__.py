@@ -1,0 +1,172 @@
+"""Equations of state, vectorised over numpy arrays.
+
+Every model maps (density ρ [kg/m³ or scene units], specific internal energy e) to
+pressure p and gives what an explicit step and an implicit solve need:
+
+- ``pressure(rho, e)``
+- ``sound_speed_squared(rho, e)``: c² = ∂p/∂ρ|_e + (p/ρ²) ∂p/∂e|_ρ (isentropic)
+- ``dp_drho(rho, e)`` (at constant e) and ``dp_de(rho, e)`` (at constant ρ)
+- ``energy(rho, p)``: the inverse in e, to initialise a region from (ρ, p)
+- ``admissible(rho, p)``: which initial states the model allows, with the reason
+
+Models: ideal gas, stiffened gas (γ, p∞), Mie–Grüneisen with a linear Us–up Hugoniot
+reference (ρ0, c0, s, Γ0; Γρ = Γ0ρ0 constant), linear (dp = c0² dρ, i.e. dp = ρc² dρ/ρ).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class StiffenedGas:
+    """p = (γ − 1) ρ e − γ p∞.  p∞ = 0 is the ideal gas."""
+
+    gamma: float
+    p_inf: float = 0.0
+
+    def pressure(self, rho, e):
+        if self.p_inf == 0.0:
+            return (self.gamma - 1.0) * rho * e
+        return (self.gamma - 1.0) * rho * e - self.gamma * self.p_inf
+
+    def dp_drho(self, rho, e):
+        return (self.gamma - 1.0) * e
+
+    def dp_de(self, rho, e):
+        return (self.gamma - 1.0) * rho
+
+    def sound_speed_squared(self, rho, e):
+        # c² = γ (p + p∞) / ρ = γ (γ − 1) (e − p∞/ρ)
+        if self.p_inf == 0.0:
+            return self.gamma * (self.gamma - 1.0) * e
+        return self.gamma * (self.gamma - 1.0) * (e - self.p_inf / rho)
+
+    def energy(self, rho, p):
+        return (p + self.gamma * self.p_inf) / ((self.gamma - 1.0) * rho)
+
+    def admissible(self, rho, p):
+        """Return None if (ρ, p) is an allowed state, else what is allowed."""
+        if not rho > 0.0:
+            return "density > 0"
+        if not p + self.p_inf > 0.0:
+            return f"pressure > -p_inf = {-self.p_inf:g}" if self.p_inf else "pressure > 0"
+        return None
+
+
+def IdealGas(gamma: float) -> StiffenedGas:
+    return StiffenedGas(gamma=gamma, p_inf=0.0)
+
+
+@dataclass(frozen=True)
+class MieGruneisen:
+    """Mie–Grüneisen about the linear Us = c0 + s·up Hugoniot of the state (ρ0, e = 0).
+
+    With η = 1 − ρ0/ρ:  p_H = ρ0 c0² η / (1 − sη)²,  e_H = p_H η / (2ρ0)  (Rankine–Hugoniot
+    from p = 0, e = 0), and p = p_H + Γ0 ρ0 (e − e_H).  The same curve is used in
+    expansion (η < 0); compression is bounded by η < 1/s.
+    """
+
+    rho0: float
+    c0: float
+    s: float
+    gamma0: float
+
+    def _hugoniot(self, rho):
+        eta = 1.0 - self.rho0 / rho
+        denom = 1.0 - self.s * eta
+        p_h = self.rho0 * self.c0**2 * eta / denom**2
+        dp_h_deta = self.rho0 * self.c0**2 * (1.0 + self.s * eta) / denom**3
+        e_h = p_h * eta / (2.0 * self.rho0)
+        de_h_deta = (p_h + eta * dp_h_deta) / (2.0 * self.rho0)
+        return eta, p_h, dp_h_deta, e_h, de_h_deta
+
+    def pressure(self, rho, e):
+        _, p_h, _, e_h, _ = self._hugoniot(rho)
+        return p_h + self.gamma0 * self.rho0 * (e - e_h)
+
+    def dp_drho(self, rho, e):
+        _, _, dp_h_deta, _, de_h_deta = self._hugoniot(rho)
+        deta_drho = self.rho0 / rho**2
+        return (dp_h_deta - self.gamma0 * self.rho0 * de_h_deta) * deta_drho
+
+    def dp_de(self, rho, e):
+        return self.gamma0 * self.rho0 * np.ones_like(np.asarray(rho, dtype=float))
+
+    def sound_speed_squared(self, rho, e):
+        p = self.pressure(rho, e)
+        return self.dp_drho(rho, e) + p / rho**2 * self.gamma0 * self.rho0
+
+    def energy(self, rho, p):
+        _, p_h, _, e_h, _ = self._hugoniot(rho)
+        return e_h + (p - p_h) / (self.gamma0 * self.rho0)
+
+    def admissible(self, rho, p):
+        if not rho > 0.0:
+            return "density > 0"
+        if not 1.0 - self.rho0 / rho < 1.0 / self.s:
+            return f"density < rho0·s/(s−1) = {self.rho0 * self.s / (self.s - 1.0):g} (Hugoniot limit)"
+        return None
+
+
+@dataclass(frozen=True)
+class Linear:
+    """Barotropic linear law p = p0 + c0² (ρ − ρ0): dp = ρc² dρ/ρ with constant c = c0."""
+
+    rho0: float
+    c0: float
+    p0: float = 0.0
+
+    def pressure(self, rho, e):
+        return self.p0 + self.c0**2 * (rho - self.rho0) + 0.0 * e
+
+    def dp_drho(self, rho, e):
+        return self.c0**2 * np.ones_like(np.asarray(rho, dtype=float))
+
+    def dp_de(self, rho, e):
+        return np.zeros_like(np.asarray(rho, dtype=float))
+
+    def sound_speed_squared(self, rho, e):
+        return self.c0**2 * np.ones_like(np.asarray(rho, dtype=float))
+
+    def energy(self, rho, p):
+        # e plays no part in the pressure; it still carries the work of compression.
+        return np.zeros_like(np.asarray(rho, dtype=float))
+
+    def admissible(self, rho, p):
+        if not rho > 0.0:
+            return "density > 0"
+        expected = self.p0 + self.c0**2 * (rho - self.rho0)
+        if not np.isclose(p, expected, rtol=1e-9, atol=1e-12 * max(1.0, abs(expected))):
+            return f"pressure = p0 + c0²(density − rho0) = {expected:g} (barotropic law)"
+        return None
+
+
+# Scene name → (constructor, required parameters, optional parameters with defaults).
+MODELS = {
+    "ideal_gas": (IdealGas, ("gamma",), {}),
+    "stiffened_gas": (StiffenedGas, ("gamma", "p_inf"), {}),
+    "mie_gruneisen": (MieGruneisen, ("rho0", "c0", "s", "gamma0"), {}),
+    "linear": (Linear, ("rho0", "c0"), {"p0": 0.0}),
+}
+
+
+def parameter_ranges(eos_name: str) -> dict[str, tuple[str, callable]]:
+    """What each parameter of a model must satisfy, as (description, predicate)."""
+    positive = ("> 0", lambda v: v > 0.0)
+    ranges = {
+        "ideal_gas": {"gamma": ("> 1", lambda v: v > 1.0)},
+        "stiffened_gas": {"gamma": ("> 1", lambda v: v > 1.0), "p_inf": (">= 0", lambda v: v >= 0.0)},
+        "mie_gruneisen": {"rho0": positive, "c0": positive, "s": ("> 1", lambda v: v > 1.0),
+                          "gamma0": positive},
+        "linear": {"rho0": positive, "c0": positive, "p0": ("any real", lambda v: True)},
+    }
+    return ranges[eos_name]
+
+
+def make_eos(eos_name: str, parameters: dict):
+    constructor, required, optional = MODELS[eos_name]
+    values = {**optional, **parameters}
+    return constructor(**{k: float(v) for k, v in values.items()})

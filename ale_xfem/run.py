@@ -1,0 +1,160 @@
+"""The time loop: step the problem to t_end, watch for breakdown, measure conservation and
+the error against the exact solution.
+
+    while simulation.proceed:
+        dt = stepper.stable_time_step(...)   # CFL, growth limit, t_end
+        state = stepper.step(state, dt)
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ale_xfem._memory import keep_freed_memory
+from ale_xfem.lagrange import Breakdown, ExplicitWilkins
+from ale_xfem.problem import Problem
+from ale_xfem.state import State, totals
+
+SUBSAMPLES_PER_CELL = 16  # midpoint rule for ∫|f_h − f_exact| dx inside each cell
+
+
+@dataclass
+class RunResult:
+    status: str  # "ok" | "failed"
+    state: State  # the last good state
+    steps: int
+    wall_seconds: float
+    diagnostic: str = ""
+    conservation: dict = field(default_factory=dict)
+    errors: dict | None = None
+    dt_min: float = 0.0
+    dt_max: float = 0.0
+    phase_seconds: dict = field(default_factory=dict)
+
+    @property
+    def zone_cycles_per_second(self) -> float:
+        cells = self.state.material_mass.shape[1]
+        return cells * self.steps / self.wall_seconds if self.wall_seconds > 0 else 0.0
+
+
+class Progress:
+    """A one-line progress bar on stderr, only when stderr is a terminal."""
+
+    def __init__(self, t_end: float, enabled: bool | None = None):
+        self.t_end = t_end
+        self.enabled = sys.stderr.isatty() if enabled is None else enabled
+        self.last = 0.0
+
+    def update(self, t: float, steps: int, force: bool = False) -> None:
+        now = time.perf_counter()
+        if not self.enabled or (not force and now - self.last < 0.2):
+            return
+        self.last = now
+        fraction = min(t / self.t_end, 1.0)
+        bar = "#" * int(30 * fraction)
+        sys.stderr.write(f"\r[{bar:<30}] {100 * fraction:5.1f}%  t = {t:.4g}  step {steps}")
+        sys.stderr.flush()
+
+    def close(self) -> None:
+        if self.enabled:
+            sys.stderr.write("\n")
+
+
+def make_stepper(problem: Problem) -> ExplicitWilkins:
+    keep_freed_memory()
+    return ExplicitWilkins(problem.mesh, problem.materials, problem.layout, problem.node_mass,
+                           problem.boundaries, problem.scene.numerics,
+                           artificial_viscosity="artificial_viscosity" in problem.effects)
+
+
+def simulate(problem: Problem, progress: Progress | None = None, t_end: float | None = None,
+             stop_after_steps: int | None = None) -> RunResult:
+    """Run to t_end (the scene's by default).  ``stop_after_steps`` ends the run early as a
+    normal stop (benchmarks); numerics.max_steps reached first is a failure."""
+    t_end = problem.scene.t_end if t_end is None else t_end
+    max_steps = problem.scene.numerics.max_steps
+    stepper = make_stepper(problem)
+    state = problem.state
+    start_totals = totals(state, problem.node_mass)
+    boundary_work, boundary_impulse = 0.0, np.zeros_like(start_totals["momentum"])
+    growth = problem.scene.numerics.dt_growth
+    evaluation = stepper.evaluate_state(state)
+    dt_previous, dt_min, dt_max = np.inf, np.inf, 0.0
+    steps, status, diagnostic = 0, "ok", ""
+    clock = time.perf_counter()
+    while state.time < t_end * (1.0 - 1e-14):
+        if stop_after_steps is not None and steps >= stop_after_steps:
+            break
+        if steps >= max_steps:
+            status = "failed"
+            diagnostic = (f"step {steps}, t = {state.time:.6g}: numerics.max_steps = {max_steps} "
+                          f"reached before t_end = {t_end:g}")
+            break
+        dt = min(stepper.stable_time_step(evaluation), growth * dt_previous, t_end - state.time)
+        if not dt > 0.0 or not np.isfinite(dt):
+            status = "failed"
+            diagnostic = f"step {steps + 1}, t = {state.time:.6g}: time step dt = {dt:.3g}, must be > 0"
+            break
+        try:
+            state, evaluation, work, impulse = stepper.step(state, dt, evaluation)
+        except Breakdown as failure:
+            status = "failed"
+            diagnostic = f"step {steps + 1}, t = {state.time:.6g}: {failure}"
+            break
+        boundary_work += work
+        boundary_impulse = boundary_impulse + impulse
+        dt_previous = dt
+        dt_min, dt_max = min(dt_min, dt), max(dt_max, dt)
+        steps += 1
+        if progress is not None:
+            progress.update(state.time, steps)
+    wall = time.perf_counter() - clock
+    if progress is not None:
+        progress.update(state.time, steps, force=True)
+        progress.close()
+    result = RunResult(status, state, steps, wall, diagnostic, dt_min=float(dt_min if steps else 0.0),
+                       dt_max=float(dt_max), phase_seconds={"lagrange": wall})
+    result.conservation = conservation(start_totals, totals(state, problem.node_mass),
+                                       boundary_work, boundary_impulse, problem.node_mass, state)
+    if problem.exact is not None and state.time > 0:
+        result.errors = l1_errors(problem, state)
+    return result
+
+
+def conservation(start, end, boundary_work, boundary_impulse, node_mass, state) -> dict:
+    """Relative drifts.  Momentum and energy balances include what the boundaries gave
+    (reactions of walls and pistons); momentum is scaled by Σ M|u| (it may start at 0)."""
+    momentum_scale = max(float(np.sum(node_mass * np.abs(state.node_velocity))),
+                         float(np.linalg.norm(start["momentum"])), 1e-300)
+    momentum_drift = end["momentum"] - start["momentum"] - boundary_impulse
+    return {
+        "mass": (end["mass"] - start["mass"]) / start["mass"],
+        "momentum": float(np.linalg.norm(momentum_drift)) / momentum_scale,
+        "total_energy": (end["total_energy"] - start["total_energy"] - boundary_work)
+        / abs(start["total_energy"]),
+        "boundary_work": boundary_work,
+    }
+
+
+def l1_errors(problem: Problem, state: State) -> dict:
+    """Σ_K ∫_K |f_h − f_exact| dx for density, velocity, pressure (midpoint rule on
+    SUBSAMPLES_PER_CELL points per cell; f_h constant per cell, velocity linear)."""
+    x = state.node_position[0][problem.mesh.cell_nodes]  # (n_cells, 2)
+    u = state.node_velocity[0][problem.mesh.cell_nodes]
+    s = (np.arange(SUBSAMPLES_PER_CELL) + 0.5) / SUBSAMPLES_PER_CELL
+    points = x[:, :1] + (x[:, 1:] - x[:, :1]) * s  # (n_cells, m)
+    weights = np.abs(x[:, 1:] - x[:, :1]) / SUBSAMPLES_PER_CELL
+    reference = problem.exact.sample(points, state.time)
+    numerical = {
+        "density": state.material_density[0][:, None],
+        "velocity": u[:, :1] + (u[:, 1:] - u[:, :1]) * s,
+        "pressure": state.material_pressure[0][:, None],
+    }
+    errors = {f"L1_{k}": float(np.sum(np.abs(v - reference[k]) * weights)) for k, v in numerical.items()}
+    errors["exact"] = problem.exact.kind
+    errors["exact_valid_until"] = problem.exact.valid_until
+    return errors

@@ -1,0 +1,412 @@
+"""Scenes: TOML files validated strictly, with `--set key=value` overrides.
+
+Loading order (pyro2's habit): defaults → scene file → command-line overrides; the result
+is validated as a whole and the fully resolved scene can be written next to the outputs.
+Every problem is reported as one line naming the key, the value and what is allowed
+(:class:`SceneError`); the CLI turns it into exit code 2 before anything runs.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+import re
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from ale_xfem import eos as eos_models
+
+BOUNDARY_SIDES_1D = ("left", "right")
+MOTIONS_AVAILABLE = ("lagrangian",)
+MOTIONS_PLANNED = ("eulerian", "smoothed")
+
+NUMERICS_DEFAULTS = {
+    "cfl": 0.5,  # fraction of the sound-crossing time of the smallest cell
+    "dt_growth": 1.1,  # largest ratio between two successive time steps
+    "q_quadratic": 1.0,  # von Neumann–Richtmyer coefficient: q ∋ c2 ρ Δu²
+    "q_linear": 0.5,  # linear (Landshoff) coefficient: q ∋ c1 ρ c |Δu|
+    "max_steps": 10_000_000,
+}
+
+
+class SceneError(ValueError):
+    """A scene that cannot run, reported as one line: key, value, what is allowed."""
+
+    def __init__(self, key: str, value: Any, allowed: str):
+        self.key, self.value, self.allowed = key, value, allowed
+        super().__init__(f"{key} = {_show(value)}: {allowed}")
+
+
+def _show(value: Any) -> str:
+    if value is _MISSING:
+        return "(missing)"
+    text = repr(value) if isinstance(value, str) else str(value)
+    return text if len(text) < 80 else text[:77] + "..."
+
+
+_MISSING = object()
+
+
+# ----------------------------------------------------------------------------- dataclasses
+
+
+@dataclass(frozen=True)
+class MeshSpec:
+    extent: tuple[float, float]
+    cells: int
+    motion: str
+
+    def node_positions(self):
+        """Initial node abscissae of the uniform 1D mesh (used to check region bounds)."""
+        a, b = self.extent
+        return [a + (b - a) * i / self.cells for i in range(self.cells + 1)]
+
+
+@dataclass(frozen=True)
+class MaterialSpec:
+    name: str
+    eos: str
+    parameters: dict[str, float]
+
+    def make_eos(self):
+        return eos_models.make_eos(self.eos, self.parameters)
+
+
+@dataclass(frozen=True)
+class RegionSpec:
+    index: int
+    material: str
+    interval: tuple[float, float]
+    density: float
+    pressure: float
+    velocity: tuple[float, ...]
+
+
+@dataclass(frozen=True)
+class BoundarySpec:
+    kind: str  # wall | free | velocity
+    velocity: tuple[float, ...] | None = None
+
+
+@dataclass(frozen=True)
+class Numerics:
+    cfl: float
+    dt_growth: float
+    q_quadratic: float
+    q_linear: float
+    max_steps: int
+
+
+@dataclass(frozen=True)
+class Scene:
+    name: str
+    description: str
+    dimension: int
+    t_end: float
+    mesh: MeshSpec
+    materials: dict[str, MaterialSpec]
+    regions: tuple[RegionSpec, ...]
+    boundaries: dict[str, BoundarySpec]
+    numerics: Numerics
+    resolved: dict = field(repr=False)  # the validated dictionary, defaults filled in
+    source: str = ""
+
+    def pieces(self) -> list[tuple[float, float, RegionSpec]]:
+        """The domain cut into maximal intervals each owned by one region (later regions
+        overwrite earlier ones), left to right."""
+        return region_pieces(self.mesh.extent, self.regions)
+
+
+# ----------------------------------------------------------------------------- loading
+
+
+def load_scene(path: str | Path, overrides: list[str] | tuple[str, ...] = ()) -> Scene:
+    path = Path(path)
+    try:
+        text = path.read_text()
+    except OSError as error:
+        raise SceneError("scene", str(path), f"a readable TOML file ({error.strerror})") from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as error:
+        raise SceneError("scene", str(path), f"valid TOML ({error})") from None
+    for item in overrides:
+        apply_override(data, item)
+    return validate(data, source=str(path))
+
+
+def apply_override(data: dict, item: str) -> None:
+    """Apply one `key=value` (dotted key, list positions as integers: `regions.1.density=2`).
+    The value is read as a TOML value when it parses as one, else as a string."""
+    if "=" not in item:
+        raise SceneError("--set", item, "key=value, e.g. mesh.cells=400")
+    key, text = item.split("=", 1)
+    key = key.strip()
+    try:
+        value = tomllib.loads(f"v = {text.strip()}")["v"]
+    except tomllib.TOMLDecodeError:
+        value = text.strip()
+    parts = key.split(".")
+    if not key or any(p == "" for p in parts):
+        raise SceneError("--set", item, "a dotted key such as mesh.cells")
+    node: Any = data
+    for depth, part in enumerate(parts[:-1]):
+        where = ".".join(parts[: depth + 1])
+        if isinstance(node, list):
+            if not part.isdigit() or int(part) >= len(node):
+                raise SceneError(where, part, f"a list position 0..{len(node) - 1}")
+            node = node[int(part)]
+        elif isinstance(node, dict):
+            node = node.setdefault(part, {})
+        else:
+            raise SceneError(where, node, "a table or a list to set a key in")
+    last = parts[-1]
+    if isinstance(node, list):
+        if not last.isdigit() or int(last) >= len(node):
+            raise SceneError(key, last, f"a list position 0..{len(node) - 1}")
+        node[int(last)] = value
+    elif isinstance(node, dict):
+        node[last] = value
+    else:
+        raise SceneError(".".join(parts[:-1]), node, "a table or a list to set a key in")
+
+
+# ----------------------------------------------------------------------------- validation helpers
+
+
+def _keys(table: Any, where: str, required: tuple[str, ...], optional: tuple[str, ...] = ()) -> dict:
+    if not isinstance(table, dict):
+        raise SceneError(where or "scene", table, "a table")
+    prefix = f"{where}." if where else ""
+    for key in table:
+        if key not in required and key not in optional:
+            allowed = ", ".join(sorted(required + optional))
+            raise SceneError(f"{prefix}{key}", table[key], f"unknown key; allowed here: {allowed}")
+    for key in required:
+        if key not in table:
+            raise SceneError(f"{prefix}{key}", _MISSING, "required")
+    return table
+
+
+def _real(value: Any, key: str, condition=lambda v: True, allowed: str = "a real number") -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise SceneError(key, value, allowed)
+    if not condition(float(value)):
+        raise SceneError(key, value, allowed)
+    return float(value)
+
+
+def _integer(value: Any, key: str, minimum: int = 1) -> int:
+    if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
+        raise SceneError(key, value, f"an integer >= {minimum}")
+    return int(value)
+
+
+def _choice(value: Any, key: str, choices: tuple[str, ...], planned: tuple[str, ...] = ()) -> str:
+    if value in planned:
+        raise SceneError(key, value, f"not available in this version; available: {', '.join(choices)}")
+    if not isinstance(value, str) or value not in choices:
+        raise SceneError(key, value, f"one of {', '.join(choices)}")
+    return value
+
+
+def _reals(value: Any, key: str, length: int) -> tuple[float, ...]:
+    if not isinstance(value, list) or len(value) != length:
+        raise SceneError(key, value, f"a list of {length} real number{'s' if length > 1 else ''}")
+    return tuple(_real(v, f"{key}[{i}]") for i, v in enumerate(value))
+
+
+# ----------------------------------------------------------------------------- validation
+
+
+def validate(data: dict, source: str = "") -> Scene:
+    data = copy.deepcopy(data)
+    _keys(data, "", ("name", "dimension", "t_end", "mesh", "materials", "regions"),
+          ("description", "boundaries", "numerics", "interface"))
+    name = data["name"]
+    if not isinstance(name, str) or not re.fullmatch(r"[A-Za-z0-9_.\-]+", name):
+        raise SceneError("name", name, "a non-empty name of letters, digits, '-', '_' or '.'")
+    description = data.setdefault("description", "")
+    if not isinstance(description, str):
+        raise SceneError("description", description, "a string")
+    if data["dimension"] != 1 or isinstance(data["dimension"], bool):
+        raise SceneError("dimension", data["dimension"], "1 (2D scenes arrive with the 2D solver)")
+    t_end = _real(data["t_end"], "t_end", lambda v: v > 0, "a real number > 0")
+    if "interface" in data:
+        raise SceneError("interface", data["interface"],
+                         "mixed cells are not available in this version: remove [interface] "
+                         "and put every boundary between materials on a mesh node")
+
+    mesh_table = _keys(data["mesh"], "mesh", ("extent", "cells"), ("motion",))
+    extent = _reals(mesh_table["extent"], "mesh.extent", 2)
+    if not extent[0] < extent[1]:
+        raise SceneError("mesh.extent", mesh_table["extent"], "[x0, x1] with x0 < x1")
+    cells = _integer(mesh_table["cells"], "mesh.cells")
+    motion = _choice(mesh_table.setdefault("motion", "lagrangian"), "mesh.motion",
+                     MOTIONS_AVAILABLE, MOTIONS_PLANNED)
+    mesh = MeshSpec(extent, cells, motion)
+
+    materials = _validate_materials(data["materials"])
+    regions = _validate_regions(data["regions"], materials, mesh)
+    boundaries = _validate_boundaries(data.setdefault("boundaries", {}))
+    numerics = _validate_numerics(data.setdefault("numerics", {}))
+
+    scene = Scene(name, description, 1, t_end, mesh, materials, regions, boundaries, numerics,
+                  resolved=data, source=source)
+    _check_coverage(scene)
+    return scene
+
+
+def _validate_materials(table: Any) -> dict[str, MaterialSpec]:
+    if not isinstance(table, dict) or not table:
+        raise SceneError("materials", table, "at least one [materials.NAME] table")
+    materials = {}
+    for name, spec in table.items():
+        where = f"materials.{name}"
+        if not isinstance(spec, dict):
+            raise SceneError(where, spec, "a table with eos = ... and its parameters")
+        eos_name = _choice(spec.get("eos", _MISSING), f"{where}.eos", tuple(eos_models.MODELS))
+        _, required, optional = eos_models.MODELS[eos_name]
+        _keys(spec, where, ("eos",) + required, tuple(optional))
+        ranges = eos_models.parameter_ranges(eos_name)
+        parameters = {}
+        for key in required + tuple(optional):
+            if key in spec:
+                description, predicate = ranges[key]
+                parameters[key] = _real(spec[key], f"{where}.{key}", predicate,
+                                        f"a real number {description}" if description != "any real"
+                                        else "a real number")
+        materials[name] = MaterialSpec(name, eos_name, parameters)
+    return materials
+
+
+def _validate_regions(regions: Any, materials: dict[str, MaterialSpec], mesh: MeshSpec):
+    if not isinstance(regions, list) or not regions:
+        raise SceneError("regions", regions, "at least one [[regions]] table")
+    specs = []
+    for index, table in enumerate(regions):
+        where = f"regions[{index}]"
+        _keys(table, where, ("material", "interval", "density", "pressure"), ("velocity",))
+        material = table["material"]
+        if material not in materials:
+            raise SceneError(f"{where}.material", material,
+                             f"one of the materials defined: {', '.join(materials)}")
+        interval = _reals(table["interval"], f"{where}.interval", 2)
+        if not interval[0] < interval[1]:
+            raise SceneError(f"{where}.interval", table["interval"], "[x0, x1] with x0 < x1")
+        lo, hi = max(interval[0], mesh.extent[0]), min(interval[1], mesh.extent[1])
+        if not hi > lo:
+            raise SceneError(f"{where}.interval", table["interval"],
+                             f"an interval that meets the domain {list(mesh.extent)}")
+        density = _real(table["density"], f"{where}.density")
+        pressure = _real(table["pressure"], f"{where}.pressure")
+        velocity = _reals(table.setdefault("velocity", [0.0]), f"{where}.velocity", 1)
+        eos = materials[material].make_eos()
+        if not density > 0.0:
+            raise SceneError(f"{where}.density", density, "a real number > 0")
+        reason = eos.admissible(density, pressure)
+        if reason is not None:
+            key = "density" if reason.startswith("density") else "pressure"
+            value = density if key == "density" else pressure
+            raise SceneError(f"{where}.{key}", value,
+                             f"{reason} for {materials[material].eos} material '{material}'")
+        specs.append(RegionSpec(index, material, interval, density, pressure, velocity))
+    return tuple(specs)
+
+
+def _validate_boundaries(table: Any) -> dict[str, BoundarySpec]:
+    _keys(table, "boundaries", (), BOUNDARY_SIDES_1D)
+    boundaries = {}
+    for side in BOUNDARY_SIDES_1D:
+        value = table.setdefault(side, "wall")
+        key = f"boundaries.{side}"
+        if isinstance(value, dict):
+            _keys(value, key, ("velocity",))
+            boundaries[side] = BoundarySpec("velocity", _reals(value["velocity"], f"{key}.velocity", 1))
+        elif value in ("wall", "free"):
+            boundaries[side] = BoundarySpec(value)
+        else:
+            raise SceneError(key, value, "'wall', 'free' or {velocity = [u]}")
+    return boundaries
+
+
+def _validate_numerics(table: Any) -> Numerics:
+    _keys(table, "numerics", (), tuple(NUMERICS_DEFAULTS))
+    for key, default in NUMERICS_DEFAULTS.items():
+        table.setdefault(key, default)
+    return Numerics(
+        cfl=_real(table["cfl"], "numerics.cfl", lambda v: 0 < v <= 1, "a real number in (0, 1]"),
+        dt_growth=_real(table["dt_growth"], "numerics.dt_growth", lambda v: v >= 1, "a real number >= 1"),
+        q_quadratic=_real(table["q_quadratic"], "numerics.q_quadratic", lambda v: v >= 0, "a real number >= 0"),
+        q_linear=_real(table["q_linear"], "numerics.q_linear", lambda v: v >= 0, "a real number >= 0"),
+        max_steps=_integer(table["max_steps"], "numerics.max_steps"),
+    )
+
+
+# ----------------------------------------------------------------------------- region geometry
+
+
+def region_pieces(extent, regions) -> list[tuple[float, float, RegionSpec]]:
+    """Cut the domain at every region end; each piece belongs to the last region that
+    contains it (later regions overwrite earlier ones); consecutive pieces of one region
+    are merged.  Pieces no region covers carry ``None``."""
+    a, b = extent
+    cuts = sorted({a, b, *(x for r in regions for x in r.interval if a < x < b)})
+    pieces: list[tuple[float, float, RegionSpec | None]] = []
+    for lo, hi in zip(cuts[:-1], cuts[1:]):
+        middle = 0.5 * (lo + hi)
+        owner = None
+        for region in regions:
+            if region.interval[0] <= middle <= region.interval[1]:
+                owner = region
+        if pieces and pieces[-1][2] is owner:
+            pieces[-1] = (pieces[-1][0], hi, owner)
+        else:
+            pieces.append((lo, hi, owner))
+    return pieces
+
+
+def _check_coverage(scene: Scene) -> None:
+    pieces = scene.pieces()
+    for lo, hi, owner in pieces:
+        if owner is None:
+            raise SceneError("regions", f"[{lo:g}, {hi:g}] uncovered",
+                             "regions whose intervals cover the whole domain "
+                             f"{list(scene.mesh.extent)}")
+    # Without [interface] materials never share a cell: each boundary between two
+    # materials must sit on a node of the initial mesh.
+    a, b = scene.mesh.extent
+    h = (b - a) / scene.mesh.cells
+    for (_, x, left), (_, _, right) in zip(pieces[:-1], pieces[1:]):
+        if left.material == right.material:
+            continue
+        position = (x - a) / h
+        if abs(position - round(position)) > 1e-9 * max(1.0, position):
+            cell = int(math.floor(position))
+            raise SceneError(f"regions[{right.index}].interval", list(right.interval),
+                             f"the boundary x = {x:g} between '{left.material}' and "
+                             f"'{right.material}' falls inside cell {cell} "
+                             f"[{a + cell * h:g}, {a + (cell + 1) * h:g}]; without [interface] "
+                             "material boundaries must sit on mesh nodes")
+
+
+# ----------------------------------------------------------------------------- shipped scenes
+
+SCENES_DIR = Path(__file__).resolve().parent.parent / "demos" / "scenes"
+
+
+def shipped_scenes() -> list[Path]:
+    return sorted(SCENES_DIR.glob("*.toml"))
+
+
+def resolve_scene_path(name_or_path: str) -> Path:
+    """A path, or the name of a shipped scene (with or without .toml)."""
+    path = Path(name_or_path)
+    if path.exists():
+        return path
+    for candidate in (SCENES_DIR / name_or_path, SCENES_DIR / f"{name_or_path}.toml"):
+        if candidate.exists():
+            return candidate
+    return path
