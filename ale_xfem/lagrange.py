@@ -125,7 +125,7 @@ class ExplicitWilkins:
     # -- time step ----------------------------------------------------------------------
 
     def stable_time_step(self, evaluation: ForceEvaluation) -> float:
-        """CFL limit with the viscous signal speed: dt_K = L / (Q + √(Q² + c²)),
+        """CFL limit with the viscous signal speed: dt_K = L / max(Q + √(Q² + c²), |Δu|),
         Q = c1 c + 2 c2 |Δu| in compression (the form of Benson, CMAME 99, 1992)."""
         c = evaluation.sound_speed[0]
         length = self.mesh.cell_type.length_scale(evaluation.volume)
@@ -137,6 +137,9 @@ class ExplicitWilkins:
             signal += q_speed
         else:
             signal = c
+        # No cell may change its length by more than its own size in a step (cold gas
+        # pushed by a piston has c ≈ 0: the velocity jump is then the only signal).
+        signal = np.maximum(signal, np.abs(evaluation.velocity_jump))
         with np.errstate(divide="ignore"):
             dt = np.min(length / signal)
         return self.numerics.cfl * float(dt)

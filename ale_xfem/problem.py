@@ -63,21 +63,11 @@ def build_problem(scene: Scene) -> Problem:
         cell_material[0, larger] = names.index(region.material)
         dominant = np.maximum(dominant, overlap)
     layout = MaterialLayout(cell_material, len(materials))
-
-    # Lumped nodal masses; nodal velocities that carry each cell's momentum in equal
-    # corner shares (a node on a velocity jump takes the mass-weighted mean).
-    node_mass = mesh.scatter_cell_shares(mass)
-    velocity = (mesh.scatter_cell_shares(momentum) / node_mass)[None, :]
-
-    volume = mesh.cell_volumes()
-    material_mass = mass[None, :]
-    material_energy = (energy_total / mass)[None, :]
-    density = material_mass / volume
-    pressure, sound_speed = thermodynamics(materials, layout, density, material_energy)
-    state = State(0.0, mesh.node_position.copy(), velocity, material_mass, material_energy,
-                  volume[None, :].copy(), density, pressure, sound_speed)
-
-    boundaries = _boundaries(scene, mesh)
+    state, node_mass = state_from_cells(mesh, materials, layout, mass[None, :],
+                                        (energy_total / mass)[None, :], momentum[None, :])
+    boundaries = side_boundaries(mesh, scene.mesh.extent, scene.boundaries)
+    for boundary in boundaries:  # walls and pistons hold from t = 0
+        boundary.apply(state.node_velocity)
     effects = ["lagrange_explicit"]
     if scene.numerics.q_quadratic > 0 or scene.numerics.q_linear > 0:
         effects.append("artificial_viscosity")
@@ -87,16 +77,49 @@ def build_problem(scene: Scene) -> Problem:
                    exact_reference(scene), effects)
 
 
-def _boundaries(scene: Scene, mesh: MeshArrays) -> list[Boundary]:
-    a, b = scene.mesh.extent
-    tolerance = 1e-9 * (b - a)
-    sides = {"left": (a, -1.0), "right": (b, 1.0)}
+def state_from_cells(mesh: MeshArrays, materials, layout: MaterialLayout, material_mass,
+                     material_energy, cell_momentum) -> tuple[State, np.ndarray]:
+    """Initial state from per-cell, per-material mass and specific energy (S, n_cells) and
+    per-cell momentum (dim, n_cells).  Lumped nodal masses take equal corner shares of
+    their cells' mass; nodal velocities carry each cell's momentum in the same shares (a
+    node on a velocity jump takes the mass-weighted mean, so momentum is exact)."""
+    cell_mass = material_mass.sum(axis=0)
+    node_mass = mesh.scatter_cell_shares(cell_mass)
+    velocity = np.stack([mesh.scatter_cell_shares(p) for p in cell_momentum]) / node_mass
+    volume = mesh.cell_volumes()
+    density = material_mass / volume
+    pressure, sound_speed = thermodynamics(materials, layout, density, material_energy)
+    state = State(0.0, mesh.node_position.copy(), velocity, material_mass.copy(),
+                  material_energy.copy(), volume[None, :].copy(), density, pressure, sound_speed)
+    return state, node_mass
+
+
+def box_sides(extent) -> dict[str, tuple[int, float, np.ndarray]]:
+    """Sides of an interval or a rectangle: name → (axis, position, outward unit normal)."""
+    if np.ndim(extent) == 1:
+        extent = [extent]
+    dim = len(extent)
+    names = (("left", "right"), ("bottom", "top"))
+    sides = {}
+    for axis, (lo, hi) in enumerate(extent):
+        for name, position, sign in ((names[axis][0], lo, -1.0), (names[axis][1], hi, 1.0)):
+            normal = np.zeros(dim)
+            normal[axis] = sign
+            sides[name] = (axis, float(position), normal)
+    return sides
+
+
+def side_boundaries(mesh: MeshArrays, extent, specs: dict) -> list[Boundary]:
+    """Boundary conditions on the sides of a box; specs: side → BoundarySpec-like
+    (``kind`` and ``velocity``)."""
+    sides = box_sides(extent)
+    size = max(hi - lo for lo, hi in (extent if np.ndim(extent) == 2 else [extent]))
     boundaries = []
-    for side, spec in scene.boundaries.items():
-        position, normal = sides[side]
-        nodes = mesh.nodes_where(lambda x: np.abs(x[0] - position) < tolerance)
+    for side, spec in specs.items():
+        axis, position, normal = sides[side]
+        nodes = mesh.nodes_where(lambda x: np.abs(x[axis] - position) < 1e-9 * size)
         velocity = None if spec.velocity is None else np.array(spec.velocity, dtype=float)
-        boundaries.append(Boundary(side, spec.kind, nodes, np.array([normal]), velocity))
+        boundaries.append(Boundary(side, spec.kind, nodes, normal, velocity))
     return boundaries
 
 
@@ -132,6 +155,19 @@ def exact_reference(scene: Scene) -> ExactReference | None:
         kind = "plate_impact"
     else:
         return None
+    # The solution holds until its outermost waves meet the domain's ends, which move with
+    # the outer material (free end), the piston, or not at all (wall).
     slow, fast = solution.wave_speeds()
-    times = [(a - x0) / slow if slow < 0 else np.inf, (b - x0) / fast if fast > 0 else np.inf]
+    end_left = _end_velocity(scene.boundaries["left"], left.velocity[0])
+    end_right = _end_velocity(scene.boundaries["right"], right.velocity[0])
+    times = [(x0 - a) / (end_left - slow) if end_left > slow else np.inf,
+             (b - x0) / (fast - end_right) if fast > end_right else np.inf]
     return ExactReference(kind, solution, float(min(times)))
+
+
+def _end_velocity(boundary, material_velocity: float) -> float:
+    if boundary.kind == "wall":
+        return 0.0
+    if boundary.kind == "velocity":
+        return boundary.velocity[0]
+    return material_velocity

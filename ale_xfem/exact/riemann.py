@@ -48,6 +48,8 @@ def _wave_curve(p, side: GasState):
     c = side.sound_speed  # rarefaction
     ratio = ps / pk
     f = 2.0 * c / (g - 1.0) * (ratio ** ((g - 1.0) / (2.0 * g)) - 1.0)
+    if ratio <= 0.0:  # at the pressure floor p + p∞ = 0: the curve is vertical
+        return f, np.inf
     df = 1.0 / (side.density * c) * ratio ** (-(g + 1.0) / (2.0 * g))
     return f, df
 

@@ -1,0 +1,109 @@
+"""The command line end to end: outputs, exit codes, breakdown, list and bench."""
+
+import csv
+import json
+import subprocess
+import sys
+import tomllib
+
+import pytest
+
+from ale_xfem.cli import main
+from ale_xfem.scene import load_scene
+
+CAVITATION = """
+name = "cavitation"
+dimension = 1
+t_end = 1e-3
+[mesh]
+extent = [0.0, 1.0]
+cells = 50
+[materials.water]
+eos = "stiffened_gas"
+gamma = 4.4
+p_inf = 6.0e8
+[[regions]]
+material = "water"
+interval = [0.0, 0.5]
+density = 1000.0
+pressure = 1.0e5
+velocity = [-2000.0]
+[[regions]]
+material = "water"
+interval = [0.5, 1.0]
+density = 1000.0
+pressure = 1.0e5
+velocity = [2000.0]
+[boundaries]
+left = "free"
+right = "free"
+"""
+
+
+def cli(*args):
+    return subprocess.run([sys.executable, "-m", "ale_xfem.cli", *args], capture_output=True, text=True)
+
+
+def test_run_writes_summary_profile_plot_and_resolved_scene(tmp_path):
+    out = tmp_path / "run"
+    done = cli("run", "sod-two-gamma", "--out", str(out), "--set", "mesh.cells=100")
+    assert done.returncode == 0, done.stderr
+    summary = json.loads((out / "summary.json").read_text())
+    for key in ("scene", "status", "t_end", "steps", "wall_seconds", "zone_cycles_per_second",
+                "effects", "conservation", "errors"):
+        assert key in summary
+    assert summary["status"] == "ok" and summary["t_end"] == 0.2 and summary["steps"] > 50
+    assert set(summary["conservation"]) >= {"mass", "momentum", "total_energy"}
+    assert summary["errors"]["L1_density"] < 0.01
+    assert "artificial_viscosity" in summary["effects"]
+    with (out / "profile.csv").open() as handle:
+        rows = list(csv.DictReader(handle))
+    assert list(rows[0]) == ["x_left", "x_right", "material", "volume_fraction", "density",
+                             "velocity", "pressure", "internal_energy"]
+    assert len(rows) == 100
+    x_left = [float(r["x_left"]) for r in rows]
+    assert x_left == sorted(x_left)
+    assert {r["material"] for r in rows} == {"left", "right"}
+    # Mass from the profile equals the initial mass: 1·0.5 + 0.125·0.5.
+    mass = sum(float(r["density"]) * (float(r["x_right"]) - float(r["x_left"])) for r in rows)
+    assert mass == pytest.approx(0.5625, rel=1e-13)
+    assert (out / "sod-two-gamma.png").stat().st_size > 10_000
+    resolved = tomllib.loads((out / "scene.toml").read_text())
+    assert resolved["mesh"]["cells"] == 100 and resolved["numerics"]["cfl"] == 0.5
+    assert load_scene(out / "scene.toml").mesh.cells == 100  # the resolved scene runs as is
+
+
+def test_breakdown_stops_with_exit_code_3_and_writes_the_last_good_state(tmp_path):
+    scene = tmp_path / "cavitation.toml"
+    scene.write_text(CAVITATION)
+    out = tmp_path / "run"
+    done = cli("run", str(scene), "--out", str(out))
+    assert done.returncode == 3
+    message = done.stderr.strip().splitlines()
+    assert len(message) == 1
+    assert "step 1" in message[0] and "cell" in message[0] and "sound speed" in message[0]
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "failed" and "sound speed" in summary["diagnostic"]
+    assert summary["t_reached"] < summary["t_end"]
+    with (out / "profile.csv").open() as handle:
+        rows = list(csv.DictReader(handle))
+    assert len(rows) == 50 and all(float(r["density"]) > 0 for r in rows)
+
+
+def test_list_shows_every_shipped_scene_with_its_description(capsys):
+    assert main(["list"]) == 0
+    lines = capsys.readouterr().out.strip().splitlines()
+    names = {line.split()[0] for line in lines}
+    assert {"sod", "sod-two-gamma", "plate-impact", "water-air", "piston", "blast-symmetric"} <= names
+    assert all(len(line.split(maxsplit=1)) == 2 for line in lines)
+
+
+def test_bench_prints_zone_cycles_per_second(capsys):
+    assert main(["bench", "--cells", "1000,2000"]) == 0
+    rows = [line.split() for line in capsys.readouterr().out.splitlines() if line.strip()[:1].isdigit()]
+    assert [int(r[0]) for r in rows] == [1000, 2000]
+    assert all(float(r[-1]) > 0 for r in rows)
+
+
+def test_bench_rejects_bad_sizes(capsys):
+    assert main(["bench", "--cells", "10,x"]) == 2

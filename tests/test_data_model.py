@@ -1,0 +1,71 @@
+"""The data model is dimension-generic: the same explicit loop on 2D quadrilaterals and
+triangles, and numpy corner forces equal to the assembled UFL weak form."""
+
+import numpy as np
+import pytest
+
+from ale_xfem.eos import IdealGas
+from ale_xfem.lagrange import ExplicitWilkins
+from ale_xfem.mesh import from_dolfinx, interval_mesh, rectangle_mesh
+from ale_xfem.problem import side_boundaries, state_from_cells
+from ale_xfem.scene import BoundarySpec, Numerics
+from ale_xfem.state import Material, MaterialLayout
+from forms.corner_forces import CornerForceForm
+
+NUMERICS = Numerics(cfl=0.5, dt_growth=1.1, q_quadratic=1.0, q_linear=0.5, max_steps=10**6)
+
+
+@pytest.mark.parametrize("cell_type", ["quadrilateral", "triangle"])
+def test_uniform_state_stays_uniform_and_at_rest_in_2d(cell_type):
+    extent = [[0.0, 2.0], [0.0, 1.0]]
+    mesh = rectangle_mesh(extent, [12, 7], cell_type)
+    materials = [Material("gas", "ideal_gas", IdealGas(1.4))]
+    layout = MaterialLayout(np.zeros((1, mesh.n_cells), dtype=np.int64), 1)
+    volume = mesh.cell_volumes()
+    state, node_mass = state_from_cells(mesh, materials, layout, 1.3 * volume[None, :],
+                                        np.full((1, mesh.n_cells), 2.0), np.zeros((2, mesh.n_cells)))
+    specs = {side: BoundarySpec("wall") for side in ("left", "right", "bottom", "top")}
+    stepper = ExplicitWilkins(mesh, materials, layout, node_mass,
+                              side_boundaries(mesh, extent, specs), NUMERICS)
+    evaluation = stepper.evaluate_state(state)
+    for _ in range(200):
+        dt = stepper.stable_time_step(evaluation)
+        state, evaluation, work, _ = stepper.step(state, dt, evaluation)
+        assert work == pytest.approx(0.0, abs=1e-13)
+    assert np.abs(state.node_velocity).max() < 1e-12
+    np.testing.assert_allclose(state.material_density, 1.3, rtol=1e-12)
+    np.testing.assert_allclose(state.material_pressure, 0.4 * 1.3 * 2.0, rtol=1e-12)
+
+
+def _perturbed(mesh, amplitude, seed=0):
+    """Move interior nodes of the DOLFINx mesh at random, then read it again."""
+    x = mesh.dolfinx_mesh.geometry.x
+    rng = np.random.default_rng(seed)
+    dim = mesh.dimension
+    lo, hi = x[:, :dim].min(axis=0), x[:, :dim].max(axis=0)
+    interior = np.all((x[:, :dim] > lo + 1e-12) & (x[:, :dim] < hi - 1e-12), axis=1)
+    x[interior, :dim] += amplitude * rng.uniform(-1, 1, size=(interior.sum(), dim))
+    return from_dolfinx(mesh.dolfinx_mesh)
+
+
+@pytest.mark.parametrize("make", [lambda: interval_mesh([0.0, 1.0], 9),
+                                  lambda: rectangle_mesh([[0.0, 1.0], [0.0, 1.0]], [5, 4], "quadrilateral"),
+                                  lambda: rectangle_mesh([[0.0, 1.0], [0.0, 1.0]], [5, 4], "triangle")],
+                         ids=["interval", "quadrilateral", "triangle"])
+def test_numpy_corner_forces_equal_the_assembled_weak_form(make):
+    mesh = _perturbed(make(), 0.04)
+    stress = np.random.default_rng(1).uniform(0.5, 2.0, mesh.n_cells)
+    gradient = mesh.cell_type.volume_and_gradient(mesh.corners.gather(mesh.node_position))[1]
+    numpy_forces = np.stack([mesh.corners.scatter_scaled([g[d] for g in gradient], stress)
+                             for d in range(mesh.dimension)])
+    form_forces = CornerForceForm(mesh.dolfinx_mesh).nodal_forces(stress, mesh.n_nodes)
+    np.testing.assert_allclose(numpy_forces, form_forces, atol=1e-13 * np.abs(form_forces).max())
+    assert np.abs(form_forces).max() > 0.1
+
+
+def test_cell_volumes_sum_to_the_domain_and_cells_are_counter_clockwise():
+    for cell_type in ("quadrilateral", "triangle"):
+        mesh = rectangle_mesh([[0.0, 3.0], [0.0, 2.0]], [6, 5], cell_type)
+        volume = mesh.cell_volumes()
+        assert volume.min() > 0
+        assert volume.sum() == pytest.approx(6.0, rel=1e-14)

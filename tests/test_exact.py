@@ -1,0 +1,72 @@
+"""Exact references: Toro's star states, the stiffened-gas shift, impedance matching."""
+
+import numpy as np
+import pytest
+
+from ale_xfem.exact import GasState, Plate, PlateImpactSolution, RiemannSolution, VacuumError, star_state
+
+# Toro, Riemann Solvers and Numerical Methods for Fluid Dynamics, tables 4.1–4.3 (γ = 1.4):
+# (ρ, u, p) left, right → p*, u*, ρ*L, ρ*R.
+TORO = [
+    ((1.0, 0.0, 1.0), (0.125, 0.0, 0.1), (0.30313, 0.92745, 0.42632, 0.26557)),
+    ((1.0, -2.0, 0.4), (1.0, 2.0, 0.4), (0.00189, 0.00000, 0.02185, 0.02185)),
+    ((1.0, 0.0, 1000.0), (1.0, 0.0, 0.01), (460.894, 19.5975, 0.57506, 5.99924)),
+    ((1.0, 0.0, 0.01), (1.0, 0.0, 100.0), (46.0950, -6.19633, 5.99242, 0.57511)),
+    ((5.99924, 19.5975, 460.894), (5.99242, -6.19633, 46.0950), (1691.64, 8.68975, 14.2823, 31.0426)),
+]
+
+
+@pytest.mark.parametrize("test", range(1, 6))
+def test_toro_star_states(test):
+    left, right, expected = TORO[test - 1]
+    star = star_state(GasState(*left, 1.4), GasState(*right, 1.4))
+    got = (star.pressure, star.velocity, star.density_left, star.density_right)
+    for value, reference in zip(got, expected):
+        # the table gives 5–6 significant digits
+        assert value == pytest.approx(reference, rel=5e-5, abs=1e-5)
+
+
+def test_stiffened_gas_is_an_ideal_gas_in_shifted_pressure():
+    p_inf = 2.0
+    ideal = RiemannSolution.solve(GasState(1.0, 0.0, 1.0, 1.4), GasState(0.125, 0.0, 0.1, 1.4), 0.5)
+    stiff = RiemannSolution.solve(GasState(1.0, 0.0, 1.0 - p_inf, 1.4, p_inf),
+                                  GasState(0.125, 0.0, 0.1 - p_inf, 1.4, p_inf), 0.5)
+    x = np.linspace(0.0, 1.0, 201)
+    a, b = ideal.sample(x, 0.2), stiff.sample(x, 0.2)
+    np.testing.assert_allclose(b["density"], a["density"], rtol=1e-10)
+    np.testing.assert_allclose(b["velocity"], a["velocity"], rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(b["pressure"] + p_inf, a["pressure"], rtol=1e-10)
+
+
+def test_sampled_shock_satisfies_rankine_hugoniot():
+    """Water–air: mass and momentum fluxes balance across the shock running into air."""
+    sol = RiemannSolution.solve(GasState(1000.0, 0.0, 1e9, 4.4, 6e8), GasState(50.0, 0.0, 1e5, 1.4), 0.7)
+    shock = sol.wave_speeds()[1]
+    t = 1e-4
+    ahead, behind = sol.sample(0.7 + (shock + 1.0) * t, t), sol.sample(0.7 + (shock - 1.0) * t, t)
+    mass = lambda s: s["density"] * (s["velocity"] - shock)  # noqa: E731
+    momentum = lambda s: mass(s) * s["velocity"] + s["pressure"]  # noqa: E731
+    assert mass(behind) == pytest.approx(mass(ahead), rel=1e-9)
+    assert momentum(behind) == pytest.approx(momentum(ahead), rel=1e-9)
+
+
+def test_vacuum_is_reported():
+    with pytest.raises(VacuumError):
+        star_state(GasState(1.0, -20.0, 0.4, 1.4), GasState(1.0, 20.0, 0.4, 1.4))
+
+
+def test_symmetric_plate_impact_halves_the_velocity():
+    copper = dict(rho0=8930.0, c0=3940.0, s=1.49)
+    sol = PlateImpactSolution.solve(Plate(**copper, velocity=500.0), Plate(**copper, velocity=0.0))
+    assert sol.contact_velocity == pytest.approx(250.0, rel=1e-12)
+    assert sol.contact_pressure == pytest.approx(8930.0 * (3940.0 + 1.49 * 250.0) * 250.0, rel=1e-12)
+
+
+def test_impedance_matching_balances_both_hugoniots():
+    al, cu = Plate(2785.0, 5328.0, 1.338, 2000.0), Plate(8930.0, 3940.0, 1.49, 0.0)
+    sol = PlateImpactSolution.solve(al, cu)
+    w_al, w_cu = al.velocity - sol.contact_velocity, sol.contact_velocity - cu.velocity
+    p_al = al.rho0 * (al.c0 + al.s * w_al) * w_al
+    p_cu = cu.rho0 * (cu.c0 + cu.s * w_cu) * w_cu
+    assert p_al == pytest.approx(p_cu, rel=1e-12)
+    assert 0.0 < sol.contact_velocity < 2000.0

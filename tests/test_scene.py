@@ -1,0 +1,126 @@
+"""Scene validation: every bad input is one line naming key, value and what is allowed;
+the CLI exits with code 2 and writes nothing."""
+
+import copy
+import subprocess
+import sys
+import tomllib
+
+import pytest
+import tomli_w
+
+from ale_xfem.scene import SceneError, load_scene, resolve_scene_path, shipped_scenes, validate
+
+BASE = tomllib.loads(resolve_scene_path("sod-two-gamma").read_text())
+
+
+def modified(change):
+    data = copy.deepcopy(BASE)
+    change(data)
+    return data
+
+
+def set_path(data, path, value):
+    *parents, last = path
+    for key in parents:
+        data = data[key]
+    data[last] = value
+
+
+BAD = {
+    "unknown key": (lambda d: set_path(d, ["mesh", "celss"], 10), "mesh.celss", "unknown key"),
+    "unknown top-level key": (lambda d: d.update(t_final=1.0), "t_final", "unknown key"),
+    "wrong type": (lambda d: set_path(d, ["mesh", "cells"], "many"), "mesh.cells", "integer"),
+    "wrong type, list": (lambda d: set_path(d, ["mesh", "extent"], 1.0), "mesh.extent", "list of 2"),
+    "missing key": (lambda d: d["regions"][0].pop("density"), "regions[0].density", "required"),
+    "missing table": (lambda d: d.pop("materials"), "materials", "required"),
+    "non-positive density": (lambda d: set_path(d, ["regions", 1, "density"], 0.0),
+                             "regions[1].density", "> 0"),
+    "non-positive pressure of an ideal gas": (lambda d: set_path(d, ["regions", 0, "pressure"], -1.0),
+                                              "regions[0].pressure", "pressure > 0"),
+    "gamma out of range": (lambda d: set_path(d, ["materials", "left", "gamma"], 1.0),
+                           "materials.left.gamma", "> 1"),
+    "unknown eos": (lambda d: set_path(d, ["materials", "left", "eos"], "perfect"),
+                    "materials.left.eos", "one of ideal_gas"),
+    "eos parameter of another model": (lambda d: set_path(d, ["materials", "left", "p_inf"], 1.0),
+                                       "materials.left.p_inf", "unknown key"),
+    "domain not covered": (lambda d: set_path(d, ["regions", 1, "interval"], [0.6, 1.0]),
+                           "regions", "cover the whole domain"),
+    "region covering nothing": (lambda d: d["regions"].append(dict(d["regions"][0], interval=[2.0, 3.0])),
+                                "regions[2].interval", "meets the domain"),
+    "unknown material": (lambda d: set_path(d, ["regions", 1, "material"], "steel"),
+                         "regions[1].material", "one of the materials"),
+    "material boundary inside a cell": (lambda d: [set_path(d, ["regions", 0, "interval"], [0.0, 0.5037]),
+                                                   set_path(d, ["regions", 1, "interval"], [0.5037, 1.0])],
+                                        "regions[1].interval", "inside cell 201"),
+    "bad boundary": (lambda d: set_path(d, ["boundaries", "left"], "sticky"), "boundaries.left", "'wall'"),
+    "bad cfl": (lambda d: d.setdefault("numerics", {}).update(cfl=1.5), "numerics.cfl", "(0, 1]"),
+    "motion not available yet": (lambda d: set_path(d, ["mesh", "motion"], "eulerian"),
+                                 "mesh.motion", "not available in this version"),
+}
+
+
+@pytest.mark.parametrize("case", BAD)
+def test_bad_scene_is_one_line_naming_key_value_and_allowed(case):
+    change, key, allowed = BAD[case]
+    with pytest.raises(SceneError) as error:
+        validate(modified(change))
+    message = str(error.value)
+    assert message.startswith(f"{key} = "), message
+    assert allowed in message
+    assert "\n" not in message
+
+
+def test_later_regions_overwrite_earlier_ones():
+    """A region entirely overwritten by later ones is not an error; the owner of each
+    piece is the last region that covers it."""
+    data = modified(lambda d: d["regions"].insert(0, dict(d["regions"][0], interval=[0.0, 1.0], density=7.0)))
+    pieces = validate(data).pieces()
+    assert [(lo, hi, r.material) for lo, hi, r in pieces] == [(0.0, 0.5, "left"), (0.5, 1.0, "right")]
+
+
+def test_same_material_boundary_may_cut_a_cell_and_is_averaged(tmp_path):
+    from ale_xfem.problem import build_problem
+
+    data = modified(lambda d: [set_path(d, ["regions", 1, "material"], "left"),
+                               set_path(d, ["regions", 0, "interval"], [0.0, 0.5037]),
+                               set_path(d, ["regions", 1, "interval"], [0.5037, 1.0])])
+    problem = build_problem(validate(data))
+    exact_mass = 1.0 * 0.5037 + 0.125 * (1.0 - 0.5037)
+    assert problem.state.material_mass.sum() == pytest.approx(exact_mass, rel=1e-13)
+
+
+def test_overrides_reach_any_key():
+    scene = load_scene(resolve_scene_path("sod"), ["mesh.cells=123", "regions.1.density=0.25",
+                                                   "boundaries.right={velocity=[-1.0]}",
+                                                   "numerics.cfl=0.3"])
+    assert scene.mesh.cells == 123
+    assert scene.regions[1].density == 0.25
+    assert scene.boundaries["right"].kind == "velocity" and scene.boundaries["right"].velocity == (-1.0,)
+    assert scene.numerics.cfl == 0.3
+    with pytest.raises(SceneError, match=r"^regions.7 = '7': a list position 0..1"):
+        load_scene(resolve_scene_path("sod"), ["regions.7.density=1"])
+
+
+def test_every_shipped_scene_is_valid_and_described():
+    paths = shipped_scenes()
+    assert len(paths) >= 5
+    for path in paths:
+        scene = load_scene(path)
+        assert scene.description and scene.name == path.stem
+
+
+def test_cli_rejects_bad_scene_with_exit_code_2_and_runs_nothing(tmp_path):
+    scene_file = tmp_path / "bad.toml"
+    scene_file.write_text(tomli_w.dumps(modified(lambda d: set_path(d, ["regions", 1, "material"], "steel"))))
+    out = tmp_path / "out"
+    done = subprocess.run([sys.executable, "-m", "ale_xfem.cli", "run", str(scene_file), "--out", str(out)],
+                          capture_output=True, text=True)
+    assert done.returncode == 2
+    lines = done.stderr.strip().splitlines()
+    assert lines == ["error: regions[1].material = 'steel': one of the materials defined: left, right"]
+    assert not out.exists()
+    done = subprocess.run([sys.executable, "-m", "ale_xfem.cli", "run", "sod", "--set", "mesh.cells=0",
+                           "--out", str(out)], capture_output=True, text=True)
+    assert done.returncode == 2 and done.stderr.strip() == "error: mesh.cells = 0: an integer >= 1"
+    assert not out.exists()
