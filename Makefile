@@ -4,11 +4,11 @@ VENV  := .venv
 PY    := $(VENV)/bin/python
 STAMP := $(VENV)/.installed
 
-# A Python >= 3.12: an explicit PYTHON=..., then python3.13/python3.12/python3 on PATH,
+# A Python >= 3.12 (3.12 preferred): an explicit PYTHON=..., then python3.12/python3.13/python3 on PATH,
 # then pyenv's installed versions (the bare pyenv shims fail unless pyenv selects them).
 find_python = $(shell \
-  for c in $(PYTHON) python3.13 python3.12 python3 \
-           $$(ls -d $${PYENV_ROOT:-$$HOME/.pyenv}/versions/3.1[2-9]*/bin/python3 2>/dev/null | sort -rV); do \
+  for c in $(PYTHON) python3.12 python3.13 python3 \
+           $$(ls -d $${PYENV_ROOT:-$$HOME/.pyenv}/versions/3.1[2-9]*/bin/python3 2>/dev/null | sort -V); do \
     if command -v $$c >/dev/null 2>&1 && $$c -c 'import sys; sys.exit(sys.version_info < (3, 12))' 2>/dev/null; then \
       command -v $$c; break; fi; done)
 

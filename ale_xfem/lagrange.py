@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ale_xfem.mesh import MeshArrays, corner_dot
+from ale_xfem.mesh import MeshArrays, constant_gradient, corner_dot
 from ale_xfem.state import MaterialLayout, State, thermodynamics
 
 
@@ -112,9 +112,9 @@ class ExplicitWilkins:
         else:
             viscosity = np.zeros_like(volume)
             stress = pressure[0]
-        nodal_force = np.stack([
-            corners.scatter_scaled([g_corner[d] for g_corner in gradient], stress)
-            for d in range(cell_type.dimension)])
+        nodal_force = np.empty((cell_type.dimension, corners.n_nodes))
+        for d in range(cell_type.dimension):
+            corners.scatter_scaled([g_corner[d] for g_corner in gradient], stress, out=nodal_force[d])
         return ForceEvaluation(volume, gradient, density, pressure, sound_speed, viscosity,
                                velocity_jump, stress, nodal_force)
 
@@ -133,7 +133,9 @@ class ExplicitWilkins:
             q_speed = np.minimum(evaluation.velocity_jump, 0.0)
             q_speed *= -2.0 * self.numerics.q_quadratic
             q_speed += self.numerics.q_linear * c
-            signal = np.hypot(q_speed, c)
+            signal = q_speed * q_speed
+            signal += c * c
+            np.sqrt(signal, out=signal)
             signal += q_speed
         else:
             signal = c
@@ -146,19 +148,34 @@ class ExplicitWilkins:
 
     # -- the step -----------------------------------------------------------------------
 
-    def _advance_velocity(self, velocity, force, dt):
-        new_velocity = force * self.inverse_node_mass
-        new_velocity *= dt
+    def _advance_velocity(self, velocity, force, dt_over_node_mass):
+        new_velocity = force * dt_over_node_mass
         new_velocity += velocity
         for boundary in self.constraints:
             boundary.apply(new_velocity)
         return new_velocity
 
-    def _corner_work_rate(self, evaluation: ForceEvaluation, mean_velocity):
-        """Σ_i F_Ki·ū_i per cell for corner forces F_Ki = P_K ∂V_K/∂x_i."""
-        rate = corner_dot(evaluation.volume_gradient, self.corners.gather(mean_velocity))
-        rate *= evaluation.stress
-        return rate
+    def _corner_work(self, evaluations, velocity_sum, scale):
+        """scale · Σ_i F_Ki·(u^n + u)_i per cell, with F_Ki the sum over ``evaluations`` of
+        their corner forces P_K ∂V_K/∂x_i.  When ∂V/∂x_i is constant (intervals) the
+        stresses are summed first and the corner velocities are gathered once."""
+        gather = self.corners.gather(velocity_sum)
+        gradients = [e.volume_gradient for e in evaluations]
+        if len(evaluations) > 1 and all(constant_gradient(g) for g in gradients) \
+                and all(g == gradients[0] for g in gradients):
+            stress = evaluations[0].stress + evaluations[1].stress
+            for extra in evaluations[2:]:
+                stress += extra.stress
+            work = corner_dot(gradients[0], gather)
+            work *= stress
+        else:
+            work = None
+            for evaluation in evaluations:
+                term = corner_dot(evaluation.volume_gradient, gather)
+                term *= evaluation.stress
+                work = term if work is None else np.add(work, term, out=work)
+        work *= scale
+        return work
 
     def step(self, state: State, dt: float, start: ForceEvaluation | None = None):
         """Advance by dt.  Returns (new state, evaluation of the new state, boundary work,
@@ -167,28 +184,30 @@ class ExplicitWilkins:
         first = start if start is not None else self.evaluate_state(state)
         mass, energy = state.material_mass, state.material_energy
         u0, x0 = state.node_velocity, state.node_position
-        dt_over_mass = dt / mass
+        dt_over_node_mass = dt * self.inverse_node_mass
+        # The velocity sums u^n + u are carried instead of means: the ½ of ū is folded into
+        # the scalars below.
+        half_dt_over_mass = (0.5 * dt) / mass[0]
 
         # Predictor.
-        u_pred = self._advance_velocity(u0, first.nodal_force, dt)
-        u_mean = u0 + u_pred
-        u_mean *= 0.5
-        x_pred = x0 + dt * u_mean
-        e_pred = energy - dt_over_mass * self._corner_work_rate(first, u_mean)
+        u_pred = self._advance_velocity(u0, first.nodal_force, dt_over_node_mass)
+        velocity_sum = u0 + u_pred
+        x_pred = velocity_sum * (0.5 * dt)
+        x_pred += x0
+        e_pred = energy - self._corner_work([first], velocity_sum, half_dt_over_mass)
         predicted = self.evaluate(x_pred, u_pred, mass, e_pred)
-        self._check(predicted, x_pred, e_pred, "predicted ")
+        if not predicted.volume.min() > 0.0:
+            self._check(predicted, x_pred, e_pred, "predicted ")
 
-        # Corrector with the time-centred forces.
+        # Corrector with the time-centred forces F̄ = (F^n + F*)/2.
         mean_force = first.nodal_force + predicted.nodal_force
         mean_force *= 0.5
-        u_new = self._advance_velocity(u0, mean_force, dt)
-        u_mean = u0 + u_new
-        u_mean *= 0.5
-        x_new = x0 + dt * u_mean
-        work = self._corner_work_rate(first, u_mean)
-        work += self._corner_work_rate(predicted, u_mean)
-        work *= 0.5
-        e_new = energy - dt_over_mass * work
+        u_new = self._advance_velocity(u0, mean_force, dt_over_node_mass)
+        velocity_sum = u0 + u_new
+        x_new = velocity_sum * (0.5 * dt)
+        x_new += x0
+        half_dt_over_mass *= 0.5  # F̄ = ½ (F^n + F*)
+        e_new = energy - self._corner_work([first, predicted], velocity_sum, half_dt_over_mass)
 
         # Work and impulse of the boundary reactions R = M du/dt − F̄ on held nodes.
         boundary_work, boundary_impulse = 0.0, np.zeros(u0.shape[0])
@@ -196,11 +215,13 @@ class ExplicitWilkins:
             held = self.constrained_nodes
             reaction = (self.node_mass[held] * (u_new[:, held] - u0[:, held]) / dt
                         - mean_force[:, held])
-            boundary_work = float(dt * np.sum(reaction * u_mean[:, held]))
+            boundary_work = float(0.5 * dt * np.sum(reaction * velocity_sum[:, held]))
             boundary_impulse = dt * reaction.sum(axis=1)
 
         final = self.evaluate(x_new, u_new, mass, e_new)
-        self._check(final, x_new, e_new, "")
+        if not self._healthy(final, e_new):
+            self._check(predicted, x_pred, e_pred, "predicted ")  # report the first cause
+            self._check(final, x_new, e_new, "")
         new_state = state.evolved(
             time=state.time + dt, node_position=x_new, node_velocity=u_new,
             material_energy=e_new, material_volume=final.volume[None, :],
@@ -208,19 +229,27 @@ class ExplicitWilkins:
             material_sound_speed=final.sound_speed)
         return new_state, final, boundary_work, boundary_impulse
 
+    @staticmethod
+    def _healthy(evaluation: ForceEvaluation, energy) -> bool:
+        """Cheap whole-array test: positive volumes, finite energies, sound speeds, stresses."""
+        return bool(evaluation.volume.min() > 0.0 and np.isfinite(
+            evaluation.sound_speed[0].sum() + energy.sum() + evaluation.stress.sum()))
+
     def _check(self, evaluation: ForceEvaluation, position, energy, prefix: str) -> None:
-        """Cheap whole-array tests first; locate the offending cell only on failure."""
-        volume, density = evaluation.volume, evaluation.density[0]
-        sound = evaluation.sound_speed[0]
-        if volume.min() > 0.0 and np.isfinite(sound.sum() + energy.sum() + evaluation.stress.sum()):
+        """Raise :class:`Breakdown` naming the first offending cell and quantity, causes
+        before consequences (a NaN sound speed makes NaN positions one stage later)."""
+        if self._healthy(evaluation, energy):
             return
         centroids = self.mesh.cell_centroids(position)
+        volume, density = evaluation.volume, evaluation.density[0]
         checks = (
-            ("volume", volume, "> 0", lambda v: v > 0.0),
-            ("density", density, "> 0 and finite", lambda v: (v > 0.0) & np.isfinite(v)),
+            ("volume", volume, "> 0", lambda v: ~(v <= 0.0)),
+            ("density", density, "> 0", lambda v: ~(v <= 0.0)),
             ("specific internal energy", energy[0], "finite", np.isfinite),
+            ("sound speed", evaluation.sound_speed[0],
+             "real (the EOS was evaluated outside its domain)", np.isfinite),
             ("pressure", evaluation.pressure[0], "finite", np.isfinite),
-            ("sound speed", sound, "real (the EOS was evaluated outside its domain)", np.isfinite),
+            ("volume", volume, "finite", np.isfinite),
             ("stress p + q", evaluation.stress, "finite", np.isfinite),
         )
         for name, values, allowed, good in checks:

@@ -56,11 +56,23 @@ class Corners:
                 out += np.bincount(index, weights=values, minlength=self.n_nodes)
         return out
 
-    def scatter_scaled(self, coefficients, common) -> np.ndarray:
-        """Σ over corners of coefficients[i] * common onto nodes; a coefficient may be a
-        scalar (±1 for intervals, where it costs no multiplication) or an array."""
-        out = np.zeros(self.n_nodes)
-        for index, coefficient in zip(self.index, coefficients):
+    def scatter_scaled(self, coefficients, common, out=None) -> np.ndarray:
+        """Σ over corners of coefficients[i] * common onto nodes (into ``out`` if given,
+        overwritten); a coefficient may be a scalar (±1 for intervals, where it costs no
+        multiplication) or an array."""
+        if out is None:
+            out = np.empty(self.n_nodes)
+        first = self.index[0]
+        if isinstance(first, slice):
+            # The first corner is written, not added: only the nodes it misses start at 0.
+            out[: first.start] = 0.0
+            out[first.stop:] = 0.0
+            _scaled(coefficients[0], common, out[first])
+            rest = zip(self.index[1:], coefficients[1:])
+        else:
+            out.fill(0.0)
+            rest = zip(self.index, coefficients)
+        for index, coefficient in rest:
             if isinstance(coefficient, float) and coefficient in (1.0, -1.0) and isinstance(index, slice):
                 segment = out[index]
                 (np.add if coefficient > 0 else np.subtract)(segment, common, out=segment)
@@ -74,9 +86,25 @@ class Corners:
         return out
 
 
+def _scaled(coefficient, values, out):
+    if isinstance(coefficient, float) and coefficient == 1.0:
+        np.copyto(out, values)
+    elif isinstance(coefficient, float) and coefficient == -1.0:
+        np.negative(values, out=out)
+    else:
+        np.multiply(coefficient, values, out=out)
+
+
+def constant_gradient(gradient) -> bool:
+    """True when ∂V/∂x_i does not depend on the positions (intervals)."""
+    return all(isinstance(g, float) for corner in gradient for g in corner)
+
+
 def corner_dot(gradient, corner_values):
     """Σ_i ∂V/∂x_i · v_i per cell, for [corner][component] lists (gradient entries may be
     scalars ±1)."""
+    if len(gradient) == 2 and gradient[0] == [-1.0] and gradient[1] == [1.0]:
+        return corner_values[1][0] - corner_values[0][0]  # interval: v_right − v_left
     total = None
     for g_corner, v_corner in zip(gradient, corner_values):
         for g, v in zip(g_corner, v_corner):
