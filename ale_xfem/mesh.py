@@ -41,21 +41,6 @@ class Corners:
         """node_values (dim, n_nodes) → [corner][component] arrays (n_cells,)."""
         return [[component[i] for component in node_values] for i in self.index]
 
-    def gather_scalar(self, node_values) -> list:
-        return [node_values[i] for i in self.index]
-
-    def scatter(self, corner_values) -> np.ndarray:
-        """Sum corner values [corner] of (n_cells,) arrays (or a scalar times a common
-        (n_cells,) array, see :meth:`scatter_scaled`) onto nodes → (n_nodes,)."""
-        out = np.zeros(self.n_nodes)
-        for index, values in zip(self.index, corner_values):
-            if isinstance(index, slice):
-                segment = out[index]
-                np.add(segment, values, out=segment)
-            else:
-                out += np.bincount(index, weights=values, minlength=self.n_nodes)
-        return out
-
     def scatter_scaled(self, coefficients, common, out=None) -> np.ndarray:
         """Σ over corners of coefficients[i] * common onto nodes (into ``out`` if given,
         overwritten); a coefficient may be a scalar (±1 for intervals, where it costs no
@@ -214,7 +199,7 @@ class MeshArrays:
     def scatter_cell_shares(self, cell_values) -> np.ndarray:
         """Give each node an equal corner share of its cells' values (lumping)."""
         share = cell_values / self.cell_type.nodes_per_cell
-        return self.corners.scatter([share] * self.cell_type.nodes_per_cell)
+        return self.corners.scatter_scaled([1.0] * self.cell_type.nodes_per_cell, share)
 
 
 def from_dolfinx(mesh) -> MeshArrays:

@@ -58,11 +58,6 @@ class MeshSpec:
     cells: int
     motion: str
 
-    def node_positions(self):
-        """Initial node abscissae of the uniform 1D mesh (used to check region bounds)."""
-        a, b = self.extent
-        return [a + (b - a) * i / self.cells for i in range(self.cells + 1)]
-
 
 @dataclass(frozen=True)
 class MaterialSpec:
