@@ -23,24 +23,42 @@ def write_resolved_scene(problem: Problem, folder: Path) -> Path:
 
 
 def profile_rows(problem: Problem, state) -> dict[str, np.ndarray]:
-    """Per cell per material present, sorted by position (1D).  The velocity of a row is
-    the mean of its cell's nodal velocities (the cell average of the P1 field)."""
+    """Per cell per material present, sorted by position (1D).  A row's velocity is the
+    mean of its part's end velocities (nodes, and Γ in a mixed cell)."""
     mesh = problem.mesh
     x = state.node_position[0][mesh.cell_nodes]
     u = state.node_velocity[0][mesh.cell_nodes]
-    order = np.argsort(x.mean(axis=1), kind="stable")
+    swap = x[:, 0] > x[:, 1]
+    x[swap], u[swap] = x[swap, ::-1], u[swap, ::-1]
     names = np.array([m.name for m in problem.materials])
-    slot = 0
-    return {
-        "x_left": x.min(axis=1)[order],
-        "x_right": x.max(axis=1)[order],
-        "material": names[problem.layout.cell_material[slot]][order],
-        "volume_fraction": (state.material_volume[slot] / (x.max(axis=1) - x.min(axis=1)))[order],
-        "density": state.material_density[slot][order],
-        "velocity": u.mean(axis=1)[order],
-        "pressure": state.material_pressure[slot][order],
-        "internal_energy": state.material_energy[slot][order],
+    rows = {
+        "x_left": x[:, 0], "x_right": x[:, 1],
+        "material": names[problem.layout.cell_material[0]],
+        "volume_fraction": state.material_volume[0] / (x[:, 1] - x[:, 0]),
+        "density": state.material_density[0],
+        "velocity": u.mean(axis=1),
+        "pressure": state.material_pressure[0],
+        "internal_energy": state.material_energy[0],
     }
+    if problem.mixed is not None:
+        cells = problem.mixed.cells
+        xg = x[cells, 0] + state.material_volume[0, cells]
+        ug = state.interface_velocity
+        rows = {k: v.copy() for k, v in rows.items()}
+        rows["x_right"][cells] = xg
+        rows["velocity"][cells] = 0.5 * (u[cells, 0] + ug)
+        extra = {
+            "x_left": xg, "x_right": x[cells, 1],
+            "material": names[problem.layout.cell_material[1, cells]],
+            "volume_fraction": state.material_volume[1, cells] / (x[cells, 1] - x[cells, 0]),
+            "density": state.material_density[1, cells],
+            "velocity": 0.5 * (ug + u[cells, 1]),
+            "pressure": state.material_pressure[1, cells],
+            "internal_energy": state.material_energy[1, cells],
+        }
+        rows = {k: np.concatenate([rows[k], extra[k]]) for k in rows}
+    order = np.argsort(rows["x_left"], kind="stable")
+    return {k: v[order] for k, v in rows.items()}
 
 
 def write_profile(problem: Problem, state, folder: Path) -> Path:

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ale_xfem.mesh import MeshArrays, constant_gradient, corner_dot
+from ale_xfem.mixed import MixedCellFailure, MixedCells, with_mixed_state
 from ale_xfem.state import MaterialLayout, State, thermodynamics
 
 
@@ -72,62 +73,116 @@ class ForceEvaluation:
     velocity_jump: np.ndarray  # Δu = L ∇·u (negative in compression)
     stress: np.ndarray  # P = p + q, the pressure of the corner forces F_Ki = P ∂V/∂x_i
     nodal_force: np.ndarray  # (dim, n_nodes)
+    cell_sound_speed: np.ndarray  # c of the cell (mixed cells: the larger of the two)
+    mixed_viscosity: np.ndarray | None = None  # q of the mixed cells (n_mixed,)
+
+
+@dataclass
+class MixedView:
+    """What the force evaluation needs of the mixed cells (n_mixed,): the materials'
+    volumes, β's mass and energy (α's sit in slot 0), and the interface pressure."""
+
+    volume_left: np.ndarray
+    volume_right: np.ndarray
+    mass_right: np.ndarray
+    energy_right: np.ndarray
+    interface_pressure: np.ndarray
+
+    @classmethod
+    def of(cls, state: State, cells) -> "MixedView":
+        return cls(state.material_volume[0, cells], state.material_volume[1, cells],
+                   state.material_mass[1, cells], state.material_energy[1, cells],
+                   state.interface_pressure)
 
 
 class ExplicitWilkins:
     """One explicit Lagrangian step of pure cells (see module docstring)."""
 
     def __init__(self, mesh: MeshArrays, materials, layout: MaterialLayout, node_mass,
-                 boundaries: list[Boundary], numerics, artificial_viscosity: bool = True):
-        if layout.slots != 1:
-            raise ValueError("the explicit Wilkins step handles pure cells (one material slot)")
+                 boundaries: list[Boundary], numerics, artificial_viscosity: bool = True,
+                 mixed: MixedCells | None = None):
+        if layout.slots != 1 and mixed is None:
+            raise ValueError("two material slots need the mixed-cell solver")
         self.mesh, self.materials, self.layout = mesh, materials, layout
+        # The explicit loop evaluates slot 0 of every cell (a mixed cell's α); the mixed
+        # cells' stresses are then replaced by their interface pressure.
+        self.pure_layout = layout if layout.slots == 1 else MaterialLayout(
+            layout.cell_material[:1], len(materials))
+        self.mixed = mixed
         self.corners = mesh.corners
         self.node_mass = node_mass
         self.inverse_node_mass = 1.0 / node_mass
         self.constraints = [b for b in boundaries if b.kind != "free"]
         self.constrained_nodes = (np.concatenate([b.nodes for b in self.constraints])
                                   if self.constraints else np.zeros(0, dtype=np.int64))
+        self.free_nodes = np.ones(mesh.n_nodes)
+        self.free_nodes[self.constrained_nodes] = 0.0
         self.numerics = numerics
         self.artificial_viscosity = artificial_viscosity
 
     # -- forces -------------------------------------------------------------------------
 
-    def evaluate(self, node_position, node_velocity, material_mass, material_energy) -> ForceEvaluation:
+    def evaluate(self, node_position, node_velocity, material_mass, material_energy,
+                 mixed_view: MixedView | None = None) -> ForceEvaluation:
         cell_type, corners = self.mesh.cell_type, self.corners
         volume, gradient = cell_type.volume_and_gradient(corners.gather(node_position))
-        density = material_mass / volume
-        pressure, sound_speed = thermodynamics(self.materials, self.layout, density, material_energy)
+        mass0, energy0 = material_mass[:1], material_energy[:1]
+        if mixed_view is None:
+            density = mass0 / volume
+        else:
+            cells = self.mixed.cells
+            material_volume = volume.copy()
+            material_volume[cells] = mixed_view.volume_left
+            density = mass0 / material_volume
+        pressure, sound_speed = thermodynamics(self.materials, self.pure_layout, density, energy0)
         volume_rate = corner_dot(gradient, corners.gather(node_velocity))  # dV/dt = Σ ∂V/∂x_i·u_i
         velocity_jump = cell_type.velocity_jump(volume_rate, volume)
+        cell_density, cell_sound_speed = density[0], sound_speed[0]
+        if mixed_view is not None:
+            # The viscosity of a mixed cell acts on the whole cell (both materials alike, so
+            # it does not upset their pressure balance): its density is the cell's, its
+            # sound speed the larger of the two materials'.
+            rho_right = mixed_view.mass_right / mixed_view.volume_right
+            c2_right = self.mixed.right_groups.eos_values(self.materials, rho_right,
+                                                          mixed_view.energy_right)[3]
+            cell_density = cell_density.copy()
+            cell_density[cells] = (mass0[0, cells] + mixed_view.mass_right) / volume[cells]
+            cell_sound_speed = cell_sound_speed.copy()
+            cell_sound_speed[cells] = np.maximum(cell_sound_speed[cells],
+                                                 np.sqrt(np.maximum(c2_right, 0.0)))
         if self.artificial_viscosity:
             # Quadratic (von Neumann–Richtmyer) + linear (Landshoff) viscosity in compression:
             # q = ρ (c2 Δu² + c1 c |Δu|) for Δu < 0.
             compression = np.minimum(velocity_jump, 0.0)
             viscosity = self.numerics.q_quadratic * compression
-            viscosity -= self.numerics.q_linear * sound_speed[0]
+            viscosity -= self.numerics.q_linear * cell_sound_speed
             viscosity *= compression
-            viscosity *= density[0]
+            viscosity *= cell_density
             stress = pressure[0] + viscosity
         else:
             viscosity = np.zeros_like(volume)
-            stress = pressure[0]
+            stress = pressure[0].copy() if mixed_view is not None else pressure[0]
+        mixed_viscosity = None
+        if mixed_view is not None:
+            mixed_viscosity = viscosity[cells]
+            stress[cells] = mixed_view.interface_pressure + mixed_viscosity
         nodal_force = np.empty((cell_type.dimension, corners.n_nodes))
         for d in range(cell_type.dimension):
             corners.scatter_scaled([g_corner[d] for g_corner in gradient], stress, out=nodal_force[d])
         return ForceEvaluation(volume, gradient, density, pressure, sound_speed, viscosity,
-                               velocity_jump, stress, nodal_force)
+                               velocity_jump, stress, nodal_force, cell_sound_speed, mixed_viscosity)
 
     def evaluate_state(self, state: State) -> ForceEvaluation:
+        view = None if self.mixed is None else MixedView.of(state, self.mixed.cells)
         return self.evaluate(state.node_position, state.node_velocity, state.material_mass,
-                             state.material_energy)
+                             state.material_energy, view)
 
     # -- time step ----------------------------------------------------------------------
 
     def stable_time_step(self, evaluation: ForceEvaluation) -> float:
         """CFL limit with the viscous signal speed: dt_K = L / max(Q + √(Q² + c²), |Δu|),
         Q = c1 c + 2 c2 |Δu| in compression (the form of Benson, CMAME 99, 1992)."""
-        c = evaluation.sound_speed[0]
+        c = evaluation.cell_sound_speed
         length = self.mesh.cell_type.length_scale(evaluation.volume)
         if self.artificial_viscosity:
             q_speed = np.minimum(evaluation.velocity_jump, 0.0)
@@ -181,6 +236,10 @@ class ExplicitWilkins:
         """Advance by dt.  Returns (new state, evaluation of the new state, boundary work,
         boundary impulse).  Raises :class:`Breakdown` on an unphysical predicted or final
         state; ``state`` itself is never modified."""
+        if self.mixed is not None:
+            state, relaxed = self._relax_if_needed(state)
+            if relaxed:
+                start = None
         first = start if start is not None else self.evaluate_state(state)
         mass, energy = state.material_mass, state.material_energy
         u0, x0 = state.node_velocity, state.node_position
@@ -194,20 +253,34 @@ class ExplicitWilkins:
         velocity_sum = u0 + u_pred
         x_pred = velocity_sum * (0.5 * dt)
         x_pred += x0
-        e_pred = energy - self._corner_work([first], velocity_sum, half_dt_over_mass)
-        predicted = self.evaluate(x_pred, u_pred, mass, e_pred)
+        e_pred = energy[:1] - self._corner_work([first], velocity_sum, half_dt_over_mass)
+        view = None
+        if self.mixed is not None:
+            # Mixed cells are not advanced by the predictor; their materials are only
+            # needed for the viscosity q*, taken with both materials strained alike.
+            cells = self.mixed.cells
+            e_pred[0, cells] = energy[0, cells]
+            predicted_volume = self.mesh.cell_volumes(x_pred)[cells]
+            strain = predicted_volume / first.volume[cells]
+            view = MixedView.of(state, cells)
+            view = MixedView(view.volume_left * strain, view.volume_right * strain,
+                             view.mass_right, view.energy_right, view.interface_pressure)
+        predicted = self.evaluate(x_pred, u_pred, mass, e_pred, view)
         if not predicted.volume.min() > 0.0:
             self._check(predicted, x_pred, e_pred, "predicted ")
 
         # Corrector with the time-centred forces F̄ = (F^n + F*)/2.
         mean_force = first.nodal_force + predicted.nodal_force
         mean_force *= 0.5
+        if self.mixed is not None:
+            solution = self._solve_mixed_cells(state, first, predicted, mean_force, dt,
+                                               dt_over_node_mass)
         u_new = self._advance_velocity(u0, mean_force, dt_over_node_mass)
         velocity_sum = u0 + u_new
         x_new = velocity_sum * (0.5 * dt)
         x_new += x0
         half_dt_over_mass *= 0.5  # F̄ = ½ (F^n + F*)
-        e_new = energy - self._corner_work([first, predicted], velocity_sum, half_dt_over_mass)
+        e_new = energy[:1] - self._corner_work([first, predicted], velocity_sum, half_dt_over_mass)
 
         # Work and impulse of the boundary reactions R = M du/dt − F̄ on held nodes.
         boundary_work, boundary_impulse = 0.0, np.zeros(u0.shape[0])
@@ -218,16 +291,94 @@ class ExplicitWilkins:
             boundary_work = float(0.5 * dt * np.sum(reaction * velocity_sum[:, held]))
             boundary_impulse = dt * reaction.sum(axis=1)
 
-        final = self.evaluate(x_new, u_new, mass, e_new)
-        if not self._healthy(final, e_new):
-            self._check(predicted, x_pred, e_pred, "predicted ")  # report the first cause
-            self._check(final, x_new, e_new, "")
-        new_state = state.evolved(
-            time=state.time + dt, node_position=x_new, node_velocity=u_new,
-            material_energy=e_new, material_volume=final.volume[None, :],
-            material_density=final.density, material_pressure=final.pressure,
-            material_sound_speed=final.sound_speed)
+        if self.mixed is None:
+            final = self.evaluate(x_new, u_new, mass, e_new)
+            if not self._healthy(final, e_new):
+                self._check(predicted, x_pred, e_pred, "predicted ")  # report the first cause
+                self._check(final, x_new, e_new, "")
+            new_state = state.evolved(
+                time=state.time + dt, node_position=x_new, node_velocity=u_new,
+                material_energy=e_new, material_volume=final.volume[None, :],
+                material_density=final.density, material_pressure=final.pressure,
+                material_sound_speed=final.sound_speed)
+            return new_state, final, boundary_work, boundary_impulse
+        new_state, final = self._finish_mixed(state, solution, x_new, u_new, e_new, dt)
+        if not self._healthy(final, new_state.material_energy[:1]):
+            self._check(predicted, x_pred, e_pred, "predicted ")
+            self._check(final, x_new, new_state.material_energy[:1], "")
         return new_state, final, boundary_work, boundary_impulse
+
+    # -- mixed cells ----------------------------------------------------------------------
+
+    def _mixed_start(self, state: State):
+        cells = self.mixed.cells
+        return (state.material_mass[0, cells], state.material_mass[1, cells],
+                state.material_volume[0, cells], state.material_volume[1, cells],
+                state.material_energy[0, cells], state.material_energy[1, cells])
+
+    def _relax_if_needed(self, state: State):
+        """Pressure relaxation of the mixed cells at the start of a step (paper §3): only
+        where the materials' pressures differ beyond the solver tolerance."""
+        cells = self.mixed.cells
+        pa, pb = state.material_pressure[0, cells], state.material_pressure[1, cells]
+        bulk = np.minimum(state.material_density[0, cells] * state.material_sound_speed[0, cells] ** 2,
+                          state.material_density[1, cells] * state.material_sound_speed[1, cells] ** 2)
+        scale = np.maximum(np.maximum(np.abs(pa), np.abs(pb)), bulk)
+        if np.all(np.abs(pa - pb) <= 10.0 * self.mixed.tolerance * scale):
+            return state, False
+        volume = state.material_volume[0, cells] + state.material_volume[1, cells]
+        _, va, vb, details = self.mixed.relax(volume, self._mixed_start(state), 0.5 * (pa + pb))
+        return with_mixed_state(state, cells, va, vb, details, state.interface_velocity), True
+
+    def _solve_mixed_cells(self, state, first, predicted, mean_force, dt, dt_over_node_mass):
+        """The implicit interface solve; adds the mixed cells' n+1 stress to mean_force."""
+        mixed = self.mixed
+        a, b = mixed.node_left, mixed.node_right
+        mobility = dt_over_node_mass * self.free_nodes  # held nodes do not move
+        pi_n = state.interface_pressure
+        u0 = state.node_velocity[0]
+        # V(π) = A + Bπ (module docstring of ale_xfem.mixed): the internal nodes move with
+        # the trapezoidal force ½(F^n + F*) − ½(π − π^n) ∂V/∂x_i.
+        centred = (u0[b] - u0[a]) + 0.5 * (mobility[b] * mean_force[0, b] - mobility[a] * mean_force[0, a])
+        slope = 0.25 * dt * (mobility[a] + mobility[b])
+        offset = first.volume[mixed.cells] + dt * centred - slope * pi_n
+        work_offset = 0.5 * (pi_n + first.mixed_viscosity + predicted.mixed_viscosity)
+        start = self._mixed_start(state)
+        try:
+            pi, va, vb, details = mixed.solve(start, pi_n, (offset, slope),
+                                              (work_offset, np.full_like(pi_n, 0.5)))
+        except MixedCellFailure as failure:
+            raise Breakdown("interface solve", -1, float("nan"), [0.0], str(failure)) from None
+        change = 0.5 * (pi - pi_n)
+        mean_force[0, a] -= change
+        mean_force[0, b] += change
+        return va, vb, details
+
+    def _finish_mixed(self, state, solution, x_new, u_new, e_new, dt):
+        va, vb, details = solution
+        cells, a = self.mixed.cells, self.mixed.node_left
+        volume = self.mesh.cell_volumes(x_new)[cells]
+        vb = volume - va  # the geometric cell volume takes the round-off
+        energy = np.zeros_like(state.material_energy)
+        energy[0] = e_new[0]
+        interface_before = state.node_position[0, a] + state.material_volume[0, cells]
+        interface_after = x_new[0, a] + va
+        provisional = state.evolved(time=state.time + dt, node_position=x_new, node_velocity=u_new,
+                                    material_energy=energy)
+        new_state = with_mixed_state(provisional, cells, va, vb, details,
+                                     (interface_after - interface_before) / dt)
+        final = self.evaluate_state(new_state)
+        material_volume = new_state.material_volume.copy()
+        material_volume[0] = final.volume
+        material_volume[0, cells] = va
+        density = new_state.material_density.copy()
+        density[0] = final.density[0]
+        pressure = new_state.material_pressure.copy()
+        pressure[0] = final.pressure[0]
+        sound_speed = new_state.material_sound_speed.copy()
+        sound_speed[0] = final.sound_speed[0]
+        return new_state.evolved(material_volume=material_volume, material_density=density,
+                                 material_pressure=pressure, material_sound_speed=sound_speed), final
 
     @staticmethod
     def _healthy(evaluation: ForceEvaluation, energy) -> bool:

@@ -10,6 +10,7 @@ import numpy as np
 from ale_xfem import exact
 from ale_xfem.lagrange import Boundary
 from ale_xfem.mesh import MeshArrays, interval_mesh
+from ale_xfem.mixed import MixedCells, with_mixed_state
 from ale_xfem.scene import Scene
 from ale_xfem.state import Material, MaterialLayout, State, thermodynamics
 
@@ -35,6 +36,7 @@ class Problem:
     boundaries: list[Boundary]
     exact: ExactReference | None
     effects: list[str] = field(default_factory=list)
+    mixed: MixedCells | None = None  # the enriched mixed cells, when the scene has any
 
 
 def build_problem(scene: Scene) -> Problem:
@@ -42,29 +44,81 @@ def build_problem(scene: Scene) -> Problem:
     names = list(scene.materials)
     materials = [Material(n, scene.materials[n].eos, scene.materials[n].make_eos()) for n in names]
 
-    # Region pieces → per-cell mass, energy and momentum by exact overlap lengths (a loop
-    # over the few region pieces, vectorised over cells).
+    # Region pieces → per-cell, per-material mass, energy, volume and momentum by exact
+    # overlap lengths (a loop over the few region pieces, vectorised over cells).
     x = mesh.cell_vertex_positions()[:, :, 0]
     left, right = x.min(axis=1), x.max(axis=1)
-    n_cells = mesh.n_cells
-    mass = np.zeros(n_cells)
-    energy_total = np.zeros(n_cells)
-    momentum = np.zeros(n_cells)
-    dominant = np.zeros(n_cells)
-    cell_material = np.full((1, n_cells), -1, dtype=np.int64)
+    n_cells, n_materials = mesh.n_cells, len(materials)
+    per_material = {k: np.zeros((n_materials, n_cells)) for k in ("volume", "mass", "energy", "momentum")}
     for lo, hi, region in scene.pieces():
         overlap = np.clip(np.minimum(hi, right) - np.maximum(lo, left), 0.0, None)
         eos = scene.materials[region.material].make_eos()
+        m = names.index(region.material)
         piece_mass = region.density * overlap
-        mass += piece_mass
-        energy_total += piece_mass * float(eos.energy(region.density, region.pressure))
-        momentum += piece_mass * region.velocity[0]
-        larger = overlap > dominant
-        cell_material[0, larger] = names.index(region.material)
-        dominant = np.maximum(dominant, overlap)
-    layout = MaterialLayout(cell_material, len(materials))
-    state, node_mass = state_from_cells(mesh, materials, layout, mass[None, :],
-                                        (energy_total / mass)[None, :], momentum[None, :])
+        per_material["volume"][m] += overlap
+        per_material["mass"][m] += piece_mass
+        per_material["energy"][m] += piece_mass * float(eos.energy(region.density, region.pressure))
+        per_material["momentum"][m] += piece_mass * region.velocity[0]
+    # Slivers below round-off of a node-aligned boundary are not materials of the cell.
+    present = per_material["volume"] > 1e-9 * (right - left)
+    count = present.sum(axis=0)
+    mixed_cells = np.flatnonzero(count == 2)
+    slots = 2 if mixed_cells.size else 1
+
+    # Slot 0 holds the material of a pure cell, and the left material α of a mixed cell;
+    # slot 1 the right material β of a mixed cell.  Slivers are merged into the dominant
+    # material of the cell (mass, energy and momentum conserved).
+    order = np.argsort(-per_material["volume"], axis=0, kind="stable")
+    cell_material = np.full((slots, n_cells), -1, dtype=np.int64)
+    cell_material[0] = order[0]
+    total = {k: v.sum(axis=0) for k, v in per_material.items()}
+    material_mass = np.zeros((slots, n_cells))
+    material_energy = np.zeros((slots, n_cells))
+    material_volume = np.zeros((slots, n_cells))
+    material_mass[0], material_volume[0] = total["mass"], right - left
+    material_energy[0] = total["energy"] / total["mass"]
+    corner_momentum = np.stack([0.5 * total["momentum"], 0.5 * total["momentum"]])  # (corner, cell)
+    corner_mass = np.stack([0.5 * total["mass"], 0.5 * total["mass"]])
+    mixed = None
+    if mixed_cells.size:
+        first, second = order[0, mixed_cells], order[1, mixed_cells]
+        # α is the material on the left of Γ: the one whose pieces start further left.
+        left_is_first = _left_material_first(scene, names, left[mixed_cells], right[mixed_cells], first, second)
+        alpha = np.where(left_is_first, first, second)
+        beta = np.where(left_is_first, second, first)
+        cell_material[0, mixed_cells], cell_material[1, mixed_cells] = alpha, beta
+        for slot, mat in ((0, alpha), (1, beta)):
+            material_mass[slot, mixed_cells] = per_material["mass"][mat, mixed_cells]
+            material_volume[slot, mixed_cells] = per_material["volume"][mat, mixed_cells]
+            material_energy[slot, mixed_cells] = (per_material["energy"][mat, mixed_cells]
+                                                  / per_material["mass"][mat, mixed_cells])
+        # Mass condensation (paper fig. 3): each material's mass and momentum in a mixed
+        # cell go to its internal node; the external nodes are massless.
+        corner_mass[0, mixed_cells] = material_mass[0, mixed_cells]
+        corner_mass[1, mixed_cells] = material_mass[1, mixed_cells]
+        corner_momentum[0, mixed_cells] = per_material["momentum"][alpha, mixed_cells]
+        corner_momentum[1, mixed_cells] = per_material["momentum"][beta, mixed_cells]
+        node_left = np.where(x[mixed_cells, 0] < x[mixed_cells, 1], mesh.cell_nodes[mixed_cells, 0],
+                             mesh.cell_nodes[mixed_cells, 1])
+        node_right = np.where(x[mixed_cells, 0] < x[mixed_cells, 1], mesh.cell_nodes[mixed_cells, 1],
+                              mesh.cell_nodes[mixed_cells, 0])
+        mixed = MixedCells(mixed_cells, node_left, node_right, alpha, beta, materials,
+                           tolerance=scene.numerics.interface_tolerance,
+                           max_iterations=scene.numerics.interface_max_iterations,
+                           nonlinear=scene.interface.solver == "nonlinear")
+    layout = MaterialLayout(cell_material, n_materials)
+    # corner shares are (corner, cell) in the cells' own node order; mixed cells above were
+    # written left/right, so swap where a cell lists its right node first.
+    flipped = x[:, 0] > x[:, 1]
+    corner_mass[:, flipped] = corner_mass[::-1][:, flipped]
+    corner_momentum[:, flipped] = corner_momentum[::-1][:, flipped]
+    node_mass = _scatter_corners(mesh, corner_mass)
+    velocity = (_scatter_corners(mesh, corner_momentum) / node_mass)[None, :]
+    density = np.where(material_volume > 0, material_mass / np.where(material_volume > 0, material_volume, 1.0), 0.0)
+    pressure, sound_speed = thermodynamics(materials, layout, density, material_energy)
+    state = State(0.0, mesh.node_position.copy(), velocity, material_mass, material_energy,
+                  material_volume, density, pressure, sound_speed)
+
     boundaries = side_boundaries(mesh, scene.mesh.extent, scene.boundaries)
     for boundary in boundaries:  # walls and pistons hold from t = 0
         boundary.apply(state.node_velocity)
@@ -73,8 +127,44 @@ def build_problem(scene: Scene) -> Problem:
         effects.append("artificial_viscosity")
     if any(b.kind == "velocity" for b in boundaries):
         effects.append("piston")
+    if mixed is not None:
+        effects += ["mixed_cells_enriched", f"interface_solver_{scene.interface.solver}",
+                    "pressure_relaxation"]
+        state = initial_relaxation(mixed, state)
     return Problem(scene, mesh, materials, layout, node_mass, state, boundaries,
-                   exact_reference(scene), effects)
+                   exact_reference(scene), effects, mixed)
+
+
+def _left_material_first(scene, names, left, right, first, second):
+    """For each mixed cell, whether material ``first`` lies left of ``second`` in it."""
+    pieces = scene.pieces()
+    result = np.zeros(left.size, dtype=bool)
+    for i in range(left.size):  # set-up only: one entry per mixed cell
+        for lo, hi, region in pieces:
+            if hi > left[i] and lo < right[i]:
+                result[i] = names.index(region.material) == first[i]
+                break
+    return result
+
+
+def _scatter_corners(mesh, corner_values):
+    """Sum (corner, cell) values onto nodes."""
+    out = np.zeros(mesh.n_nodes)
+    for corner in range(corner_values.shape[0]):
+        out += np.bincount(mesh.cell_nodes[:, corner], weights=corner_values[corner], minlength=mesh.n_nodes)
+    return out
+
+
+def initial_relaxation(mixed: MixedCells, state: State) -> State:
+    """Equilibrate the pressures of the initial mixed cells (energy conserved)."""
+    cells = mixed.cells
+    state0 = (state.material_mass[0, cells], state.material_mass[1, cells],
+              state.material_volume[0, cells], state.material_volume[1, cells],
+              state.material_energy[0, cells], state.material_energy[1, cells])
+    volume = state.material_volume[0, cells] + state.material_volume[1, cells]
+    guess = 0.5 * (state.material_pressure[0, cells] + state.material_pressure[1, cells])
+    pressure, va, vb, details = mixed.relax(volume, state0, guess)
+    return with_mixed_state(state, mixed.cells, va, vb, details, interface_velocity=np.zeros_like(va))
 
 
 def state_from_cells(mesh: MeshArrays, materials, layout: MaterialLayout, material_mass,

@@ -68,7 +68,8 @@ def make_stepper(problem: Problem) -> ExplicitWilkins:
     keep_freed_memory()
     return ExplicitWilkins(problem.mesh, problem.materials, problem.layout, problem.node_mass,
                            problem.boundaries, problem.scene.numerics,
-                           artificial_viscosity="artificial_viscosity" in problem.effects)
+                           artificial_viscosity="artificial_viscosity" in problem.effects,
+                           mixed=problem.mixed)
 
 
 def simulate(problem: Problem, progress: Progress | None = None, t_end: float | None = None,
@@ -142,18 +143,36 @@ def conservation(start, end, boundary_work, boundary_impulse, node_mass, state) 
 
 def l1_errors(problem: Problem, state: State) -> dict:
     """Σ_K ∫_K |f_h − f_exact| dx for density, velocity, pressure (midpoint rule on
-    SUBSAMPLES_PER_CELL points per cell; f_h constant per cell, velocity linear)."""
-    x = state.node_position[0][problem.mesh.cell_nodes]  # (n_cells, 2)
-    u = state.node_velocity[0][problem.mesh.cell_nodes]
+    SUBSAMPLES_PER_CELL points per cell).  f_h: constant per material part of a cell
+    (a mixed cell holds α left of Γ, β right of it); velocity piecewise linear through the
+    nodes (and Γ in a mixed cell)."""
+    nodes = problem.mesh.cell_nodes
+    x = state.node_position[0][nodes]  # (n_cells, 2)
+    u = state.node_velocity[0][nodes]
+    swap = x[:, 0] > x[:, 1]
+    x[swap], u[swap] = x[swap, ::-1], u[swap, ::-1]
     s = (np.arange(SUBSAMPLES_PER_CELL) + 0.5) / SUBSAMPLES_PER_CELL
     points = x[:, :1] + (x[:, 1:] - x[:, :1]) * s  # (n_cells, m)
-    weights = np.abs(x[:, 1:] - x[:, :1]) / SUBSAMPLES_PER_CELL
+    weights = (x[:, 1:] - x[:, :1]) / SUBSAMPLES_PER_CELL
+    density = np.repeat(state.material_density[0][:, None], s.size, axis=1)
+    pressure = np.repeat(state.material_pressure[0][:, None], s.size, axis=1)
+    velocity = u[:, :1] + (u[:, 1:] - u[:, :1]) * s
+    if problem.mixed is not None:
+        cells = problem.mixed.cells
+        xa, xb = x[cells, :1], x[cells, 1:]
+        xg = xa + state.material_volume[0, cells][:, None]
+        ug = state.interface_velocity[:, None]
+        ua, ub = u[cells, :1], u[cells, 1:]
+        p = points[cells]
+        left = p < xg
+        density[cells] = np.where(left, state.material_density[0, cells][:, None],
+                                  state.material_density[1, cells][:, None])
+        pressure[cells] = np.where(left, state.material_pressure[0, cells][:, None],
+                                   state.material_pressure[1, cells][:, None])
+        velocity[cells] = np.where(left, ua + (ug - ua) * (p - xa) / (xg - xa),
+                                   ug + (ub - ug) * (p - xg) / (xb - xg))
     reference = problem.exact.sample(points, state.time)
-    numerical = {
-        "density": state.material_density[0][:, None],
-        "velocity": u[:, :1] + (u[:, 1:] - u[:, :1]) * s,
-        "pressure": state.material_pressure[0][:, None],
-    }
+    numerical = {"density": density, "velocity": velocity, "pressure": pressure}
     errors = {f"L1_{k}": float(np.sum(np.abs(v - reference[k]) * weights)) for k, v in numerical.items()}
     errors["exact"] = problem.exact.kind
     errors["exact_valid_until"] = problem.exact.valid_until

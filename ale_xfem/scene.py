@@ -28,6 +28,15 @@ NUMERICS_DEFAULTS = {
     "q_quadratic": 1.0,  # von Neumann–Richtmyer coefficient: q ∋ c2 ρ Δu²
     "q_linear": 0.5,  # linear (Landshoff) coefficient: q ∋ c1 ρ c |Δu|
     "max_steps": 10_000_000,
+    "interface_tolerance": 1e-10,  # mixed cells: pressure balance, relative to ρc²
+    "interface_max_iterations": 50,  # predictor/corrector iterations per step
+}
+
+INTERFACE_DEFAULTS = {
+    "model": "enriched",  # enriched (the paper) | single_velocity (baseline closure)
+    "solver": "nonlinear",  # nonlinear (predictor + corrector) | linearised (predictor alone)
+    "stabilisation": "bubble",  # 2D only: bubble | nitsche
+    "slip": "free",  # free | stick | coulomb
 }
 
 
@@ -92,6 +101,16 @@ class Numerics:
     q_quadratic: float
     q_linear: float
     max_steps: int
+    interface_tolerance: float = 1e-10
+    interface_max_iterations: int = 50
+
+
+@dataclass(frozen=True)
+class InterfaceSpec:
+    model: str
+    solver: str
+    stabilisation: str
+    slip: str
 
 
 @dataclass(frozen=True)
@@ -105,6 +124,7 @@ class Scene:
     regions: tuple[RegionSpec, ...]
     boundaries: dict[str, BoundarySpec]
     numerics: Numerics
+    interface: InterfaceSpec | None
     resolved: dict = field(repr=False)  # the validated dictionary, defaults filled in
     source: str = ""
 
@@ -229,10 +249,6 @@ def validate(data: dict, source: str = "") -> Scene:
     if data["dimension"] != 1 or isinstance(data["dimension"], bool):
         raise SceneError("dimension", data["dimension"], "1 (2D scenes arrive with the 2D solver)")
     t_end = _real(data["t_end"], "t_end", lambda v: v > 0, "a real number > 0")
-    if "interface" in data:
-        raise SceneError("interface", data["interface"],
-                         "mixed cells are not available in this version: remove [interface] "
-                         "and put every boundary between materials on a mesh node")
 
     mesh_table = _keys(data["mesh"], "mesh", ("extent", "cells"), ("motion",))
     extent = _reals(mesh_table["extent"], "mesh.extent", 2)
@@ -247,9 +263,10 @@ def validate(data: dict, source: str = "") -> Scene:
     regions = _validate_regions(data["regions"], materials, mesh)
     boundaries = _validate_boundaries(data.setdefault("boundaries", {}))
     numerics = _validate_numerics(data.setdefault("numerics", {}))
+    interface = _validate_interface(data["interface"]) if "interface" in data else None
 
     scene = Scene(name, description, 1, t_end, mesh, materials, regions, boundaries, numerics,
-                  resolved=data, source=source)
+                  interface, resolved=data, source=source)
     _check_coverage(scene)
     return scene
 
@@ -337,6 +354,22 @@ def _validate_numerics(table: Any) -> Numerics:
         q_quadratic=_real(table["q_quadratic"], "numerics.q_quadratic", lambda v: v >= 0, "a real number >= 0"),
         q_linear=_real(table["q_linear"], "numerics.q_linear", lambda v: v >= 0, "a real number >= 0"),
         max_steps=_integer(table["max_steps"], "numerics.max_steps"),
+        interface_tolerance=_real(table["interface_tolerance"], "numerics.interface_tolerance",
+                                  lambda v: 0 < v < 1e-2, "a real number in (0, 0.01)"),
+        interface_max_iterations=_integer(table["interface_max_iterations"],
+                                          "numerics.interface_max_iterations"),
+    )
+
+
+def _validate_interface(table: Any) -> InterfaceSpec:
+    _keys(table, "interface", (), tuple(INTERFACE_DEFAULTS))
+    for key, default in INTERFACE_DEFAULTS.items():
+        table.setdefault(key, default)
+    return InterfaceSpec(
+        model=_choice(table["model"], "interface.model", ("enriched",), ("single_velocity",)),
+        solver=_choice(table["solver"], "interface.solver", ("nonlinear", "linearised")),
+        stabilisation=_choice(table["stabilisation"], "interface.stabilisation", ("bubble", "nitsche")),
+        slip=_choice(table["slip"], "interface.slip", ("free",), ("stick", "coulomb")),
     )
 
 
@@ -371,20 +404,37 @@ def _check_coverage(scene: Scene) -> None:
                              "regions whose intervals cover the whole domain "
                              f"{list(scene.mesh.extent)}")
     # Without [interface] materials never share a cell: each boundary between two
-    # materials must sit on a node of the initial mesh.
+    # materials must sit on a node of the initial mesh.  With it, a cell may hold one
+    # interface (two materials), never two.
     a, b = scene.mesh.extent
     h = (b - a) / scene.mesh.cells
+    cut_cells: dict[int, tuple[float, RegionSpec]] = {}
     for (_, x, left), (_, _, right) in zip(pieces[:-1], pieces[1:]):
         if left.material == right.material:
             continue
         position = (x - a) / h
-        if abs(position - round(position)) > 1e-9 * max(1.0, position):
-            cell = int(math.floor(position))
+        if abs(position - round(position)) <= 1e-9 * max(1.0, position):
+            continue
+        cell = int(math.floor(position))
+        where = f"[{a + cell * h:g}, {a + (cell + 1) * h:g}]"
+        if scene.interface is None:
             raise SceneError(f"regions[{right.index}].interval", list(right.interval),
                              f"the boundary x = {x:g} between '{left.material}' and "
-                             f"'{right.material}' falls inside cell {cell} "
-                             f"[{a + cell * h:g}, {a + (cell + 1) * h:g}]; without [interface] "
-                             "material boundaries must sit on mesh nodes")
+                             f"'{right.material}' falls inside cell {cell} {where}; without "
+                             "[interface] material boundaries must sit on mesh nodes")
+        if cell in cut_cells:
+            raise SceneError(f"regions[{right.index}].interval", list(right.interval),
+                             f"a second interface (x = {cut_cells[cell][0]:g} and x = {x:g}) in "
+                             f"cell {cell} {where}: a mixed cell holds one interface; refine "
+                             "the mesh or move a region boundary")
+        for neighbour in (cell - 1, cell + 1):
+            if neighbour in cut_cells:
+                raise SceneError(f"regions[{right.index}].interval", list(right.interval),
+                                 f"interfaces in neighbouring cells {min(cell, neighbour)} and "
+                                 f"{max(cell, neighbour)} (x = {cut_cells[neighbour][0]:g}, "
+                                 f"x = {x:g}): mixed cells must be separated by a pure cell in "
+                                 "this version; refine the mesh")
+        cut_cells[cell] = (x, right)
 
 
 # ----------------------------------------------------------------------------- shipped scenes

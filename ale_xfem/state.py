@@ -7,6 +7,7 @@ Shapes (n_nodes, n_cells from the mesh; dim = mesh dimension; S = material slots
 - ``material_mass``, ``material_energy`` (specific internal energy): (S, n_cells)
 - ``material_volume``, ``material_density``, ``material_pressure``,
   ``material_sound_speed``: (S, n_cells), derived from the above by :func:`thermodynamics`
+- ``interface_pressure``, ``interface_velocity``: (n_mixed,), mixed cells only
 - ``cell_material``: (S, n_cells) int, index into the run's material list, −1 for an
   empty slot (held by :class:`MaterialLayout`, which changes only when materials move
   between cells).
@@ -65,6 +66,10 @@ class State:
     material_density: np.ndarray
     material_pressure: np.ndarray
     material_sound_speed: np.ndarray
+    # Mixed cells (n_mixed,): the interface pressure p_Γ and the interface's mean velocity
+    # over the last step (displacement of Γ / dt).  None when there are no mixed cells.
+    interface_pressure: np.ndarray | None = None
+    interface_velocity: np.ndarray | None = None
 
     def evolved(self, **changes) -> "State":
         return replace(self, **changes)

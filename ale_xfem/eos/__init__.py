@@ -47,6 +47,8 @@ class StiffenedGas:
     def energy(self, rho, p):
         return (p + self.gamma * self.p_inf) / ((self.gamma - 1.0) * rho)
 
+    max_density = float("inf")  # no compression limit
+
     def admissible(self, rho, p):
         """Return None if (ρ, p) is an allowed state, else what is allowed."""
         if not rho > 0.0:
@@ -103,6 +105,11 @@ class MieGruneisen:
         _, p_h, _, e_h, _ = self._hugoniot(rho)
         return e_h + (p - p_h) / (self.gamma0 * self.rho0)
 
+    @property
+    def max_density(self) -> float:
+        """The reference Hugoniot is singular at η = 1/s, i.e. ρ = ρ0 s/(s − 1)."""
+        return self.rho0 * self.s / (self.s - 1.0)
+
     def admissible(self, rho, p):
         if not rho > 0.0:
             return "density > 0"
@@ -134,6 +141,8 @@ class Linear:
     def energy(self, rho, p):
         # e plays no part in the pressure; it still carries the work of compression.
         return np.zeros_like(np.asarray(rho, dtype=float))
+
+    max_density = float("inf")
 
     def admissible(self, rho, p):
         if not rho > 0.0:

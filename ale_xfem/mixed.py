@@ -1,0 +1,219 @@
+"""Enriched mixed cells in 1D: the interface Γ inside a cell, one velocity field per
+material, an interface pressure, solved implicitly (the paper's §2–3; DESIGN.md §5).
+
+A mixed cell K = [x_a, x_b] holds material α on the left (volume V_α) and β on the right
+(V_β = V − V_α); Γ sits at x_a + V_α.  Node a is internal to α, node b internal to β.
+
+- **Mass condensation** (paper fig. 3): α's mass in K is lumped on a, β's on b; the
+  external nodes (α's velocity at b, β's at a) are massless, so their momentum equations
+  become the static equilibrium of the interface, p_α = p_β = p_Γ (eq. 4, which in 1D holds
+  strongly, as does the continuity of velocity at Γ, eq. 5).  The force of K on its
+  internal nodes is then −P on a and +P on b, P = p_Γ + q: the corner forces of a cell of
+  stress P, which is how the explicit loop sees a mixed cell.
+- **Time discretisation** (§2.2.1): trapezoidal stresses ½(P^n + P^{n+1}) in the momentum
+  of the internal nodes, the equilibrium p_α = p_β imposed fully implicitly at n+1, the
+  artificial viscosity of K taken from the explicit predictor (q*).  Each material's energy
+  changes by −½(P^n + P^{n+1}) ΔV_α with the *same* stress for both materials and for the
+  nodes, so total energy is conserved to round-off.
+- **Solve** (§3): with π = p_Γ^{n+1}, the cell volume at n+1 is affine in π,
+  V(π) = A + Bπ (B > 0: a higher interface pressure pushes a and b apart).
+  *Predictor*: each material's pressure linearised about the current iterate along its
+  trapezoidal adiabat, dp = D_α dV_α, gives a linear system for π and the total deformation
+  V(π) of every mixed cell.  *Corrector*: at that total volume the deformation is
+  redistributed between the materials with the full equations of state and the energy
+  update, until their pressures balance (a bracketed Newton iteration per cell on the
+  admissible interval of V_α).  Repeated, relinearised, until the corrector changes the
+  pressure by less than ``interface_tolerance`` (relative to the bulk modulus ρc²).
+  ``solver = "linearised"`` stops after one predictor (the law dp = ρc² dρ/ρ alone),
+  which the paper reports unstable when a shock crosses Γ.
+- **Pressure relaxation** at the start of a step: the same solve at fixed cell volume
+  (B = 0) with the energy exchange dE_α = −p* dV_α, p* the final common pressure.
+
+Everything is vectorised over all mixed cells at once.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+class MixedCellFailure(RuntimeError):
+    """The mixed-cell solve did not converge or left the admissible states."""
+
+
+@dataclass
+class MaterialGroups:
+    """Per-material index groups of a 1D array of material ids (one entry per mixed cell)."""
+
+    ids: np.ndarray
+
+    def __post_init__(self):
+        self.groups = [(int(m), np.flatnonzero(self.ids == m)) for m in np.unique(self.ids)]
+
+    def eos_values(self, materials, rho, e):
+        """Pressure, ∂p/∂ρ|_e, ∂p/∂e|_ρ, c² for each entry."""
+        out = [np.empty_like(rho) for _ in range(4)]
+        for material, where in self.groups:
+            eos = materials[material].eos
+            r, en = rho[where], e[where]
+            out[0][where] = eos.pressure(r, en)
+            out[1][where] = eos.dp_drho(r, en)
+            out[2][where] = eos.dp_de(r, en)
+            out[3][where] = eos.sound_speed_squared(r, en)
+        return out
+
+    def max_density(self, materials):
+        limit = np.empty(self.ids.size)
+        for material, where in self.groups:
+            limit[where] = materials[material].eos.max_density
+        return limit
+
+
+@dataclass
+class MixedSolveReport:
+    iterations: int = 0
+    corrector_iterations: int = 0
+
+
+@dataclass
+class MixedCells:
+    """The static description of the mixed cells of a 1D mesh and their solver."""
+
+    cells: np.ndarray  # (n_mixed,) cell index
+    node_left: np.ndarray  # (n_mixed,) node a, internal to α (slot 0)
+    node_right: np.ndarray  # (n_mixed,) node b, internal to β (slot 1)
+    material_left: np.ndarray  # (n_mixed,) material id of α
+    material_right: np.ndarray  # (n_mixed,) material id of β
+    materials: list
+    tolerance: float = 1e-10
+    max_iterations: int = 50
+    nonlinear: bool = True
+    stats: dict = field(default_factory=lambda: {"steps": 0, "iterations": 0, "max_iterations": 0,
+                                                 "relaxations": 0})
+
+    def __post_init__(self):
+        self.left_groups = MaterialGroups(self.material_left)
+        self.right_groups = MaterialGroups(self.material_right)
+        self.count = self.cells.size
+
+    # -- thermodynamics along a trapezoidal adiabat ---------------------------------------
+
+    def _adiabat(self, groups, mass, volume, energy0, volume0, work_pressure):
+        """Pressure p and dp/dV of one material at volume V when its energy follows
+        e = e0 − W (V − V0)/m (W: the work pressure of the step)."""
+        energy = energy0 - work_pressure * (volume - volume0) / mass
+        rho = mass / volume
+        p, dp_drho, dp_de, c2 = groups.eos_values(self.materials, rho, energy)
+        dp_dv = -dp_drho * rho / volume - dp_de * work_pressure / mass
+        return p, dp_dv, energy, rho, c2
+
+    def _split(self, total, state0, work_pressure, guess):
+        """Corrector: the volume V_α ∈ (0, total) at which both materials' pressures balance
+        (bracketed Newton, vectorised).  state0 = (m_α, m_β, V_α0, V_β0, e_α0, e_β0)."""
+        m_a, m_b, va0, vb0, ea0, eb0 = state0
+        limit_a = m_a / self.left_groups.max_density(self.materials)
+        limit_b = m_b / self.right_groups.max_density(self.materials)
+        lo = np.maximum(1e-12 * total, limit_a * (1 + 1e-9))
+        hi = np.minimum((1 - 1e-12) * total, total - limit_b * (1 + 1e-9))
+        if np.any(lo >= hi):
+            bad = int(np.flatnonzero(lo >= hi)[0])
+            raise MixedCellFailure(f"mixed cell {int(self.cells[bad])}: volume {total[bad]:.6g} "
+                                   "cannot hold both materials below their compression limits")
+        v = np.clip(guess, lo, hi)
+        for iteration in range(1, 201):
+            pa, da, *_ = self._adiabat(self.left_groups, m_a, v, ea0, va0, work_pressure)
+            pb, db, *_ = self._adiabat(self.right_groups, m_b, total - v, eb0, vb0, work_pressure)
+            h = pa - pb  # decreasing in V_α
+            slope = da + db
+            lo = np.where(h > 0, v, lo)
+            hi = np.where(h <= 0, v, hi)
+            newton = v - h / slope
+            inside = np.isfinite(newton) & (newton > lo) & (newton < hi)
+            v_new = np.where(inside, newton, 0.5 * (lo + hi))
+            change = np.abs(v_new - v)
+            v = v_new
+            if np.all(change <= 1e-15 * total):
+                break
+        pa, _, ea, rho_a, c2a = self._adiabat(self.left_groups, m_a, v, ea0, va0, work_pressure)
+        pb, _, eb, rho_b, c2b = self._adiabat(self.right_groups, m_b, total - v, eb0, vb0, work_pressure)
+        return v, 0.5 * (pa + pb), (ea, eb, pa, pb, rho_a, rho_b, c2a, c2b), iteration
+
+    def solve(self, state0, pressure0, volume_affine, work_affine):
+        """Find the interface pressure π with V(π) = A + Bπ, work pressure W = w0 + w1 π.
+
+        state0: (m_α, m_β, V_α0, V_β0, e_α0, e_β0) at the start; pressure0: first iterate.
+        Returns (π, V_α, V_β, details) with details the materials' energies, pressures,
+        densities and c² at the end."""
+        a, b = volume_affine
+        w0, w1 = work_affine
+        m_a, m_b, va0, vb0, ea0, eb0 = state0
+        va, vb, pi = va0.copy(), vb0.copy(), pressure0.copy()
+        for iteration in range(1, self.max_iterations + 1):
+            work = w0 + w1 * pi
+            pa, da, *_ = self._adiabat(self.left_groups, m_a, va, ea0, va0, work)
+            pb, db, *_ = self._adiabat(self.right_groups, m_b, vb, eb0, vb0, work)
+            # Predictor: V_α = V_α^k + (π − p_α)/D_α, V_β likewise, V_α + V_β = A + Bπ.
+            pi_new = (a - va - vb + pa / da + pb / db) / (1.0 / da + 1.0 / db - b)
+            total = a + b * pi_new
+            work_new = w0 + w1 * pi_new
+            if not self.nonlinear:
+                va = va + (pi_new - pa) / da
+                va_new, vb = va, total - va
+                details = self._state_at(state0, va_new, vb, work_new)
+                self._record(iteration, 0)
+                return pi_new, va_new, vb, details
+            # Corrector: redistribute the total deformation until the pressures balance.
+            va_new, balanced, details, inner = self._split(total, state0, work_new, va + (total - va - vb) * va / (va + vb))
+            scale = np.maximum(np.abs(pi_new), np.minimum(details[4] * details[6], details[5] * details[7]))
+            converged = np.abs(balanced - pi_new) <= self.tolerance * scale
+            va, vb, pi = va_new, total - va_new, pi_new
+            if np.all(converged):
+                self._record(iteration, inner)
+                return pi, va, vb, details
+        worst = int(np.argmax(np.abs(balanced - pi_new) / scale))
+        raise MixedCellFailure(
+            f"mixed cell {int(self.cells[worst])}: interface solve not converged after "
+            f"{self.max_iterations} iterations (pressure change {abs(balanced[worst] - pi_new[worst]):.3g})")
+
+    def _state_at(self, state0, va, vb, work):
+        m_a, m_b, va0, vb0, ea0, eb0 = state0
+        pa, _, ea, rho_a, c2a = self._adiabat(self.left_groups, m_a, va, ea0, va0, work)
+        pb, _, eb, rho_b, c2b = self._adiabat(self.right_groups, m_b, vb, eb0, vb0, work)
+        return ea, eb, pa, pb, rho_a, rho_b, c2a, c2b
+
+    def _record(self, iterations, inner):
+        self.stats["steps"] += 1
+        self.stats["iterations"] += iterations
+        self.stats["max_iterations"] = max(self.stats["max_iterations"], iterations)
+
+    def relax(self, volume, state0, pressure_guess):
+        """Pressure relaxation at fixed cell volume: returns (p*, V_α, V_β, details)."""
+        self.stats["relaxations"] += 1
+        saved = self.nonlinear
+        self.nonlinear = True  # relaxation always uses the full equations of state
+        try:
+            result = self.solve(state0, pressure_guess, (volume, np.zeros_like(volume)),
+                                 (np.zeros_like(volume), np.ones_like(volume)))
+        finally:
+            self.nonlinear = saved
+            self.stats["steps"] -= 1
+        return result
+
+
+def with_mixed_state(state, cells, va, vb, details, interface_velocity):
+    """A copy of state with the mixed cells' material arrays replaced."""
+    ea, eb, pa, pb, rho_a, rho_b, c2a, c2b = details
+    arrays = {k: getattr(state, k).copy() for k in ("material_volume", "material_energy",
+                                                    "material_density", "material_pressure",
+                                                    "material_sound_speed")}
+    for slot, values in enumerate(((va, ea, rho_a, pa, c2a), (vb, eb, rho_b, pb, c2b))):
+        v, e, rho, p, c2 = values
+        arrays["material_volume"][slot, cells] = v
+        arrays["material_energy"][slot, cells] = e
+        arrays["material_density"][slot, cells] = rho
+        arrays["material_pressure"][slot, cells] = p
+        arrays["material_sound_speed"][slot, cells] = np.sqrt(np.maximum(c2, 0.0))
+    return state.evolved(**arrays, interface_pressure=0.5 * (pa + pb),
+                         interface_velocity=interface_velocity)
