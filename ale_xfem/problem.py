@@ -216,7 +216,7 @@ def side_boundaries(mesh: MeshArrays, extent, specs: dict) -> list[Boundary]:
 def exact_reference(scene: Scene) -> ExactReference | None:
     """A two-state scene of gases is a Riemann problem; two Mie–Grüneisen plates at their
     reference state closing on each other are a plate impact.  Anything else: None."""
-    pieces = scene.pieces()
+    pieces = _merge_identical_states(scene, scene.pieces())
     if len(pieces) != 2:
         return None
     (a, x0, left), (_, b, right) = pieces
@@ -253,6 +253,25 @@ def exact_reference(scene: Scene) -> ExactReference | None:
     times = [(x0 - a) / (end_left - slow) if end_left > slow else np.inf,
              (b - x0) / (fast - end_right) if fast > end_right else np.inf]
     return ExactReference(kind, solution, float(min(times)))
+
+
+def _merge_identical_states(scene: Scene, pieces):
+    """Join neighbouring pieces that hold the same state of the same equation of state
+    (an interface between identical materials is not a wave of the exact solution)."""
+    merged = []
+    for lo, hi, region in pieces:
+        if merged:
+            previous = merged[-1][2]
+            same_eos = (scene.materials[previous.material].eos == scene.materials[region.material].eos
+                        and scene.materials[previous.material].parameters
+                        == scene.materials[region.material].parameters)
+            same_state = (previous.density, previous.pressure, previous.velocity) == (
+                region.density, region.pressure, region.velocity)
+            if same_eos and same_state:
+                merged[-1] = (merged[-1][0], hi, previous)
+                continue
+        merged.append((lo, hi, region))
+    return merged
 
 
 def _end_velocity(boundary, material_velocity: float) -> float:

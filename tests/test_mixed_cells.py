@@ -1,0 +1,104 @@
+"""Enriched mixed cells in 1D (the paper's method, interface inside a cell)."""
+
+import numpy as np
+import pytest
+
+from ale_xfem.lagrange import ExplicitWilkins
+from ale_xfem.problem import build_problem
+from ale_xfem.run import make_stepper, simulate
+from ale_xfem.scene import load_scene, resolve_scene_path
+from conftest import fitted_rate, run_scene
+
+
+def mixed_pressures(state, cells):
+    return state.material_pressure[0, cells], state.material_pressure[1, cells]
+
+
+def test_materials_of_a_mixed_cell_have_equal_pressure_at_the_end_of_every_step():
+    problem = build_problem(load_scene(resolve_scene_path("shock-interface"), ["mesh.cells=200"]))
+    stepper = make_stepper(problem)
+    cells = problem.mixed.cells
+    state, evaluation = problem.state, None
+    evaluation = stepper.evaluate_state(state)
+    worst = 0.0
+    for _ in range(700):  # the shock reaches Γ at about step 400
+        dt = stepper.stable_time_step(evaluation)
+        state, evaluation, _, _ = stepper.step(state, dt, evaluation)
+        pa, pb = mixed_pressures(state, cells)
+        bulk = np.minimum(state.material_density[0, cells] * state.material_sound_speed[0, cells] ** 2,
+                          state.material_density[1, cells] * state.material_sound_speed[1, cells] ** 2)
+        worst = max(worst, float(np.max(np.abs(pa - pb) / np.maximum(np.abs(pa), bulk))))
+    assert worst <= problem.scene.numerics.interface_tolerance
+    assert state.material_pressure[0, cells].max() > 0.3  # the shock went through Γ
+
+
+@pytest.mark.parametrize("solver", ["nonlinear", "linearised"])
+def test_uniform_state_at_rest_with_an_enriched_interface_stays_at_rest(tmp_path, solver):
+    scene = load_scene(resolve_scene_path("sod-two-gamma-enriched"),
+                       ["mesh.cells=100", "regions.1.density=1.0", "regions.1.pressure=1.0",
+                        "materials.right.gamma=1.4", f"interface.solver={solver}", "t_end=1e9"])
+    problem = build_problem(scene)
+    assert problem.mixed is not None and problem.mixed.count == 1
+    result = simulate(problem, stop_after_steps=1000)
+    assert result.steps == 1000 and result.status == "ok"
+    assert np.abs(result.state.node_velocity).max() < 1e-12
+
+
+def test_interface_between_identical_gases_matches_the_single_gas_run(tmp_path):
+    scene_text = resolve_scene_path("sod").read_text().replace(
+        '[boundaries]', '[materials.same]\neos = "ideal_gas"\ngamma = 1.4\n\n'
+        '[[regions]]\nmaterial = "same"\ninterval = [0.7037, 1.0]\ndensity = 0.125\npressure = 0.1\n\n'
+        '[interface]\nmodel = "enriched"\n\n[boundaries]')
+    path = tmp_path / "sod-interface.toml"
+    path.write_text(scene_text)
+    single_problem, single = run_scene("sod", "mesh.cells=200")
+    problem = build_problem(load_scene(path, ["mesh.cells=200"]))
+    assert problem.mixed.count == 1
+    result = simulate(problem)
+    assert result.status == "ok"
+    l1 = single.errors["L1_density"]
+    difference = abs(result.errors["L1_density"] - l1)
+    # Compare the fields themselves, cell by cell on the same initial mesh.
+    rho_single = single.state.material_density[0]
+    rho = result.state.material_density[0].copy()
+    cells = problem.mixed.cells
+    rho[cells] = (result.state.material_mass[:, cells].sum(axis=0)
+                  / result.state.material_volume[:, cells].sum(axis=0))
+    h = single_problem.mesh.cell_volumes(single.state.node_position)
+    field_difference = float(np.sum(np.abs(rho - rho_single) * h))
+    assert field_difference < 0.1 * l1, (field_difference, l1)
+    assert difference < 0.1 * l1
+
+
+class TestInterfaceInsideACellConverges:
+    sizes = (100, 200, 400)
+
+    def test_l1_close_to_the_node_aligned_run(self):
+        errors = [run_scene("sod-two-gamma-enriched", f"mesh.cells={n}")[1].errors["L1_density"]
+                  for n in self.sizes]
+        baseline = run_scene("sod-two-gamma", "mesh.cells=400")[1].errors["L1_density"]
+        assert fitted_rate(self.sizes, errors) >= 0.8, errors
+        assert errors[-1] <= 1.5 * baseline, (errors[-1], baseline)
+
+
+def test_a_shock_crossing_the_interface_stays_stable_and_conservative():
+    problem, result = run_scene("shock-interface")
+    assert result.status == "ok"
+    assert result.state.material_density[problem.layout.cell_material >= 0].min() > 0
+    assert result.conservation["mass"] == 0.0
+    assert abs(result.conservation["total_energy"]) < 1e-12
+    assert result.conservation["momentum"] < 1e-12
+    # transmitted shock: the heavy gas is compressed and moves right
+    heavy = problem.layout.cell_material[0] == 1
+    assert result.state.material_density[0][heavy].max() > 2.0
+
+
+def test_plate_impact_with_the_contact_inside_a_cell_matches_impedance_matching():
+    problem, result = run_scene("plate-impact-enriched", "mesh.cells=400")
+    solution = problem.exact.solution
+    cells = problem.mixed.cells
+    interface_pressure = result.state.interface_pressure[0]
+    assert interface_pressure == pytest.approx(solution.contact_pressure, rel=0.02)
+    assert result.state.interface_velocity[0] == pytest.approx(solution.contact_velocity, rel=0.02)
+    assert cells.size == 1
+    assert abs(result.conservation["total_energy"]) < 1e-12
