@@ -40,6 +40,11 @@ def profile_rows(problem: Problem, state) -> dict[str, np.ndarray]:
         "pressure": state.material_pressure[0],
         "internal_energy": state.material_energy[0],
     }
+    transverse = state.node_velocity.shape[0] > 1
+    if transverse:
+        w = state.node_velocity[1][mesh.cell_nodes]
+        w[swap] = w[swap, ::-1]
+        rows["velocity_transverse"] = w.mean(axis=1)
     if problem.mixed is not None:
         cells = problem.mixed.cells
         xg = x[cells, 0] + state.material_volume[0, cells]
@@ -56,6 +61,10 @@ def profile_rows(problem: Problem, state) -> dict[str, np.ndarray]:
             "pressure": state.material_pressure[1, cells],
             "internal_energy": state.material_energy[1, cells],
         }
+        if transverse:
+            # each material's own transverse velocity: that of its internal node
+            rows["velocity_transverse"][cells] = w[cells, 0]
+            extra["velocity_transverse"] = w[cells, 1]
         rows = {k: np.concatenate([rows[k], extra[k]]) for k in rows}
     order = np.argsort(rows["x_left"], kind="stable")
     return {k: v[order] for k, v in rows.items()}
@@ -63,11 +72,12 @@ def profile_rows(problem: Problem, state) -> dict[str, np.ndarray]:
 
 def write_profile(problem: Problem, state, folder: Path) -> Path:
     rows = profile_rows(problem, state)
+    names = PROFILE_COLUMNS + (("velocity_transverse",) if "velocity_transverse" in rows else ())
     path = folder / "profile.csv"
     with path.open("w", newline="") as handle:
         writer = csv.writer(handle)
-        writer.writerow(PROFILE_COLUMNS)
-        columns = [rows[c] for c in PROFILE_COLUMNS]
+        writer.writerow(names)
+        columns = [rows[c] for c in names]
         for values in zip(*columns):
             writer.writerow([v if isinstance(v, str) else repr(float(v)) for v in values])
     return path
@@ -89,6 +99,8 @@ def summary(problem: Problem, result: RunResult) -> dict:
         "dt": {"min": result.dt_min, "max": result.dt_max},
         "phase_seconds": result.phase_seconds,
     }
+    if result.mixed_cells is not None:
+        data["mixed_cells"] = result.mixed_cells
     if result.diagnostic:
         data["diagnostic"] = result.diagnostic
     if result.errors is not None:

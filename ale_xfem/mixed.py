@@ -140,7 +140,7 @@ class MixedCells:
         pb, _, eb, rho_b, c2b = self._adiabat(self.right_groups, m_b, total - v, eb0, vb0, work_pressure)
         return v, 0.5 * (pa + pb), (ea, eb, pa, pb, rho_a, rho_b, c2a, c2b), iteration
 
-    def solve(self, state0, pressure0, volume_affine, work_affine):
+    def solve(self, state0, pressure0, volume_affine, work_affine, record: bool = True):
         """Find the interface pressure π with V(π) = A + Bπ, work pressure W = w0 + w1 π.
 
         state0: (m_α, m_β, V_α0, V_β0, e_α0, e_β0) at the start; pressure0: first iterate.
@@ -162,15 +162,17 @@ class MixedCells:
                 va = va + (pi_new - pa) / da
                 va_new, vb = va, total - va
                 details = self._state_at(state0, va_new, vb, work_new)
-                self._record(iteration, 0)
+                if record:
+                    self._record(iteration)
                 return pi_new, va_new, vb, details
             # Corrector: redistribute the total deformation until the pressures balance.
-            va_new, balanced, details, inner = self._split(total, state0, work_new, va + (total - va - vb) * va / (va + vb))
+            va_new, balanced, details, _ = self._split(total, state0, work_new, va + (total - va - vb) * va / (va + vb))
             scale = np.maximum(np.abs(pi_new), np.minimum(details[4] * details[6], details[5] * details[7]))
             converged = np.abs(balanced - pi_new) <= self.tolerance * scale
             va, vb, pi = va_new, total - va_new, pi_new
             if np.all(converged):
-                self._record(iteration, inner)
+                if record:
+                    self._record(iteration)
                 return pi, va, vb, details
         worst = int(np.argmax(np.abs(balanced - pi_new) / scale))
         raise MixedCellFailure(
@@ -183,7 +185,7 @@ class MixedCells:
         pb, _, eb, rho_b, c2b = self._adiabat(self.right_groups, m_b, vb, eb0, vb0, work)
         return ea, eb, pa, pb, rho_a, rho_b, c2a, c2b
 
-    def _record(self, iterations, inner):
+    def _record(self, iterations):
         self.stats["steps"] += 1
         self.stats["iterations"] += iterations
         self.stats["max_iterations"] = max(self.stats["max_iterations"], iterations)
@@ -195,10 +197,9 @@ class MixedCells:
         self.nonlinear = True  # relaxation always uses the full equations of state
         try:
             result = self.solve(state0, pressure_guess, (volume, np.zeros_like(volume)),
-                                 (np.zeros_like(volume), np.ones_like(volume)))
+                                 (np.zeros_like(volume), np.ones_like(volume)), record=False)
         finally:
             self.nonlinear = saved
-            self.stats["steps"] -= 1
         return result
 
 

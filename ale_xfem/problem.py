@@ -37,6 +37,7 @@ class Problem:
     exact: ExactReference | None
     effects: list[str] = field(default_factory=list)
     mixed: MixedCells | None = None  # the enriched mixed cells, when the scene has any
+    corner_mass: np.ndarray | None = None  # (2, n_cells) mass lumped on each cell's left/right node
 
 
 def build_problem(scene: Scene) -> Problem:
@@ -49,7 +50,9 @@ def build_problem(scene: Scene) -> Problem:
     x = mesh.cell_vertex_positions()[:, :, 0]
     left, right = x.min(axis=1), x.max(axis=1)
     n_cells, n_materials = mesh.n_cells, len(materials)
-    per_material = {k: np.zeros((n_materials, n_cells)) for k in ("volume", "mass", "energy", "momentum")}
+    components = max(len(r.velocity) for r in scene.regions)  # 2: a transverse component
+    per_material = {k: np.zeros((n_materials, n_cells)) for k in ("volume", "mass", "energy")}
+    per_material["momentum"] = np.zeros((components, n_materials, n_cells))
     for lo, hi, region in scene.pieces():
         overlap = np.clip(np.minimum(hi, right) - np.maximum(lo, left), 0.0, None)
         eos = scene.materials[region.material].make_eos()
@@ -58,7 +61,8 @@ def build_problem(scene: Scene) -> Problem:
         per_material["volume"][m] += overlap
         per_material["mass"][m] += piece_mass
         per_material["energy"][m] += piece_mass * float(eos.energy(region.density, region.pressure))
-        per_material["momentum"][m] += piece_mass * region.velocity[0]
+        for k, v in enumerate(region.velocity):
+            per_material["momentum"][k, m] += piece_mass * v
     # Slivers below round-off of a node-aligned boundary are not materials of the cell.
     present = per_material["volume"] > 1e-9 * (right - left)
     count = present.sum(axis=0)
@@ -71,13 +75,13 @@ def build_problem(scene: Scene) -> Problem:
     order = np.argsort(-per_material["volume"], axis=0, kind="stable")
     cell_material = np.full((slots, n_cells), -1, dtype=np.int64)
     cell_material[0] = order[0]
-    total = {k: v.sum(axis=0) for k, v in per_material.items()}
+    total = {k: v.sum(axis=-2) for k, v in per_material.items()}
     material_mass = np.zeros((slots, n_cells))
     material_energy = np.zeros((slots, n_cells))
     material_volume = np.zeros((slots, n_cells))
     material_mass[0], material_volume[0] = total["mass"], right - left
     material_energy[0] = total["energy"] / total["mass"]
-    corner_momentum = np.stack([0.5 * total["momentum"], 0.5 * total["momentum"]])  # (corner, cell)
+    corner_momentum = np.stack([0.5 * total["momentum"], 0.5 * total["momentum"]], axis=1)  # (comp, corner, cell)
     corner_mass = np.stack([0.5 * total["mass"], 0.5 * total["mass"]])
     mixed = None
     if mixed_cells.size:
@@ -96,8 +100,8 @@ def build_problem(scene: Scene) -> Problem:
         # cell go to its internal node; the external nodes are massless.
         corner_mass[0, mixed_cells] = material_mass[0, mixed_cells]
         corner_mass[1, mixed_cells] = material_mass[1, mixed_cells]
-        corner_momentum[0, mixed_cells] = per_material["momentum"][alpha, mixed_cells]
-        corner_momentum[1, mixed_cells] = per_material["momentum"][beta, mixed_cells]
+        corner_momentum[:, 0, mixed_cells] = per_material["momentum"][:, alpha, mixed_cells]
+        corner_momentum[:, 1, mixed_cells] = per_material["momentum"][:, beta, mixed_cells]
         node_left = np.where(x[mixed_cells, 0] < x[mixed_cells, 1], mesh.cell_nodes[mixed_cells, 0],
                              mesh.cell_nodes[mixed_cells, 1])
         node_right = np.where(x[mixed_cells, 0] < x[mixed_cells, 1], mesh.cell_nodes[mixed_cells, 1],
@@ -111,9 +115,12 @@ def build_problem(scene: Scene) -> Problem:
     # written left/right, so swap where a cell lists its right node first.
     flipped = x[:, 0] > x[:, 1]
     corner_mass[:, flipped] = corner_mass[::-1][:, flipped]
-    corner_momentum[:, flipped] = corner_momentum[::-1][:, flipped]
+    corner_momentum[:, :, flipped] = corner_momentum[:, ::-1][:, :, flipped]
     node_mass = _scatter_corners(mesh, corner_mass)
-    velocity = (_scatter_corners(mesh, corner_momentum) / node_mass)[None, :]
+    # corner masses by position (left node, right node), as the remap reads them
+    corner_by_position = corner_mass.copy()
+    corner_by_position[:, flipped] = corner_mass[::-1][:, flipped]
+    velocity = np.stack([_scatter_corners(mesh, c) for c in corner_momentum]) / node_mass
     density = np.where(material_volume > 0, material_mass / np.where(material_volume > 0, material_volume, 1.0), 0.0)
     pressure, sound_speed = thermodynamics(materials, layout, density, material_energy)
     state = State(0.0, mesh.node_position.copy(), velocity, material_mass, material_energy,
@@ -132,7 +139,7 @@ def build_problem(scene: Scene) -> Problem:
                     "pressure_relaxation"]
         state = initial_relaxation(mixed, state)
     return Problem(scene, mesh, materials, layout, node_mass, state, boundaries,
-                   exact_reference(scene), effects, mixed)
+                   exact_reference(scene), effects, mixed, corner_by_position)
 
 
 def _left_material_first(scene, names, left, right, first, second):

@@ -17,6 +17,7 @@ import numpy as np
 from ale_xfem._memory import keep_freed_memory
 from ale_xfem.lagrange import Breakdown, ExplicitWilkins
 from ale_xfem.problem import Problem
+from ale_xfem.remap import RemapFailure, Remapper
 from ale_xfem.state import State, totals
 
 SUBSAMPLES_PER_CELL = 16  # midpoint rule for ∫|f_h − f_exact| dx inside each cell
@@ -34,6 +35,7 @@ class RunResult:
     dt_min: float = 0.0
     dt_max: float = 0.0
     phase_seconds: dict = field(default_factory=dict)
+    mixed_cells: dict | None = None
 
     @property
     def zone_cycles_per_second(self) -> float:
@@ -75,10 +77,16 @@ def make_stepper(problem: Problem) -> ExplicitWilkins:
 def simulate(problem: Problem, progress: Progress | None = None, t_end: float | None = None,
              stop_after_steps: int | None = None) -> RunResult:
     """Run to t_end (the scene's by default).  ``stop_after_steps`` ends the run early as a
-    normal stop (benchmarks); numerics.max_steps reached first is a failure."""
+    normal stop (benchmarks); numerics.max_steps reached first is a failure.  With a
+    remapped mesh, problem.layout, problem.mixed and problem.node_mass follow the run (they
+    describe the returned state)."""
     t_end = problem.scene.t_end if t_end is None else t_end
     max_steps = problem.scene.numerics.max_steps
     stepper = make_stepper(problem)
+    remapper = None
+    if problem.scene.mesh.motion != "lagrangian":
+        remapper = Remapper(problem, problem.scene.mesh.motion, problem.scene.numerics.remap_order)
+    remap_energy_change, remap_seconds = 0.0, 0.0
     state = problem.state
     start_totals = totals(state, problem.node_mass)
     boundary_work, boundary_impulse = 0.0, np.zeros_like(start_totals["momentum"])
@@ -101,8 +109,26 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
             diagnostic = f"step {steps + 1}, t = {state.time:.6g}: time step dt = {dt:.3g}, must be > 0"
             break
         try:
-            state, evaluation, work, impulse = stepper.step(state, dt, evaluation)
-        except Breakdown as failure:
+            new_state, evaluation, work, impulse = stepper.step(state, dt, evaluation)
+            if remapper is not None:
+                remap_clock = time.perf_counter()
+                new_state, layout, mixed, node_mass, kinetic_change = remapper.apply(
+                    new_state, stepper.layout, stepper.mixed)
+                stepper.rebuild(layout, node_mass, mixed)
+                problem.layout, problem.mixed, problem.node_mass = layout, mixed, node_mass
+                # The walls hold the remapped velocities too: their impulse is a boundary
+                # reaction, the kinetic energy it removes part of the remap's change.
+                before = new_state.node_velocity.copy()
+                for boundary in stepper.constraints:
+                    boundary.apply(new_state.node_velocity)
+                jump = new_state.node_velocity - before
+                impulse = impulse + (node_mass * jump).sum(axis=1)
+                kinetic_change += 0.5 * float(np.sum(node_mass * (new_state.node_velocity**2 - before**2)))
+                remap_energy_change += kinetic_change
+                evaluation = stepper.evaluate_state(new_state)
+                remap_seconds += time.perf_counter() - remap_clock
+            state = new_state
+        except (Breakdown, RemapFailure) as failure:
             status = "failed"
             diagnostic = f"step {steps + 1}, t = {state.time:.6g}: {failure}"
             break
@@ -117,10 +143,26 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
     if progress is not None:
         progress.update(state.time, steps, force=True)
         progress.close()
+    phases = {"lagrange": wall - remap_seconds - stepper.mixed_seconds,
+              "mixed_cell_solve": stepper.mixed_seconds, "remap": remap_seconds}
     result = RunResult(status, state, steps, wall, diagnostic, dt_min=float(dt_min if steps else 0.0),
-                       dt_max=float(dt_max), phase_seconds={"lagrange": wall})
+                       dt_max=float(dt_max), phase_seconds=phases)
     result.conservation = conservation(start_totals, totals(state, problem.node_mass),
                                        boundary_work, boundary_impulse, problem.node_mass, state)
+    if remapper is not None:
+        # The remap conserves mass, momentum and internal energy; it dissipates kinetic
+        # energy, reported here relative to the initial total energy.
+        result.conservation["remap_kinetic_energy_change"] = remap_energy_change / abs(
+            start_totals["total_energy"])
+    if problem.mixed is not None or stepper.mixed_calls:
+        stats = problem.mixed.stats if problem.mixed is not None else {}
+        result.mixed_cells = {
+            "count": int(problem.mixed.count) if problem.mixed is not None else 0,
+            "solves": stats.get("steps", 0),
+            "iterations_mean": stats.get("iterations", 0) / max(stats.get("steps", 0), 1),
+            "iterations_max": stats.get("max_iterations", 0),
+            "relaxations": stats.get("relaxations", 0),
+        }
     if problem.exact is not None and state.time > 0:
         result.errors = l1_errors(problem, state)
     return result

@@ -19,8 +19,8 @@ from typing import Any
 from ale_xfem import eos as eos_models
 
 BOUNDARY_SIDES_1D = ("left", "right")
-MOTIONS_AVAILABLE = ("lagrangian",)
-MOTIONS_PLANNED = ("eulerian", "smoothed")
+MOTIONS_AVAILABLE = ("lagrangian", "eulerian", "smoothed")
+MOTIONS_PLANNED = ()
 
 NUMERICS_DEFAULTS = {
     "cfl": 0.5,  # fraction of the sound-crossing time of the smallest cell
@@ -30,6 +30,7 @@ NUMERICS_DEFAULTS = {
     "max_steps": 10_000_000,
     "interface_tolerance": 1e-10,  # mixed cells: pressure balance, relative to ρc²
     "interface_max_iterations": 50,  # predictor/corrector iterations per step
+    "remap_order": 2,  # 1: constant per piece; 2: limited linear reconstruction
 }
 
 INTERFACE_DEFAULTS = {
@@ -103,6 +104,7 @@ class Numerics:
     max_steps: int
     interface_tolerance: float = 1e-10
     interface_max_iterations: int = 50
+    remap_order: int = 2
 
 
 @dataclass(frozen=True)
@@ -268,6 +270,7 @@ def validate(data: dict, source: str = "") -> Scene:
     scene = Scene(name, description, 1, t_end, mesh, materials, regions, boundaries, numerics,
                   interface, resolved=data, source=source)
     _check_coverage(scene)
+    _check_motion(scene)
     return scene
 
 
@@ -314,7 +317,11 @@ def _validate_regions(regions: Any, materials: dict[str, MaterialSpec], mesh: Me
                              f"an interval that meets the domain {list(mesh.extent)}")
         density = _real(table["density"], f"{where}.density")
         pressure = _real(table["pressure"], f"{where}.pressure")
-        velocity = _reals(table.setdefault("velocity", [0.0]), f"{where}.velocity", 1)
+        raw_velocity = table.setdefault("velocity", [0.0])
+        if not isinstance(raw_velocity, list) or len(raw_velocity) not in (1, 2):
+            raise SceneError(f"{where}.velocity", raw_velocity,
+                             "[u] or [u, v] (v: a transverse component, carried by the remap)")
+        velocity = _reals(raw_velocity, f"{where}.velocity", len(raw_velocity))
         eos = materials[material].make_eos()
         if not density > 0.0:
             raise SceneError(f"{where}.density", density, "a real number > 0")
@@ -358,7 +365,14 @@ def _validate_numerics(table: Any) -> Numerics:
                                   lambda v: 0 < v < 1e-2, "a real number in (0, 0.01)"),
         interface_max_iterations=_integer(table["interface_max_iterations"],
                                           "numerics.interface_max_iterations"),
+        remap_order=_choice_int(table["remap_order"], "numerics.remap_order", (1, 2)),
     )
+
+
+def _choice_int(value: Any, key: str, choices: tuple[int, ...]) -> int:
+    if isinstance(value, bool) or value not in choices:
+        raise SceneError(key, value, f"one of {', '.join(map(str, choices))}")
+    return int(value)
 
 
 def _validate_interface(table: Any) -> InterfaceSpec:
@@ -435,6 +449,25 @@ def _check_coverage(scene: Scene) -> None:
                                  f"x = {x:g}): mixed cells must be separated by a pure cell in "
                                  "this version; refine the mesh")
         cut_cells[cell] = (x, right)
+
+
+def _check_motion(scene: Scene) -> None:
+    """A regularised mesh moves materials across cells: boundaries between materials then
+    fall inside cells, which needs [interface]; the Eulerian mesh is fixed, so material
+    must not leave it (walls at both ends)."""
+    if scene.mesh.motion == "lagrangian":
+        return
+    if len({r.material for r in scene.regions}) > 1 and scene.interface is None:
+        raise SceneError("mesh.motion", scene.mesh.motion,
+                         "'lagrangian' unless the scene has [interface]: a remapped mesh puts "
+                         "material boundaries inside cells")
+    if scene.mesh.motion == "eulerian":
+        for side, spec in scene.boundaries.items():
+            if spec.kind != "wall":
+                raise SceneError(f"boundaries.{side}", spec.kind if spec.kind != "velocity" else
+                                 {"velocity": list(spec.velocity)},
+                                 "'wall' with mesh.motion = 'eulerian' (the fixed mesh must hold "
+                                 "the material); use 'smoothed' for moving ends")
 
 
 # ----------------------------------------------------------------------------- shipped scenes

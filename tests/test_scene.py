@@ -55,8 +55,21 @@ BAD = {
                                         "regions[1].interval", "inside cell 201"),
     "bad boundary": (lambda d: set_path(d, ["boundaries", "left"], "sticky"), "boundaries.left", "'wall'"),
     "bad cfl": (lambda d: d.setdefault("numerics", {}).update(cfl=1.5), "numerics.cfl", "(0, 1]"),
-    "motion not available yet": (lambda d: set_path(d, ["mesh", "motion"], "eulerian"),
-                                 "mesh.motion", "not available in this version"),
+    "remapped mesh without [interface]": (lambda d: set_path(d, ["mesh", "motion"], "eulerian"),
+                                          "mesh.motion", "unless the scene has [interface]"),
+    "eulerian mesh with a free end": (lambda d: [d.update(interface={"model": "enriched"}),
+                                                 set_path(d, ["mesh", "motion"], "eulerian"),
+                                                 set_path(d, ["boundaries", "right"], "free")],
+                                      "boundaries.right", "'wall' with mesh.motion"),
+    "two interfaces in one cell": (lambda d: [d.update(interface={"model": "enriched"}),
+                                              d["regions"].append(dict(d["regions"][0], interval=[0.5011, 0.5022]))],
+                                   "regions[1].interval", "a second interface"),
+    "interfaces in neighbouring cells": (lambda d: [d.update(interface={"model": "enriched"}),
+                                                    d["regions"].append(dict(d["regions"][0], interval=[0.5011, 0.5037]))],
+                                         "regions[1].interval", "neighbouring cells"),
+    "unknown interface model": (lambda d: d.update(interface={"model": "xfem"}), "interface.model", "one of enriched"),
+    "velocity with three components": (lambda d: set_path(d, ["regions", 0, "velocity"], [0.0, 1.0, 2.0]),
+                                       "regions[0].velocity", "[u] or [u, v]"),
 }
 
 
