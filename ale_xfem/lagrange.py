@@ -254,7 +254,7 @@ class ExplicitWilkins:
         boundary impulse).  Raises :class:`Breakdown` on an unphysical predicted or final
         state; ``state`` itself is never modified."""
         if self.mixed is not None:
-            state, relaxed = self._relax_if_needed(state)
+            state, relaxed = self.relax_mixed_cells(state)
             if relaxed:
                 start = None
         first = start if start is not None else self.evaluate_state(state)
@@ -337,7 +337,7 @@ class ExplicitWilkins:
                 state.material_volume[0, cells], state.material_volume[1, cells],
                 state.material_energy[0, cells], state.material_energy[1, cells])
 
-    def _relax_if_needed(self, state: State):
+    def relax_mixed_cells(self, state: State):
         """Pressure relaxation of the mixed cells at the start of a step (paper §3): only
         where the materials' pressures differ beyond the solver tolerance."""
         cells = self.mixed.cells

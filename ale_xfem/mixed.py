@@ -54,14 +54,13 @@ class MaterialGroups:
 
     def eos_values(self, materials, rho, e):
         """Pressure, ∂p/∂ρ|_e, ∂p/∂e|_ρ, c² for each entry."""
+        if len(self.groups) == 1:
+            return list(materials[self.groups[0][0]].eos.state(rho, e))
         out = [np.empty_like(rho) for _ in range(4)]
         for material, where in self.groups:
-            eos = materials[material].eos
-            r, en = rho[where], e[where]
-            out[0][where] = eos.pressure(r, en)
-            out[1][where] = eos.dp_drho(r, en)
-            out[2][where] = eos.dp_de(r, en)
-            out[3][where] = eos.sound_speed_squared(r, en)
+            values = materials[material].eos.state(rho[where], e[where])
+            for target, value in zip(out, values):
+                target[where] = value
         return out
 
     def max_density(self, materials):
@@ -122,19 +121,23 @@ class MixedCells:
             raise MixedCellFailure(f"mixed cell {int(self.cells[bad])}: volume {total[bad]:.6g} "
                                    "cannot hold both materials below their compression limits")
         v = np.clip(guess, lo, hi)
-        for iteration in range(1, 201):
+        for iteration in range(1, 101):
             pa, da, *_ = self._adiabat(self.left_groups, m_a, v, ea0, va0, work_pressure)
             pb, db, *_ = self._adiabat(self.right_groups, m_b, total - v, eb0, vb0, work_pressure)
             h = pa - pb  # decreasing in V_α
             slope = da + db
+            # balanced: the pressures agree far below the solver tolerance (|slope|·V is
+            # the cell's bulk modulus); such cells keep their volume
+            balanced = np.abs(h) <= 1e-3 * self.tolerance * np.abs(slope) * total
             lo = np.where(h > 0, v, lo)
             hi = np.where(h <= 0, v, hi)
             newton = v - h / slope
             inside = np.isfinite(newton) & (newton > lo) & (newton < hi)
-            v_new = np.where(inside, newton, 0.5 * (lo + hi))
+            v_new = np.where(balanced, v, np.where(inside, newton, 0.5 * (lo + hi)))
             change = np.abs(v_new - v)
             v = v_new
-            if np.all(change <= 1e-15 * total):
+            # or round-off bounds what Newton can still change (a few ulps of the volume)
+            if np.all(balanced | (change <= 8e-16 * total) | (hi - lo <= 8e-16 * total)):
                 break
         pa, _, ea, rho_a, c2a = self._adiabat(self.left_groups, m_a, v, ea0, va0, work_pressure)
         pb, _, eb, rho_b, c2b = self._adiabat(self.right_groups, m_b, total - v, eb0, vb0, work_pressure)

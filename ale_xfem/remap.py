@@ -148,21 +148,30 @@ def remap_1d(order_of_cells, cell_left_node, cell_right_node, node_position, tar
     volume_by = np.bincount(key, seg_volume, size).reshape(n_materials, n_cells)
     mass_by = np.bincount(key, seg_mass, size).reshape(n_materials, n_cells)
     energy_by = np.bincount(key, seg_energy, size).reshape(n_materials, n_cells)
-    # Which materials, and in what order, each new cell holds: the material of the piece
-    # at its left end comes first.
+    # Material boundaries keep their positions; a new cell holding one strictly inside is
+    # mixed, its left material (slot 0) the one at its left end.  Two in one cell: the
+    # interfaces have met, which this method does not represent.
     target_width = t_right - t_left
-    present = volume_by > 1e-12 * target_width
-    holds = present.sum(axis=0)
-    if np.any(holds > 2):
-        bad = int(cells[np.flatnonzero(holds > 2)[0]])
-        raise RemapFailure(f"cell {bad}: two interfaces meet in one cell (three materials)")
-    left_piece = np.clip(np.searchsorted(piece_edges, t_left, side="right") - 1, 0, n_pieces - 1)
+    boundaries = piece_hi[:-1][piece_material[1:] != piece_material[:-1]]
+    inside = (np.searchsorted(boundaries, t_right - 1e-12 * target_width, side="right")
+              - np.searchsorted(boundaries, t_left + 1e-12 * target_width, side="left"))
+    if np.any(inside > 1):
+        bad = int(np.flatnonzero(inside > 1)[0])
+        raise RemapFailure(f"cell {int(cells[bad])} [{t_left[bad]:.6g}, {t_right[bad]:.6g}]: two "
+                           "interfaces meet in one cell (a layer thinner than a cell); refine the mesh")
+    holds = 1 + inside
+    neighbours = np.flatnonzero((inside[1:] == 1) & (inside[:-1] == 1))
+    if neighbours.size:
+        bad = int(neighbours[0])
+        raise RemapFailure(f"cells {int(cells[bad])} and {int(cells[bad + 1])}: interfaces in "
+                           "neighbouring cells (a layer about one cell thick); the mixed-cell "
+                           "solve needs a pure cell between them: refine the mesh")
+    left_piece = np.clip(np.searchsorted(piece_edges, t_left + 1e-12 * target_width, side="right") - 1,
+                         0, n_pieces - 1)
+    right_piece = np.clip(np.searchsorted(piece_edges, t_right - 1e-12 * target_width, side="right") - 1,
+                          0, n_pieces - 1)
     left_material = piece_material[left_piece]
-    # a cell may start exactly on a material boundary: then its left material is the other
-    only_other = ~present[left_material, np.arange(n_cells)]
-    right_piece = np.clip(np.searchsorted(piece_edges, t_right, side="left") - 1, 0, n_pieces - 1)
     right_material = piece_material[right_piece]
-    left_material = np.where(only_other, right_material, left_material)
     new_mixed_sorted = np.flatnonzero(holds == 2)
     slots = 2 if new_mixed_sorted.size else 1
     columns = np.arange(n_cells)

@@ -72,3 +72,14 @@ def test_admissibility_names_the_limit():
     assert StiffenedGas(4.4, 6e8).admissible(1000.0, -5e8) is None
     assert MieGruneisen(8930.0, 3940.0, 1.49, 2.0).admissible(8930.0, -1e9) is None
     assert "density" in MieGruneisen(8930.0, 3940.0, 1.49, 2.0).admissible(-1.0, 0.0)
+
+
+@pytest.mark.parametrize("name", MODELS)
+def test_state_gathers_the_same_values(name):
+    eos, rho, e = MODELS[name]
+    rho_array, e_array = rho * np.array([0.98, 1.0, 1.03]), e * np.array([0.9, 1.0, 1.2])
+    p, dp_drho, dp_de, c2 = eos.state(rho_array, e_array)
+    np.testing.assert_allclose(p, eos.pressure(rho_array, e_array), rtol=1e-14)
+    np.testing.assert_allclose(dp_drho, eos.dp_drho(rho_array, e_array), rtol=1e-14)
+    np.testing.assert_allclose(dp_de, eos.dp_de(rho_array, e_array), rtol=1e-14)
+    np.testing.assert_allclose(c2, eos.sound_speed_squared(rho_array, e_array), rtol=1e-13)

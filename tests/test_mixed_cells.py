@@ -102,3 +102,61 @@ def test_plate_impact_with_the_contact_inside_a_cell_matches_impedance_matching(
     assert result.state.interface_velocity[0] == pytest.approx(solution.contact_velocity, rel=0.02)
     assert cells.size == 1
     assert abs(result.conservation["total_energy"]) < 1e-12
+
+
+@pytest.mark.parametrize("motion", ["lagrangian", "smoothed"])
+def test_flyer_target_and_backing_two_interfaces(motion):
+    problem, result = run_scene("flyer-target-backing", "mesh.cells=200", f"mesh.motion={motion}")
+    assert result.status == "ok"
+    assert problem.mixed.count == 2
+    assert result.conservation["mass"] == pytest.approx(0.0, abs=1e-14)
+    assert result.conservation["momentum"] < 1e-13
+    cells = problem.mixed.cells
+    pa, pb = result.state.material_pressure[0, cells], result.state.material_pressure[1, cells]
+    bulk = result.state.material_density[0, cells] * result.state.material_sound_speed[0, cells] ** 2
+    assert np.all(np.abs(pa - pb) <= 1e-9 * bulk)
+    # the copper–PMMA interface has been reached by the shock and is moving right
+    assert result.state.interface_velocity[np.argmax(result.state.node_position[0, problem.mixed.node_left])] > 100.0
+
+
+def test_interfaces_meeting_stop_the_run_with_a_diagnostic(tmp_path):
+    """A light layer two cells thick crushed by the gas around it on an Eulerian mesh: its
+    two interfaces come within a cell of each other and the run stops cleanly."""
+    scene = tmp_path / "crushed-layer.toml"
+    scene.write_text("""
+name = "crushed-layer"
+dimension = 1
+t_end = 0.3
+[mesh]
+extent = [0.0, 1.0]
+cells = 100
+motion = "eulerian"
+[materials.gas]
+eos = "ideal_gas"
+gamma = 1.4
+[materials.light]
+eos = "ideal_gas"
+gamma = 1.4
+[[regions]]
+material = "gas"
+interval = [0.0, 1.0]
+density = 1.0
+pressure = 1.0
+[[regions]]
+material = "light"
+interval = [0.5037, 0.5237]
+density = 0.01
+pressure = 0.001
+[interface]
+model = "enriched"
+""")
+    from ale_xfem.cli import main
+
+    out = tmp_path / "out"
+    assert main(["run", str(scene), "--out", str(out), "--no-plot", "--quiet"]) == 3
+    import json
+
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "failed"
+    assert "interfaces" in summary["diagnostic"] and "cell" in summary["diagnostic"]
+    assert summary["conservation"]["mass"] == pytest.approx(0.0, abs=1e-14)

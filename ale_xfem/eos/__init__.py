@@ -7,6 +7,7 @@ pressure p and gives what an explicit step and an implicit solve need:
 - ``sound_speed_squared(rho, e)``: c² = ∂p/∂ρ|_e + (p/ρ²) ∂p/∂e|_ρ (isentropic)
 - ``dp_drho(rho, e)`` (at constant e) and ``dp_de(rho, e)`` (at constant ρ)
 - ``energy(rho, p)``: the inverse in e, to initialise a region from (ρ, p)
+- ``state(rho, e)``: (p, ∂p/∂ρ, ∂p/∂e, c²) at once, for implicit solves
 - ``admissible(rho, p)``: which initial states the model allows, with the reason
 
 Models: ideal gas, stiffened gas (γ, p∞), Mie–Grüneisen with a linear Us–up Hugoniot
@@ -46,6 +47,11 @@ class StiffenedGas:
 
     def energy(self, rho, p):
         return (p + self.gamma * self.p_inf) / ((self.gamma - 1.0) * rho)
+
+    def state(self, rho, e):
+        g1 = self.gamma - 1.0
+        p = g1 * rho * e - self.gamma * self.p_inf
+        return p, g1 * e, g1 * rho, self.gamma * g1 * (e - self.p_inf / rho)
 
     max_density = float("inf")  # no compression limit
 
@@ -105,6 +111,14 @@ class MieGruneisen:
         _, p_h, _, e_h, _ = self._hugoniot(rho)
         return e_h + (p - p_h) / (self.gamma0 * self.rho0)
 
+    def state(self, rho, e):
+        _, p_h, dp_h_deta, e_h, de_h_deta = self._hugoniot(rho)
+        k = self.gamma0 * self.rho0
+        p = p_h + k * (e - e_h)
+        dp_drho = (dp_h_deta - k * de_h_deta) * self.rho0 / rho**2
+        dp_de = np.full_like(np.asarray(rho, dtype=float), k)
+        return p, dp_drho, dp_de, dp_drho + p / rho**2 * k
+
     @property
     def max_density(self) -> float:
         """The reference Hugoniot is singular at η = 1/s, i.e. ρ = ρ0 s/(s − 1)."""
@@ -141,6 +155,10 @@ class Linear:
     def energy(self, rho, p):
         # e plays no part in the pressure; it still carries the work of compression.
         return np.zeros_like(np.asarray(rho, dtype=float))
+
+    def state(self, rho, e):
+        ones = np.ones_like(np.asarray(rho, dtype=float))
+        return self.pressure(rho, e), self.c0**2 * ones, 0.0 * ones, self.c0**2 * ones
 
     max_density = float("inf")
 
