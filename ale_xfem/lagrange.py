@@ -280,8 +280,11 @@ class ExplicitWilkins:
             predicted_volume = self.mesh.cell_volumes(x_pred)[cells]
             strain = predicted_volume / first.volume[cells]
             view = MixedView.of(state, cells)
+            predicted_pressure = view.interface_pressure
+            if self.mixed.model == "single_velocity":
+                predicted_pressure = self._equal_strain(state, first, strain)[0]
             view = MixedView(view.volume_left * strain, view.volume_right * strain,
-                             view.mass_right, view.energy_right, view.interface_pressure)
+                             view.mass_right, view.energy_right, predicted_pressure)
         predicted = self.evaluate(x_pred, u_pred, mass, e_pred, view)
         if not predicted.volume.min() > 0.0:
             self._check(predicted, x_pred, e_pred, "predicted ")
@@ -289,7 +292,9 @@ class ExplicitWilkins:
         # Corrector with the time-centred forces F̄ = (F^n + F*)/2.
         mean_force = first.nodal_force + predicted.nodal_force
         mean_force *= 0.5
-        if self.mixed is not None:
+        if self.mixed is not None and self.mixed.model == "single_velocity":
+            solution = None  # explicit: the mixed cells' forces are already in mean_force
+        elif self.mixed is not None:
             clock = time.perf_counter()
             solution = self._solve_mixed_cells(state, first, predicted, mean_force, dt,
                                                dt_over_node_mass)
@@ -323,6 +328,10 @@ class ExplicitWilkins:
                 material_density=final.density, material_pressure=final.pressure,
                 material_sound_speed=final.sound_speed)
             return new_state, final, boundary_work, boundary_impulse
+        if solution is None:
+            work = 0.5 * (first.stress[self.mixed.cells] + predicted.stress[self.mixed.cells])
+            solution = self._equal_strain(state, first, self.mesh.cell_volumes(x_new)[self.mixed.cells]
+                                          / first.volume[self.mixed.cells], work)[1]
         new_state, final = self._finish_mixed(state, solution, x_new, u_new, e_new, dt)
         if not self._healthy(final, new_state.material_energy[:1]):
             self._check(predicted, x_pred, e_pred, "predicted ")
@@ -374,6 +383,23 @@ class ExplicitWilkins:
         mean_force[0, a] -= change
         mean_force[0, b] += change
         return va, vb, details
+
+    def _equal_strain(self, state, first, strain, work=None):
+        """Single-velocity closure: both materials of a mixed cell take the cell's volume
+        change in proportion to their volumes (equal strain), their energies change by
+        −W ΔV_α (W: the work stress, P^n in the predictor), and the cell's stress is the
+        volume-weighted mean of their pressures.  The pressure relaxation at the start of
+        the next step then equilibrates them."""
+        m_a, m_b, va0, vb0, ea0, eb0 = self._mixed_start(state)
+        if work is None:
+            work = first.stress[self.mixed.cells]
+        va, vb = va0 * strain, vb0 * strain
+        ea = ea0 - work * (va - va0) / m_a
+        eb = eb0 - work * (vb - vb0) / m_b
+        pa, _, _, c2a = self.mixed.left_groups.eos_values(self.materials, m_a / va, ea)
+        pb, _, _, c2b = self.mixed.right_groups.eos_values(self.materials, m_b / vb, eb)
+        mean_pressure = (va * pa + vb * pb) / (va + vb)
+        return mean_pressure, (va, vb, (ea, eb, pa, pb, m_a / va, m_b / vb, c2a, c2b))
 
     def _finish_mixed(self, state, solution, x_new, u_new, e_new, dt):
         va, vb, details = solution

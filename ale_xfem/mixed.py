@@ -89,6 +89,7 @@ class MixedCells:
     tolerance: float = 1e-10
     max_iterations: int = 50
     nonlinear: bool = True
+    model: str = "enriched"  # or "single_velocity": one velocity field, equal strain + relaxation
     stats: dict = field(default_factory=lambda: {"steps": 0, "iterations": 0, "max_iterations": 0,
                                                  "relaxations": 0})
 

@@ -96,12 +96,15 @@ def build_problem(scene: Scene) -> Problem:
             material_volume[slot, mixed_cells] = per_material["volume"][mat, mixed_cells]
             material_energy[slot, mixed_cells] = (per_material["energy"][mat, mixed_cells]
                                                   / per_material["mass"][mat, mixed_cells])
-        # Mass condensation (paper fig. 3): each material's mass and momentum in a mixed
-        # cell go to its internal node; the external nodes are massless.
-        corner_mass[0, mixed_cells] = material_mass[0, mixed_cells]
-        corner_mass[1, mixed_cells] = material_mass[1, mixed_cells]
-        corner_momentum[:, 0, mixed_cells] = per_material["momentum"][:, alpha, mixed_cells]
-        corner_momentum[:, 1, mixed_cells] = per_material["momentum"][:, beta, mixed_cells]
+        enriched = scene.interface.model == "enriched"
+        if enriched:
+            # Mass condensation (paper fig. 3): each material's mass and momentum in a mixed
+            # cell go to its internal node; the external nodes are massless.  (The
+            # single-velocity closure keeps the halves of the whole cell.)
+            corner_mass[0, mixed_cells] = material_mass[0, mixed_cells]
+            corner_mass[1, mixed_cells] = material_mass[1, mixed_cells]
+            corner_momentum[:, 0, mixed_cells] = per_material["momentum"][:, alpha, mixed_cells]
+            corner_momentum[:, 1, mixed_cells] = per_material["momentum"][:, beta, mixed_cells]
         node_left = np.where(x[mixed_cells, 0] < x[mixed_cells, 1], mesh.cell_nodes[mixed_cells, 0],
                              mesh.cell_nodes[mixed_cells, 1])
         node_right = np.where(x[mixed_cells, 0] < x[mixed_cells, 1], mesh.cell_nodes[mixed_cells, 1],
@@ -109,7 +112,8 @@ def build_problem(scene: Scene) -> Problem:
         mixed = MixedCells(mixed_cells, node_left, node_right, alpha, beta, materials,
                            tolerance=scene.numerics.interface_tolerance,
                            max_iterations=scene.numerics.interface_max_iterations,
-                           nonlinear=scene.interface.solver == "nonlinear")
+                           nonlinear=scene.interface.solver == "nonlinear",
+                           model=scene.interface.model)
     layout = MaterialLayout(cell_material, n_materials)
     # corner shares are (corner, cell) in the cells' own node order; mixed cells above were
     # written left/right, so swap where a cell lists its right node first.
@@ -135,8 +139,11 @@ def build_problem(scene: Scene) -> Problem:
     if any(b.kind == "velocity" for b in boundaries):
         effects.append("piston")
     if mixed is not None:
-        effects += ["mixed_cells_enriched", f"interface_solver_{scene.interface.solver}",
-                    "pressure_relaxation"]
+        if scene.interface.model == "enriched":
+            effects += ["mixed_cells_enriched", f"interface_solver_{scene.interface.solver}"]
+        else:
+            effects += ["mixed_cells_single_velocity"]
+        effects.append("pressure_relaxation")
         state = initial_relaxation(mixed, state)
     return Problem(scene, mesh, materials, layout, node_mass, state, boundaries,
                    exact_reference(scene), effects, mixed, corner_by_position)

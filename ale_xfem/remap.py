@@ -84,7 +84,7 @@ def _segments(edges_a, edges_b):
 def remap_1d(order_of_cells, cell_left_node, cell_right_node, node_position, target_position,
              cell_material, material_mass, material_energy, material_volume, corner_mass,
              node_velocity, mixed_cells, interface_velocity, n_materials,
-             order: int = 2) -> RemapResult:
+             order: int = 2, condensed: bool = True) -> RemapResult:
     """Remap a 1D state onto target node positions.
 
     order_of_cells: cells sorted left to right; cell_left_node / cell_right_node: (n_cells,)
@@ -193,28 +193,22 @@ def remap_1d(order_of_cells, cell_left_node, cell_right_node, node_position, tar
     new_volume[0, pure_sorted] = target_width[pure_sorted]  # absorb round-off
 
     # -- momentum: old parts → new parts ------------------------------------------------------
-    # Old parts: a pure piece splits at its middle between its cell's two nodes; a mixed
-    # cell's pieces belong to their internal nodes.
+    # A part is the share of a piece that one node carries: a piece splits at its cell's
+    # middle between the cell's two nodes, except (enriched) a mixed cell's pieces, which
+    # belong whole to their internal nodes (the mass condensation).
     piece_is_mixed = np.repeat(mixed_here, count)
-    part_piece = np.repeat(np.arange(n_pieces), np.where(piece_is_mixed, 1, 2))
-    is_second_half = np.zeros(part_piece.size, dtype=bool)
-    is_second_half[1:] = part_piece[1:] == part_piece[:-1]
-    is_first_half = np.zeros(part_piece.size, dtype=bool)
-    is_first_half[:-1] = part_piece[:-1] == part_piece[1:]
-    part_lo = piece_lo[part_piece].copy()
-    part_hi = piece_hi[part_piece].copy()
-    part_hi[is_first_half] = centre[part_piece[is_first_half]]
-    part_lo[is_second_half] = centre[part_piece[is_second_half]]
-    mixed_part = piece_is_mixed[part_piece]
-    on_right = is_second_half | (mixed_part & (piece_slot[part_piece] == 1))
-    part_owner = np.where(on_right, cell_right_node[piece_cell[part_piece]],
-                          cell_left_node[piece_cell[part_piece]])
-
-    # The lumped (corner) mass each part carries in the Lagrange phase.
+    cell_middle = 0.5 * (node_position[cell_left_node] + node_position[cell_right_node])
+    part_piece, part_lo, part_hi, part_side = _parts(piece_lo, piece_hi, piece_cell, piece_slot,
+                                                     piece_is_mixed, cell_middle, condensed)
     part_cell = piece_cell[part_piece]
-    part_share = corner_mass[on_right.astype(np.int64), part_cell]
+    part_owner = np.where(part_side == 1, cell_right_node[part_cell], cell_left_node[part_cell])
     part_mass = _integrate_linear(density[part_piece], density_slope[part_piece], centre[part_piece],
                                   part_lo, part_hi)
+    # The lumped (corner) mass of the Lagrange phase, shared among the parts of a corner in
+    # proportion to their mass.
+    corner_key = 2 * part_cell + part_side
+    corner_total = np.bincount(corner_key, part_mass, 2 * n_cells)
+    part_share = corner_mass[part_side, part_cell] * part_mass / corner_total[corner_key]
     first_moment = _first_moment(density[part_piece], density_slope[part_piece], centre[part_piece],
                                  part_lo, part_hi)
     part_centroid = first_moment / part_mass
@@ -223,16 +217,17 @@ def remap_1d(order_of_cells, cell_left_node, cell_right_node, node_position, tar
     part_velocity = node_velocity[:, part_owner]  # (components, n_parts)
     part_slope = np.zeros_like(part_velocity)
     if order == 2:
+        part_material = piece_material[part_piece] if condensed else np.zeros(part_piece.size, dtype=np.int64)
         part_slope = _velocity_slopes(node_position, node_velocity, cell_left_node, cell_right_node,
-                                      cells, is_mixed, slot_of, interface_velocity, material_volume,
-                                      part_owner, piece_material[part_piece], part_piece, piece_cell)
+                                      cells, is_mixed & condensed, slot_of, interface_velocity,
+                                      material_volume, part_owner, part_material, part_piece, piece_cell,
+                                      part_side)
 
     # New parts, from the new cells and their interfaces.
     new_is_mixed = holds == 2
     new_interface = t_left + new_volume[0]
-    new_count = np.where(new_is_mixed, 1, 2)  # parts per new piece
     new_piece_count = np.where(new_is_mixed, 2, 1)
-    new_piece_cell = np.repeat(np.arange(n_cells), new_piece_count)  # sorted index
+    new_piece_cell = np.repeat(np.arange(n_cells), new_piece_count)  # index into sorted cells
     new_start = np.concatenate([[0], np.cumsum(new_piece_count)[:-1]])
     new_piece_slot = np.zeros(new_piece_cell.size, dtype=np.int64)
     new_piece_slot[new_start[new_is_mixed] + 1] = 1
@@ -240,25 +235,12 @@ def remap_1d(order_of_cells, cell_left_node, cell_right_node, node_position, tar
     new_piece_hi = t_right[new_piece_cell].copy()
     new_piece_hi[new_start[new_is_mixed]] = new_interface[new_is_mixed]
     new_piece_lo[new_start[new_is_mixed] + 1] = new_interface[new_is_mixed]
-    parts_of_new_piece = new_count[new_piece_cell]
-    new_part_piece = np.repeat(np.arange(new_piece_cell.size), parts_of_new_piece)
-    new_second = np.zeros(new_part_piece.size, dtype=bool)
-    new_second[1:] = new_part_piece[1:] == new_part_piece[:-1]
-    new_first = np.zeros(new_part_piece.size, dtype=bool)
-    new_first[:-1] = new_part_piece[:-1] == new_part_piece[1:]
-    new_part_lo = new_piece_lo[new_part_piece].copy()
-    new_part_hi = new_piece_hi[new_part_piece].copy()
-    new_centre = 0.5 * (new_piece_lo + new_piece_hi)
-    new_part_hi[new_first] = new_centre[new_part_piece[new_first]]
-    new_part_lo[new_second] = new_centre[new_part_piece[new_second]]
-    sorted_cells_left_node = cell_left_node[cells]
-    sorted_cells_right_node = cell_right_node[cells]
-    piece_cell_sorted = new_piece_cell[new_part_piece]
-    new_part_owner = np.where(new_second, sorted_cells_right_node[piece_cell_sorted],
-                              sorted_cells_left_node[piece_cell_sorted])
-    mixed_new_part = new_is_mixed[piece_cell_sorted]
-    new_part_owner = np.where(mixed_new_part & (new_piece_slot[new_part_piece] == 1),
-                              sorted_cells_right_node[piece_cell_sorted], new_part_owner)
+    new_part_piece, new_part_lo, new_part_hi, new_part_side = _parts(
+        new_piece_lo, new_piece_hi, new_piece_cell, new_piece_slot, new_is_mixed[new_piece_cell],
+        0.5 * (t_left + t_right), condensed)
+    new_part_cell = new_piece_cell[new_part_piece]  # sorted index
+    new_part_owner = np.where(new_part_side == 1, cell_right_node[cells][new_part_cell],
+                              cell_left_node[cells][new_part_cell])
 
     old_edges = np.concatenate([part_lo, part_hi[-1:]])
     new_edges = np.concatenate([new_part_lo, new_part_hi[-1:]])
@@ -287,9 +269,8 @@ def remap_1d(order_of_cells, cell_left_node, cell_right_node, node_position, tar
     energy_new = np.zeros((slots, n_cells))
     with np.errstate(invalid="ignore", divide="ignore"):
         energy_new[:, cells] = np.where(new_mass > 0, new_energy_total / np.where(new_mass > 0, new_mass, 1.0), 0.0)
-    new_part_on_right = new_second | (mixed_new_part & (new_piece_slot[new_part_piece] == 1))
-    corner_mass_new = np.zeros((2, n_cells))
-    corner_mass_new[new_part_on_right.astype(np.int64), cells[piece_cell_sorted]] = new_part_mass
+    corner_mass_new = np.bincount(cells[new_part_cell] * 2 + new_part_side, new_part_mass,
+                                  2 * n_cells).reshape(n_cells, 2).T.copy()
     node_mass = np.bincount(new_part_owner, new_part_mass, n_nodes)
     velocity = momentum / node_mass
     kinetic_before = 0.5 * np.sum(np.bincount(part_owner, part_share, n_nodes) * node_velocity**2)
@@ -300,6 +281,28 @@ def remap_1d(order_of_cells, cell_left_node, cell_right_node, node_position, tar
 
 class RemapFailure(RuntimeError):
     pass
+
+
+def _parts(piece_lo, piece_hi, piece_cell, piece_slot, piece_is_mixed, cell_middle, condensed):
+    """Split pieces into node parts: at the cell middle when it lies strictly inside the
+    piece (and the piece is not a condensed mixed piece).  Returns (piece index, lo, hi,
+    side: 0 left node, 1 right node) per part, left to right."""
+    middle = cell_middle[piece_cell]
+    keep_whole = piece_is_mixed & condensed
+    split = ~keep_whole & (middle > piece_lo) & (middle < piece_hi)
+    part_piece = np.repeat(np.arange(piece_lo.size), np.where(split, 2, 1))
+    second = np.zeros(part_piece.size, dtype=bool)
+    second[1:] = part_piece[1:] == part_piece[:-1]
+    first = np.zeros(part_piece.size, dtype=bool)
+    first[:-1] = part_piece[:-1] == part_piece[1:]
+    lo = piece_lo[part_piece].copy()
+    hi = piece_hi[part_piece].copy()
+    hi[first] = middle[part_piece[first]]
+    lo[second] = middle[part_piece[second]]
+    whole_side = np.where(keep_whole, piece_slot,
+                          (0.5 * (piece_lo + piece_hi) > middle).astype(np.int64))
+    side = np.where(second, 1, np.where(first, 0, whole_side[part_piece]))
+    return part_piece, lo, hi, side
 
 
 def _first_moment(value, slope, centre, lo, hi):
@@ -318,7 +321,7 @@ def _simpson_product(rho, rho_slope, rho_centre, u, u_slope, u_centre, lo, hi):
 
 def _velocity_slopes(x, u, cell_left_node, cell_right_node, cells, is_mixed, slot_of,
                      interface_velocity, material_volume, part_owner, part_material,
-                     part_piece, piece_cell):
+                     part_piece, piece_cell, part_side):
     """Minmod slope of each part's owner velocity from its neighbours in the same material.
 
     Neighbours are the other node of each cell the material occupies around the owner:
@@ -330,7 +333,7 @@ def _velocity_slopes(x, u, cell_left_node, cell_right_node, cells, is_mixed, slo
     # For each part: the cell it lies in and the neighbour node value on each side.
     cell = piece_cell[part_piece]
     left_node, right_node = cell_left_node[cell], cell_right_node[cell]
-    owner_is_left = part_owner == left_node
+    owner_is_left = part_side == 0
     other = np.where(owner_is_left, right_node, left_node)
     x_owner, x_other = x[part_owner], x[other]
     u_other = u[:, other].copy()
@@ -385,6 +388,7 @@ class Remapper:
         self.corner_mass = problem.corner_mass
         numerics = problem.scene.numerics
         interface = problem.scene.interface
+        self.model = interface.model if interface is not None else "enriched"
         self.solver_options = dict(tolerance=numerics.interface_tolerance,
                                    max_iterations=numerics.interface_max_iterations,
                                    nonlinear=interface is None or interface.solver == "nonlinear")
@@ -414,7 +418,8 @@ class Remapper:
         result = remap_1d(self.cell_order, self.left_node, self.right_node, state.node_position[0],
                           target, layout.cell_material, state.material_mass, state.material_energy,
                           state.material_volume, self.corner_mass, state.node_velocity, cells,
-                          interface_velocity, len(self.materials), self.order)
+                          interface_velocity, len(self.materials), self.order,
+                          condensed=mixed is None or mixed.model == "enriched")
         self.corner_mass = result.corner_mass
         new_layout = MaterialLayout(result.cell_material, len(self.materials))
         occupied = result.material_volume > 0
@@ -426,6 +431,7 @@ class Remapper:
             new_mixed = self._mixed_type(c, self.left_node[c], self.right_node[c],
                                          result.cell_material[0, c], result.cell_material[1, c],
                                          self.materials, **self.solver_options)
+            new_mixed.model = mixed.model if mixed is not None else self.model
             if mixed is not None:
                 new_mixed.stats = mixed.stats
             interface_pressure = 0.5 * (pressure[0, c] + pressure[1, c])

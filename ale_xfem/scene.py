@@ -380,7 +380,7 @@ def _validate_interface(table: Any) -> InterfaceSpec:
     for key, default in INTERFACE_DEFAULTS.items():
         table.setdefault(key, default)
     return InterfaceSpec(
-        model=_choice(table["model"], "interface.model", ("enriched",), ("single_velocity",)),
+        model=_choice(table["model"], "interface.model", ("enriched", "single_velocity")),
         solver=_choice(table["solver"], "interface.solver", ("nonlinear", "linearised")),
         stabilisation=_choice(table["stabilisation"], "interface.stabilisation", ("bubble", "nitsche")),
         slip=_choice(table["slip"], "interface.slip", ("free",), ("stick", "coulomb")),
