@@ -49,3 +49,43 @@ def run_bench(sizes=DEFAULT_SIZES, scene: str = "sod", out=print) -> list[dict]:
         out(f"{cells:>10d} {row['steps']:>6d} {1e6 * row['seconds_per_step']:>10.1f} "
             f"{row['zone_cycles_per_second']:>15.3e}")
     return rows
+
+
+PHASE_CASES = (
+    ("pure Lagrangian (node-aligned interface)", "sod-two-gamma", []),
+    ("one enriched interface, Lagrangian", "sod-two-gamma-enriched",
+     ["regions.0.interval=[0.0, 0.500037]", "regions.1.interval=[0.500037, 1.0]"]),
+    ("one enriched interface, Eulerian remap", "sod-two-gamma-enriched",
+     ["regions.0.interval=[0.0, 0.500037]", "regions.1.interval=[0.500037, 1.0]", "mesh.motion=eulerian"]),
+)
+
+
+def phase_times(cells: int, steps: int, overrides=(), scene: str = "sod-two-gamma") -> dict:
+    """Seconds per step in each phase over `steps` steps of a scene (after 5 warm-up steps
+    that also run the initial relaxation and compile nothing: no forms are involved)."""
+    from ale_xfem.run import simulate
+
+    problem = build_problem(load_scene(resolve_scene_path(scene), [f"mesh.cells={cells}", "t_end=1e9",
+                                                                   *overrides]))
+    warm = simulate(problem, stop_after_steps=5)
+    problem.state = warm.state
+    result = simulate(problem, stop_after_steps=steps)
+    per_step = {k: v / steps for k, v in result.phase_seconds.items()}
+    per_step["total"] = result.wall_seconds / steps
+    return per_step
+
+
+def run_phase_bench(sizes=(1_000, 100_000), out=print) -> list[dict]:
+    out("time per step by phase (ms), 1D two-gamma tube, the interface strictly inside a cell")
+    out(f"{'cells':>8} {'case':<42} {'lagrange':>9} {'mixed':>9} {'remap':>9} {'total':>9} {'ratio':>7}")
+    rows = []
+    for cells in sizes:
+        steps = steps_for(cells) // 4 if cells <= 10_000 else 50
+        reference = None
+        for label, scene, overrides in PHASE_CASES:
+            t = phase_times(cells, steps, overrides, scene)
+            reference = reference or t["total"]
+            rows.append({"cells": cells, "case": label, **t, "ratio": t["total"] / reference})
+            out(f"{cells:>8d} {label:<42} {1e3 * t['lagrange']:>9.3f} {1e3 * t['mixed_cell_solve']:>9.3f} "
+                f"{1e3 * t['remap']:>9.3f} {1e3 * t['total']:>9.3f} {t['total'] / reference:>7.2f}")
+    return rows

@@ -33,6 +33,9 @@ def _parser() -> argparse.ArgumentParser:
     bench = commands.add_parser("bench", help="zone-cycles per second of the explicit loop")
     bench.add_argument("--cells", default="1000,10000,100000,1000000",
                        help="comma-separated mesh sizes (default: 1000,...,1000000)")
+    bench.add_argument("--phases", action="store_true",
+                       help="time per step by phase (explicit, mixed-cell solve, remap) with and "
+                            "without an enriched interface, at 1000 and 100000 cells (or --cells)")
     return parser
 
 
@@ -58,7 +61,7 @@ def _list() -> int:
 
 
 def _bench(args) -> int:
-    from ale_xfem.bench import run_bench
+    from ale_xfem.bench import run_bench, run_phase_bench
 
     try:
         sizes = [int(v) for v in args.cells.split(",")]
@@ -67,7 +70,10 @@ def _bench(args) -> int:
     except ValueError:
         print(f"error: --cells = {args.cells!r}: comma-separated positive integers", file=sys.stderr)
         return EXIT_BAD_INPUT
-    run_bench(sizes)
+    if args.phases:
+        run_phase_bench(sizes if args.cells != "1000,10000,100000,1000000" else (1_000, 100_000))
+    else:
+        run_bench(sizes)
     return EXIT_OK
 
 

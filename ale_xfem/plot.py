@@ -48,3 +48,43 @@ def plot_profile(problem, result, path: Path, title: str | None = None) -> Path:
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
+
+
+def plot_comparison(runs, path: Path, title: str, fields=("density", "velocity", "pressure",
+                                                            "internal_energy"), exact=None, time=None):
+    """Overlay the profiles of several runs (a list of (label, problem, result)) and, when
+    given, an exact reference (an object with ``sample(x, t)``)."""
+    labels = dict(PANELS)
+    labels["velocity_transverse"] = "transverse velocity"
+    columns = 2 if len(fields) > 1 else 1
+    rows_ = (len(fields) + 1) // 2
+    fig, axes = plt.subplots(rows_, columns, figsize=(5 * columns, 3.4 * rows_), sharex=True, squeeze=False)
+    axes = axes.ravel()
+    reference = None
+    if exact is not None and time:
+        lo = min(profile_rows(p, r.state)["x_left"].min() for _, p, r in runs)
+        hi = max(profile_rows(p, r.state)["x_right"].max() for _, p, r in runs)
+        fine = np.linspace(lo, hi, 4001)
+        reference = exact.sample(fine, time)
+    markers = ("o", "s", "^", "v")
+    for index, (label, problem, result) in enumerate(runs):
+        rows = profile_rows(problem, result.state)
+        centres = 0.5 * (rows["x_left"] + rows["x_right"])
+        for ax, key in zip(axes, fields):
+            ax.plot(centres, rows[key], markers[index % 4], ms=2.5, mfc="none", color=f"C{index}",
+                    label=label, lw=0.6, ls="-" if index == 0 else "none")
+    for ax, key in zip(axes, fields):
+        if reference is not None and key in reference:
+            ax.plot(fine, reference[key], "k-", lw=1.0, label="exact")
+        ax.set_ylabel(labels.get(key, key))
+        ax.grid(alpha=0.3)
+        ax.set_xlabel("x")
+    for ax in axes[len(fields):]:
+        ax.set_visible(False)
+    axes[0].legend(fontsize=8, loc="best")
+    fig.suptitle(title)
+    fig.tight_layout()
+    path = Path(path)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
