@@ -29,6 +29,15 @@ from ale_xfem.mixed import MixedCellFailure, MixedCells, with_mixed_state
 from ale_xfem.state import MaterialLayout, State, thermodynamics
 
 
+def _two_slots(row0, mixed_cells, row1_mixed):
+    """A (2, n_cells) array: row 0 given, row 1 zero but at the mixed cells."""
+    out = np.empty((2, row0.size))
+    out[0] = row0
+    out[1].fill(0.0)
+    out[1, mixed_cells] = row1_mixed
+    return out
+
+
 class Breakdown(RuntimeError):
     """The state became unphysical: a one-line diagnostic (step, time, cell, quantity)."""
 
@@ -76,7 +85,7 @@ class ForceEvaluation:
     velocity_jump: np.ndarray  # Δu = L ∇·u (negative in compression)
     stress: np.ndarray  # P = p + q, the pressure of the corner forces F_Ki = P ∂V/∂x_i
     nodal_force: np.ndarray  # (dim, n_nodes)
-    cell_sound_speed: np.ndarray  # c of the cell (mixed cells: the larger of the two)
+    mixed_sound_speed: np.ndarray | None  # c of each mixed cell (the larger of its two)
     mixed_viscosity: np.ndarray | None = None  # q of the mixed cells (n_mixed,)
 
 
@@ -140,17 +149,14 @@ class ExplicitWilkins:
         cell_type, corners = self.mesh.cell_type, self.corners
         volume, gradient = cell_type.volume_and_gradient(corners.gather(node_position))
         mass0, energy0 = material_mass[:1], material_energy[:1]
-        if mixed_view is None:
-            density = mass0 / volume
-        else:
+        density = mass0 / volume
+        if mixed_view is not None:  # slot 0 of a mixed cell is its α part
             cells = self.mixed.cells
-            material_volume = volume.copy()
-            material_volume[cells] = mixed_view.volume_left
-            density = mass0 / material_volume
+            density[0, cells] = mass0[0, cells] / mixed_view.volume_left
         pressure, sound_speed = thermodynamics(self.materials, self.pure_layout, density, energy0)
         volume_rate = corner_dot(gradient, corners.gather(node_velocity))  # dV/dt = Σ ∂V/∂x_i·u_i
         velocity_jump = cell_type.velocity_jump(volume_rate, volume)
-        cell_density, cell_sound_speed = density[0], sound_speed[0]
+        mixed_viscosity = mixed_sound_speed = None
         if mixed_view is not None:
             # The viscosity of a mixed cell acts on the whole cell (both materials alike, so
             # it does not upset their pressure balance): its density is the cell's, its
@@ -158,24 +164,24 @@ class ExplicitWilkins:
             rho_right = mixed_view.mass_right / mixed_view.volume_right
             c2_right = self.mixed.right_groups.eos_values(self.materials, rho_right,
                                                           mixed_view.energy_right)[3]
-            cell_density = cell_density.copy()
-            cell_density[cells] = (mass0[0, cells] + mixed_view.mass_right) / volume[cells]
-            cell_sound_speed = cell_sound_speed.copy()
-            cell_sound_speed[cells] = np.maximum(cell_sound_speed[cells],
-                                                 np.sqrt(np.maximum(c2_right, 0.0)))
+            mixed_density = (mass0[0, cells] + mixed_view.mass_right) / volume[cells]
+            mixed_sound_speed = np.maximum(sound_speed[0, cells], np.sqrt(np.maximum(c2_right, 0.0)))
         if self.artificial_viscosity:
             # Quadratic (von Neumann–Richtmyer) + linear (Landshoff) viscosity in compression:
             # q = ρ (c2 Δu² + c1 c |Δu|) for Δu < 0.
             compression = np.minimum(velocity_jump, 0.0)
             viscosity = self.numerics.q_quadratic * compression
-            viscosity -= self.numerics.q_linear * cell_sound_speed
+            viscosity -= self.numerics.q_linear * sound_speed[0]
             viscosity *= compression
-            viscosity *= cell_density
+            viscosity *= density[0]
+            if mixed_view is not None:
+                squeeze = compression[cells]
+                viscosity[cells] = mixed_density * squeeze * (self.numerics.q_quadratic * squeeze
+                                                              - self.numerics.q_linear * mixed_sound_speed)
             stress = pressure[0] + viscosity
         else:
             viscosity = np.zeros_like(volume)
             stress = pressure[0].copy() if mixed_view is not None else pressure[0]
-        mixed_viscosity = None
         if mixed_view is not None:
             mixed_viscosity = viscosity[cells]
             stress[cells] = mixed_view.interface_pressure + mixed_viscosity
@@ -183,7 +189,7 @@ class ExplicitWilkins:
         for d in range(cell_type.dimension):
             corners.scatter_scaled([g_corner[d] for g_corner in gradient], stress, out=nodal_force[d])
         return ForceEvaluation(volume, gradient, density, pressure, sound_speed, viscosity,
-                               velocity_jump, stress, nodal_force, cell_sound_speed, mixed_viscosity)
+                               velocity_jump, stress, nodal_force, mixed_sound_speed, mixed_viscosity)
 
     def evaluate_state(self, state: State) -> ForceEvaluation:
         view = None if self.mixed is None else MixedView.of(state, self.mixed.cells)
@@ -194,11 +200,19 @@ class ExplicitWilkins:
 
     def stable_time_step(self, evaluation: ForceEvaluation) -> float:
         """CFL limit with the viscous signal speed: dt_K = L / max(Q + √(Q² + c²), |Δu|),
-        Q = c1 c + 2 c2 |Δu| in compression (the form of Benson, CMAME 99, 1992)."""
-        c = evaluation.cell_sound_speed
-        length = self.mesh.cell_type.length_scale(evaluation.volume)
+        Q = c1 c + 2 c2 |Δu| in compression (the form of Benson, CMAME 99, 1992).  A mixed
+        cell counts with its whole length and the larger sound speed of its materials."""
+        dt = self._cfl_limit(evaluation.sound_speed[0], evaluation.velocity_jump,
+                             self.mesh.cell_type.length_scale(evaluation.volume))
+        if evaluation.mixed_sound_speed is not None:
+            cells = self.mixed.cells
+            dt = min(dt, self._cfl_limit(evaluation.mixed_sound_speed, evaluation.velocity_jump[cells],
+                                         self.mesh.cell_type.length_scale(evaluation.volume[cells])))
+        return self.numerics.cfl * dt
+
+    def _cfl_limit(self, c, velocity_jump, length) -> float:
         if self.artificial_viscosity:
-            q_speed = np.minimum(evaluation.velocity_jump, 0.0)
+            q_speed = np.minimum(velocity_jump, 0.0)
             q_speed *= -2.0 * self.numerics.q_quadratic
             q_speed += self.numerics.q_linear * c
             signal = q_speed * q_speed
@@ -209,10 +223,9 @@ class ExplicitWilkins:
             signal = c
         # No cell may change its length by more than its own size in a step (cold gas
         # pushed by a piston has c ≈ 0: the velocity jump is then the only signal).
-        signal = np.maximum(signal, np.abs(evaluation.velocity_jump))
+        signal = np.maximum(signal, np.abs(velocity_jump))
         with np.errstate(divide="ignore"):
-            dt = np.min(length / signal)
-        return self.numerics.cfl * float(dt)
+            return float(np.min(length / signal))
 
     # -- the step -----------------------------------------------------------------------
 
@@ -277,8 +290,7 @@ class ExplicitWilkins:
             # needed for the viscosity q*, taken with both materials strained alike.
             cells = self.mixed.cells
             e_pred[0, cells] = energy[0, cells]
-            predicted_volume = self.mesh.cell_volumes(x_pred)[cells]
-            strain = predicted_volume / first.volume[cells]
+            strain = self._mixed_volumes(x_pred) / first.volume[cells]
             view = MixedView.of(state, cells)
             predicted_pressure = view.interface_pressure
             if self.mixed.model == "single_velocity":
@@ -330,7 +342,7 @@ class ExplicitWilkins:
             return new_state, final, boundary_work, boundary_impulse
         if solution is None:
             work = 0.5 * (first.stress[self.mixed.cells] + predicted.stress[self.mixed.cells])
-            solution = self._equal_strain(state, first, self.mesh.cell_volumes(x_new)[self.mixed.cells]
+            solution = self._equal_strain(state, first, self._mixed_volumes(x_new)
                                           / first.volume[self.mixed.cells], work)[1]
         new_state, final = self._finish_mixed(state, solution, x_new, u_new, e_new, dt)
         if not self._healthy(final, new_state.material_energy[:1]):
@@ -364,13 +376,15 @@ class ExplicitWilkins:
         """The implicit interface solve; adds the mixed cells' n+1 stress to mean_force."""
         mixed = self.mixed
         a, b = mixed.node_left, mixed.node_right
-        mobility = dt_over_node_mass * self.free_nodes  # held nodes do not move
+        # held nodes do not move
+        mobility_a = dt_over_node_mass[a] * self.free_nodes[a]
+        mobility_b = dt_over_node_mass[b] * self.free_nodes[b]
         pi_n = state.interface_pressure
         u0 = state.node_velocity[0]
         # V(π) = A + Bπ (module docstring of ale_xfem.mixed): the internal nodes move with
         # the trapezoidal force ½(F^n + F*) − ½(π − π^n) ∂V/∂x_i.
-        centred = (u0[b] - u0[a]) + 0.5 * (mobility[b] * mean_force[0, b] - mobility[a] * mean_force[0, a])
-        slope = 0.25 * dt * (mobility[a] + mobility[b])
+        centred = (u0[b] - u0[a]) + 0.5 * (mobility_b * mean_force[0, b] - mobility_a * mean_force[0, a])
+        slope = 0.25 * dt * (mobility_a + mobility_b)
         offset = first.volume[mixed.cells] + dt * centred - slope * pi_n
         work_offset = 0.5 * (pi_n + first.mixed_viscosity + predicted.mixed_viscosity)
         start = self._mixed_start(state)
@@ -401,31 +415,34 @@ class ExplicitWilkins:
         mean_pressure = (va * pa + vb * pb) / (va + vb)
         return mean_pressure, (va, vb, (ea, eb, pa, pb, m_a / va, m_b / vb, c2a, c2b))
 
+    def _mixed_volumes(self, position):
+        """Volumes of the mixed cells only (1D: x_b − x_a)."""
+        return position[0, self.mixed.node_right] - position[0, self.mixed.node_left]
+
     def _finish_mixed(self, state, solution, x_new, u_new, e_new, dt):
-        va, vb, details = solution
+        """Assemble the new state: pure cells from the explicit update, mixed cells from the
+        interface solve; every (S, n_cells) array is allocated once."""
+        va, vb, (ea, eb, pa, pb, rho_a, rho_b, c2a, c2b) = solution
         cells, a = self.mixed.cells, self.mixed.node_left
-        volume = self.mesh.cell_volumes(x_new)[cells]
-        vb = volume - va  # the geometric cell volume takes the round-off
+        vb = self._mixed_volumes(x_new) - va  # the geometric cell volume takes the round-off
         energy = np.zeros_like(state.material_energy)
         energy[0] = e_new[0]
+        energy[0, cells], energy[1, cells] = ea, eb
+        interface_pressure = 0.5 * (pa + pb)
+        view = MixedView(va, vb, state.material_mass[1, cells], eb, interface_pressure)
+        final = self.evaluate(x_new, u_new, state.material_mass, energy, view)
+        volume, density, pressure, sound_speed = (_two_slots(row0, cells, row1) for row0, row1 in (
+            (final.volume, vb), (final.density[0], rho_b), (final.pressure[0], pb),
+            (final.sound_speed[0], np.sqrt(np.maximum(c2b, 0.0)))))
+        volume[0, cells] = va
         interface_before = state.node_position[0, a] + state.material_volume[0, cells]
         interface_after = x_new[0, a] + va
-        provisional = state.evolved(time=state.time + dt, node_position=x_new, node_velocity=u_new,
-                                    material_energy=energy)
-        new_state = with_mixed_state(provisional, cells, va, vb, details,
-                                     (interface_after - interface_before) / dt)
-        final = self.evaluate_state(new_state)
-        material_volume = new_state.material_volume.copy()
-        material_volume[0] = final.volume
-        material_volume[0, cells] = va
-        density = new_state.material_density.copy()
-        density[0] = final.density[0]
-        pressure = new_state.material_pressure.copy()
-        pressure[0] = final.pressure[0]
-        sound_speed = new_state.material_sound_speed.copy()
-        sound_speed[0] = final.sound_speed[0]
-        return new_state.evolved(material_volume=material_volume, material_density=density,
-                                 material_pressure=pressure, material_sound_speed=sound_speed), final
+        new_state = state.evolved(
+            time=state.time + dt, node_position=x_new, node_velocity=u_new, material_energy=energy,
+            material_volume=volume, material_density=density, material_pressure=pressure,
+            material_sound_speed=sound_speed, interface_pressure=interface_pressure,
+            interface_velocity=(interface_after - interface_before) / dt)
+        return new_state, final
 
     @staticmethod
     def _healthy(evaluation: ForceEvaluation, energy) -> bool:
