@@ -43,6 +43,7 @@ class RemapResult:
     node_velocity: np.ndarray  # (components, n_nodes)
     mixed_cells: np.ndarray  # (n_mixed,) cells holding an interface
     kinetic_energy_change: float
+    node_momentum: np.ndarray | None = None  # (components, n_nodes): Σ of the nodes' parts
 
 
 def _minmod(a, b):
@@ -276,7 +277,7 @@ def remap_1d(order_of_cells, cell_left_node, cell_right_node, node_position, tar
     kinetic_before = 0.5 * np.sum(np.bincount(part_owner, part_share, n_nodes) * node_velocity**2)
     kinetic_after = 0.5 * np.sum(node_mass * velocity**2)
     return RemapResult(cell_material_new, mass_new, energy_new, volume_new, corner_mass_new, node_mass, velocity,
-                       cells[new_mixed_sorted], kinetic_after - kinetic_before)
+                       cells[new_mixed_sorted], kinetic_after - kinetic_before, momentum)
 
 
 class RemapFailure(RuntimeError):
@@ -384,6 +385,7 @@ class Remapper:
         self.node_order = np.argsort(x0, kind="stable")
         self.initial = x0.copy()
         self.motion, self.order = motion, order
+        self.windows_remapped = 0  # interface-following motion: local remaps done
         self.materials = problem.materials
         self.corner_mass = problem.corner_mass
         numerics = problem.scene.numerics
@@ -394,6 +396,8 @@ class Remapper:
                                    nonlinear=interface is None or interface.solver == "nonlinear")
 
     def target(self, position):
+        if self.motion == "interface":
+            return position.copy()
         if self.motion == "eulerian":
             return self.initial.copy()
         x = position[self.node_order]
@@ -403,9 +407,110 @@ class Remapper:
         target[self.node_order] = smoothed
         return target
 
+    # Interface-following motion: a mixed cell whose interface comes closer to one of its
+    # nodes than this fraction of the cell has that node moved so that Γ is back in the
+    # middle of the cell (at most half-way into the neighbouring cell), and only the two
+    # cells sharing that node are remapped.
+    FOLLOW_BAND = 0.2
+
     def apply(self, state, layout, mixed):
         """Remap state; returns (new state, new layout, new mixed cells or None, new node
         masses, kinetic energy change)."""
+        if self.motion == "interface":
+            return self._follow_interfaces(state, layout, mixed)
+        return self._remap_all(state, layout, mixed)
+
+    def _follow_interfaces(self, state, layout, mixed):
+        if mixed is None:
+            return state, layout, mixed, None, 0.0
+        cells = mixed.cells
+        x = state.node_position[0]
+        a, b = mixed.node_left, mixed.node_right
+        volume = x[b] - x[a]
+        fraction = state.material_volume[0, cells] / volume
+        near = np.flatnonzero((fraction < self.FOLLOW_BAND) | (fraction > 1 - self.FOLLOW_BAND))
+        if near.size == 0:
+            return state, layout, mixed, None, 0.0
+        target = x.copy()
+        windows = []
+        sorted_node = np.empty_like(self.node_order)
+        sorted_node[self.node_order] = np.arange(self.node_order.size)
+        for k in near:  # the few mixed cells whose interface nears a node this step
+            interface = x[a[k]] + state.material_volume[0, cells[k]]
+            position = sorted_node[a[k]]
+            if fraction[k] < 0.5:  # move node a left, into the cell on its left
+                if position == 0:
+                    continue
+                outer = self.node_order[position - 1]
+                target[a[k]] = max(2.0 * interface - x[b[k]], 0.5 * (x[outer] + x[a[k]]))
+                windows.append((position - 1, position + 1))
+            else:  # move node b right
+                if position + 1 == self.node_order.size - 1:
+                    continue
+                outer = self.node_order[position + 2]
+                target[b[k]] = min(2.0 * interface - x[a[k]], 0.5 * (x[b[k]] + x[outer]))
+                windows.append((position, position + 2))
+        if not windows:
+            return state, layout, mixed, None, 0.0
+        self.windows_remapped += len(windows)
+        return self._remap_windows(state, layout, mixed, target, windows)
+
+    def _remap_windows(self, state, layout, mixed, target, windows):
+        """Remap only the cells between sorted nodes (first, last) of each window; the
+        window's end nodes stay, and their parts outside the window are untouched."""
+        from ale_xfem.state import MaterialLayout, thermodynamics
+
+        arrays = {k: getattr(state, k).copy() for k in (
+            "material_mass", "material_energy", "material_volume", "node_velocity")}
+        node_mass = np.bincount(self.left_node, self.corner_mass[0], target.size) + \
+            np.bincount(self.right_node, self.corner_mass[1], target.size)
+        corner_mass = self.corner_mass.copy()
+        position = state.node_position[0]
+        kinetic_change = 0.0
+        sorted_cells = self.cell_order
+        for first, last in windows:
+            window_cells = sorted_cells[first:last]  # cells between the window's nodes
+            window_nodes = self.node_order[first:last + 1]
+            local = {int(n): i for i, n in enumerate(window_nodes)}
+            left = np.array([local[int(n)] for n in self.left_node[window_cells]])
+            right = np.array([local[int(n)] for n in self.right_node[window_cells]])
+            in_window = np.isin(mixed.cells, window_cells)
+            mixed_local = np.array([int(np.flatnonzero(window_cells == c)[0]) for c in mixed.cells[in_window]],
+                                   dtype=np.int64)
+            result = remap_1d(np.arange(window_cells.size), left, right, position[window_nodes],
+                              target[window_nodes], layout.cell_material[:, window_cells],
+                              arrays["material_mass"][:, window_cells],
+                              arrays["material_energy"][:, window_cells],
+                              arrays["material_volume"][:, window_cells], corner_mass[:, window_cells],
+                              arrays["node_velocity"][:, window_nodes], mixed_local,
+                              state.interface_velocity[in_window], len(self.materials), self.order,
+                              condensed=mixed.model == "enriched")
+            if result.mixed_cells.size != mixed_local.size or not np.array_equal(
+                    np.sort(result.mixed_cells), np.sort(mixed_local)):
+                raise RemapFailure("interface-following remap moved an interface out of its cell")
+            # window nodes: momentum inside the window plus, for the two end nodes, their
+            # untouched parts outside it
+            old_inside = np.bincount(left, corner_mass[0, window_cells], window_nodes.size) + \
+                np.bincount(right, corner_mass[1, window_cells], window_nodes.size)
+            outside = node_mass[window_nodes] - old_inside
+            u_old = arrays["node_velocity"][:, window_nodes]
+            new_mass = result.node_mass + outside
+            new_velocity = (result.node_momentum + outside * u_old) / new_mass
+            kinetic_change += 0.5 * float(np.sum(new_mass * new_velocity**2) - np.sum(node_mass[window_nodes] * u_old**2))
+            arrays["node_velocity"][:, window_nodes] = new_velocity
+            node_mass[window_nodes] = new_mass
+            corner_mass[:, window_cells] = result.corner_mass
+            for key in ("material_mass", "material_energy", "material_volume"):
+                arrays[key][:, window_cells] = getattr(result, key)
+        self.corner_mass = corner_mass
+        occupied = arrays["material_volume"] > 0
+        density = np.where(occupied, arrays["material_mass"] / np.where(occupied, arrays["material_volume"], 1.0), 0.0)
+        pressure, sound_speed = thermodynamics(self.materials, layout, density, arrays["material_energy"])
+        new_state = state.evolved(node_position=target[None, :], material_density=density,
+                                  material_pressure=pressure, material_sound_speed=sound_speed, **arrays)
+        return new_state, layout, mixed, node_mass, kinetic_change
+
+    def _remap_all(self, state, layout, mixed):
         from ale_xfem.state import MaterialLayout, thermodynamics
 
         cells = mixed.cells if mixed is not None else np.zeros(0, dtype=np.int64)

@@ -112,22 +112,9 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
             new_state, evaluation, work, impulse = stepper.step(state, dt, evaluation)
             if remapper is not None:
                 remap_clock = time.perf_counter()
-                new_state, layout, mixed, node_mass, kinetic_change = remapper.apply(
-                    new_state, stepper.layout, stepper.mixed)
-                stepper.rebuild(layout, node_mass, mixed)
-                problem.layout, problem.mixed, problem.node_mass = layout, mixed, node_mass
-                # The walls hold the remapped velocities too: their impulse is a boundary
-                # reaction, the kinetic energy it removes part of the remap's change.
-                before = new_state.node_velocity.copy()
-                for boundary in stepper.constraints:
-                    boundary.apply(new_state.node_velocity)
-                jump = new_state.node_velocity - before
-                impulse = impulse + (node_mass * jump).sum(axis=1)
-                kinetic_change += 0.5 * float(np.sum(node_mass * (new_state.node_velocity**2 - before**2)))
+                new_state, evaluation, impulse, kinetic_change = _remap(
+                    problem, stepper, remapper, new_state, evaluation, impulse)
                 remap_energy_change += kinetic_change
-                if mixed is not None:  # the remap leaves a pressure jump in mixed cells
-                    new_state, _ = stepper.relax_mixed_cells(new_state)
-                evaluation = stepper.evaluate_state(new_state)
                 remap_seconds += time.perf_counter() - remap_clock
             state = new_state
         except (Breakdown, RemapFailure) as failure:
@@ -151,6 +138,8 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
                        dt_max=float(dt_max), phase_seconds=phases)
     result.conservation = conservation(start_totals, totals(state, problem.node_mass),
                                        boundary_work, boundary_impulse, problem.node_mass, state)
+    if remapper is not None and remapper.motion == "interface":
+        result.phase_seconds["local_remaps"] = remapper.windows_remapped
     if remapper is not None:
         # The remap conserves mass, momentum and internal energy; it dissipates kinetic
         # energy, reported here relative to the initial total energy.
@@ -168,6 +157,27 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
     if problem.exact is not None and state.time > 0:
         result.errors = l1_errors(problem, state)
     return result
+
+
+def _remap(problem, stepper, remapper, state, evaluation, impulse):
+    """The transport phase: remap, take the new layout, hold the walls, relax mixed cells.
+    Returns (state, its evaluation, boundary impulse, kinetic energy change)."""
+    state, layout, mixed, node_mass, kinetic_change = remapper.apply(state, stepper.layout, stepper.mixed)
+    if node_mass is None:  # nothing was remapped this step
+        return state, evaluation, impulse, 0.0
+    stepper.rebuild(layout, node_mass, mixed)
+    problem.layout, problem.mixed, problem.node_mass = layout, mixed, node_mass
+    # The walls hold the remapped velocities too: their impulse is a boundary reaction, the
+    # kinetic energy it removes part of the remap's change.
+    before = state.node_velocity.copy()
+    for boundary in stepper.constraints:
+        boundary.apply(state.node_velocity)
+    jump = state.node_velocity - before
+    impulse = impulse + (node_mass * jump).sum(axis=1)
+    kinetic_change += 0.5 * float(np.sum(node_mass * (state.node_velocity**2 - before**2)))
+    if mixed is not None:  # the remap leaves a pressure jump in mixed cells
+        state, _ = stepper.relax_mixed_cells(state)
+    return state, stepper.evaluate_state(state), impulse, kinetic_change
 
 
 def conservation(start, end, boundary_work, boundary_impulse, node_mass, state) -> dict:

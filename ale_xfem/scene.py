@@ -19,7 +19,7 @@ from typing import Any
 from ale_xfem import eos as eos_models
 
 BOUNDARY_SIDES_1D = ("left", "right")
-MOTIONS_AVAILABLE = ("lagrangian", "eulerian", "smoothed")
+MOTIONS_AVAILABLE = ("lagrangian", "eulerian", "smoothed", "interface")
 MOTIONS_PLANNED = ()
 
 NUMERICS_DEFAULTS = {

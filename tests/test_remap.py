@@ -110,3 +110,38 @@ def test_single_velocity_diffuses_the_transverse_velocity_where_the_enriched_met
         counts[model] = int(np.sum((w > -1 + 1e-12) & (w < 1 - 1e-12)))
     assert counts["enriched"] == 0
     assert counts["single_velocity"] > 10
+
+
+def test_interface_following_motion_recentres_an_interface_near_a_node_and_keeps_rest():
+    """Γ at a tenth of its cell: the node next to it is moved towards the middle position
+    of Γ, at most half-way into the neighbour cell (here: node moved by h/2, Γ then at
+    0.6h of a 1.5h cell, fraction 0.4); only the two cells sharing that node are remapped,
+    and a state at rest stays at rest."""
+    scene = load_scene(resolve_scene_path("sod-two-gamma-enriched"), [
+        "mesh.cells=100", "mesh.motion=interface", "t_end=1e9", "materials.right.gamma=1.4",
+        "regions.1.density=1.0", "regions.1.pressure=1.0",
+        "regions.0.interval=[0.0, 0.501]", "regions.1.interval=[0.501, 1.0]"])
+    problem = build_problem(scene)
+    cells = problem.mixed.cells
+    x = problem.state.node_position[0]
+    fraction = problem.state.material_volume[0, cells] / (x[problem.mixed.node_right] - x[problem.mixed.node_left])
+    assert fraction[0] == pytest.approx(0.1)
+    result = simulate(problem, stop_after_steps=1000)
+    assert result.status == "ok" and result.phase_seconds["local_remaps"] >= 1
+    x = result.state.node_position[0]
+    fraction = result.state.material_volume[0, cells] / (x[problem.mixed.node_right] - x[problem.mixed.node_left])
+    assert fraction[0] == pytest.approx(0.4, abs=1e-9)
+    assert np.abs(result.state.node_velocity).max() < 1e-12
+    moved = np.flatnonzero(np.abs(x - problem.mesh.node_position[0]) > 1e-12)
+    assert moved.size == 1  # one node moved: two cells remapped
+
+
+def test_interface_following_plate_impact_conserves_and_matches_impedance_matching():
+    problem, result = run_scene("plate-impact-enriched", "mesh.motion=interface")
+    assert result.status == "ok"
+    drift = result.conservation
+    assert abs(drift["mass"]) < 1e-14 and drift["momentum"] < 1e-13
+    assert drift["total_energy"] == pytest.approx(drift["remap_kinetic_energy_change"], abs=1e-13)
+    exact = problem.exact.solution
+    assert result.state.interface_pressure[0] == pytest.approx(exact.contact_pressure, rel=0.02)
+    assert result.state.interface_velocity[0] == pytest.approx(exact.contact_velocity, rel=0.02)
