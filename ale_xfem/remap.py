@@ -386,6 +386,7 @@ class Remapper:
         self.initial = x0.copy()
         self.motion, self.order = motion, order
         self.windows_remapped = 0  # interface-following motion: local remaps done
+        self.general_remaps = 0  # steps remapped by the general intersection
         self.materials = problem.materials
         self.corner_mass = problem.corner_mass
         numerics = problem.scene.numerics
@@ -511,6 +512,8 @@ class Remapper:
         return new_state, layout, mixed, node_mass, kinetic_change
 
     def _remap_all(self, state, layout, mixed):
+        from ale_xfem.remap_swept import remap_1d_swept
+
         from ale_xfem.state import MaterialLayout, thermodynamics
 
         cells = mixed.cells if mixed is not None else np.zeros(0, dtype=np.int64)
@@ -520,11 +523,17 @@ class Remapper:
             order = np.argsort(state.node_position[0, self.left_node[cells]])
             cells, interface_velocity = cells[order], interface_velocity[order]
         target = self.target(state.node_position[0])
-        result = remap_1d(self.cell_order, self.left_node, self.right_node, state.node_position[0],
-                          target, layout.cell_material, state.material_mass, state.material_energy,
-                          state.material_volume, self.corner_mass, state.node_velocity, cells,
-                          interface_velocity, len(self.materials), self.order,
-                          condensed=mixed is None or mixed.model == "enriched")
+        arguments = (self.cell_order, self.left_node, self.right_node, state.node_position[0],
+                     target, layout.cell_material, state.material_mass, state.material_energy,
+                     state.material_volume, self.corner_mass, state.node_velocity, cells,
+                     interface_velocity, len(self.materials), self.order)
+        condensed = mixed is None or mixed.model == "enriched"
+        # The swept form gives the same result at a few passes over the cells; the general
+        # intersection serves the single-velocity closure and any step it does not cover.
+        result = remap_1d_swept(*arguments) if condensed else None
+        if result is None:
+            result = remap_1d(*arguments, condensed=condensed)
+            self.general_remaps += 1
         self.corner_mass = result.corner_mass
         new_layout = MaterialLayout(result.cell_material, len(self.materials))
         occupied = result.material_volume > 0

@@ -140,6 +140,8 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
                                        boundary_work, boundary_impulse, problem.node_mass, state)
     if remapper is not None and remapper.motion == "interface":
         result.phase_seconds["local_remaps"] = remapper.windows_remapped
+    elif remapper is not None:
+        result.phase_seconds["general_remaps"] = remapper.general_remaps
     if remapper is not None:
         # The remap conserves mass, momentum and internal energy; it dissipates kinetic
         # energy, reported here relative to the initial total energy.

@@ -1,0 +1,397 @@
+"""The 1D remap in swept-region (face-flux) form: the same result as
+:func:`ale_xfem.remap.remap_1d` when every node and every dual face moves by less than
+the pieces around it (always, with a CFL-limited step), at a few passes over n_cells.
+
+A new cell [X_j, X_{j+1}] holds the old cell j, plus what the swept interval between x_j
+and X_j (and x_{j+1}, X_{j+1}) brings in or takes out.  The swept interval lies in one
+old cell, the *donor*; where the donor is mixed it is cut at Γ, material by material.
+Nodal momentum moves the same way through the faces of the dual cells (a pure cell's
+middle, or Γ in an enriched mixed cell), from the parts of the donor node.  Everything is
+added once and subtracted once, so mass, energy and momentum are conserved to round-off.
+
+The reconstruction (piece densities and slopes, part velocities and slopes, lumped shares)
+is the one of :mod:`ale_xfem.remap`; only the way it is integrated differs.  Cells where
+materials meet (a mixed cell, or a material entering a cell) are finished with a small
+per-material table; they are few.  Returns None when a displacement is too large, and the
+caller uses the general intersection.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ale_xfem.remap import (RemapFailure, RemapResult, _first_moment, _integrate_linear,
+                            _limited_slopes, _simpson_product, _velocity_slopes)
+
+
+def _clipped_integral(value, slope, centre, lo, hi, a, b):
+    """∫ over [a, b] ∩ [lo, hi] of value + slope (x − centre); and the overlap length."""
+    start = np.maximum(a, lo)
+    end = np.minimum(b, hi)
+    length = np.maximum(end - start, 0.0)
+    end = start + length
+    return _integrate_linear(value, slope, centre, start, end), length, start, end
+
+
+def remap_1d_swept(order_of_cells, cell_left_node, cell_right_node, node_position, target_position,
+                   cell_material, material_mass, material_energy, material_volume, corner_mass,
+                   node_velocity, mixed_cells, interface_velocity, n_materials, order: int = 2):
+    cells = order_of_cells
+    n = cells.size
+    n_nodes = node_position.size
+    L, R = cell_left_node[cells], cell_right_node[cells]
+    nodes = np.concatenate([L[:1], R])  # sorted nodes
+    x = node_position[nodes]
+    X = target_position[nodes]
+    mixed_sorted_mask = np.zeros(n, dtype=bool)
+    rank = np.empty(cell_left_node.size, dtype=np.int64)
+    rank[cells] = np.arange(n)
+    mixed_j = np.sort(rank[mixed_cells])
+    mixed_sorted_mask[mixed_j] = True
+    order_in_mixed = np.argsort(rank[mixed_cells])
+    mixed_velocity = interface_velocity[order_in_mixed] if mixed_cells.size else interface_velocity
+
+    # -- pieces: slot 0 over every cell, slot 1 over the mixed cells ---------------------------
+    xl, xr = x[:-1], x[1:]
+    m0 = cell_material[0, cells]
+    mass0 = material_mass[0, cells]
+    energy0 = mass0 * material_energy[0, cells]
+    hi0 = xr.copy()
+    gamma = xl[mixed_j] + material_volume[0, cells[mixed_j]]
+    hi0[mixed_j] = gamma
+    width0 = hi0 - xl
+    rho0 = mass0 / width0
+    eps0 = energy0 / width0
+    centre0 = 0.5 * (xl + hi0)
+    m1 = cell_material[1, cells[mixed_j]] if mixed_j.size else np.zeros(0, dtype=np.int64)
+    mass1 = material_mass[1, cells[mixed_j]] if mixed_j.size else np.zeros(0)
+    energy1 = mass1 * (material_energy[1, cells[mixed_j]] if mixed_j.size else 0.0)
+    lo1, hi1 = gamma, xr[mixed_j]
+    width1 = hi1 - lo1
+    rho1, eps1, centre1 = mass1 / width1, energy1 / width1, 0.5 * (lo1 + hi1)
+    # slopes over the piece sequence (slot 1 pieces interleaved after their slot 0)
+    if order == 2:
+        count = np.where(mixed_sorted_mask, 2, 1)
+        start = np.concatenate([[0], np.cumsum(count)[:-1]])
+        total = int(count.sum())
+        seq_centre, seq_rho, seq_eps, seq_mat = (np.empty(total), np.empty(total), np.empty(total),
+                                                 np.empty(total, dtype=np.int64))
+        for arr, v0, v1 in ((seq_centre, centre0, centre1), (seq_rho, rho0, rho1), (seq_eps, eps0, eps1),
+                            (seq_mat, m0, m1)):
+            arr[start] = v0
+            arr[start[mixed_j] + 1] = v1
+        srho = _limited_slopes(seq_centre, seq_rho, seq_mat)
+        seps = _limited_slopes(seq_centre, seq_eps, seq_mat)
+        w_seq = np.empty(total)
+        w_seq[start] = width0
+        w_seq[start[mixed_j] + 1] = width1
+        srho = np.clip(srho, -2.0 * seq_rho / w_seq, 2.0 * seq_rho / w_seq)
+        seps = np.clip(seps, -2.0 * np.abs(seq_eps) / w_seq, 2.0 * np.abs(seq_eps) / w_seq)
+        srho0, seps0 = srho[start], seps[start]
+        srho1, seps1 = srho[start[mixed_j] + 1], seps[start[mixed_j] + 1]
+    else:
+        srho0 = seps0 = np.zeros(n)
+        srho1 = seps1 = np.zeros(mixed_j.size)
+
+    # -- node fluxes --------------------------------------------------------------------------
+    # Interior node k (1..n−1) between cells k−1 and k.  d < 0: [X_k, x_k] leaves cell k−1
+    # for cell k; d > 0: [x_k, X_k] leaves cell k for cell k−1.
+    d = X[1:-1] - x[1:-1]
+    to_right = d < 0
+    if np.any(X[0] != x[0]) or np.any(X[-1] != x[-1]):
+        return _too_far("the ends of the domain move")
+    donor = np.where(to_right, np.arange(n - 1), np.arange(1, n))
+    if np.any(to_right & (X[1:-1] < xl[donor])) or np.any(~to_right & (X[1:-1] > xr[donor])):
+        return _too_far("a node moved beyond its neighbouring cell")
+    a = np.minimum(X[1:-1], x[1:-1])
+    b = np.maximum(X[1:-1], x[1:-1])
+    flux_mass0, flux_volume0, *_ = _clipped_integral(rho0[donor], srho0[donor], centre0[donor],
+                                                     xl[donor], hi0[donor], a, b)
+    flux_energy0, *_ = _clipped_integral(eps0[donor], seps0[donor], centre0[donor],
+                                         xl[donor], hi0[donor], a, b)
+    flux_material0 = m0[donor]
+    # slot-1 parts of mixed donors (sparse)
+    slot1_of = np.full(n, -1)
+    slot1_of[mixed_j] = np.arange(mixed_j.size)
+    s1 = slot1_of[donor]
+    sparse = np.flatnonzero(s1 >= 0)
+    k1 = s1[sparse]
+    flux_mass1, flux_volume1, *_ = _clipped_integral(rho1[k1], srho1[k1], centre1[k1], lo1[k1], hi1[k1],
+                                                     a[sparse], b[sparse])
+    flux_energy1, *_ = _clipped_integral(eps1[k1], seps1[k1], centre1[k1], lo1[k1], hi1[k1],
+                                         a[sparse], b[sparse])
+    flux_material1 = m1[k1]
+
+    # -- new cell contents: the common case, one material around -------------------------
+    # Signed inflow to cell j through its left node (k = j) and right node (k = j + 1).
+    new_mass = mass0.copy()
+    new_energy = energy0.copy()
+    into = np.where(to_right, 1.0, -1.0)
+    # node k: +flux into cell k when to_right, −flux out of cell k otherwise; the opposite
+    # for cell k−1.
+    new_mass[1:] += into * flux_mass0
+    new_mass[:-1] -= into * flux_mass0
+    new_energy[1:] += into * flux_energy0
+    new_energy[:-1] -= into * flux_energy0
+    # Cells touched by another material, a mixed cell, or a mixed donor, are redone below.
+    special = mixed_sorted_mask.copy()
+    differ = flux_material0 != np.where(to_right, m0[1:], m0[:-1])  # material entering a cell
+    receiving = np.where(to_right, np.arange(1, n), np.arange(n - 1))
+    special[receiving[differ & (flux_volume0 > 0)]] = True
+    touched = np.zeros(n, dtype=bool)
+    touched[donor[sparse]] = True
+    special |= touched
+    special[np.clip(np.flatnonzero(touched) - 1, 0, n - 1)] = True
+    special[np.clip(np.flatnonzero(touched) + 1, 0, n - 1)] = True
+    special[np.clip(mixed_j - 1, 0, n - 1)] = True
+    special[np.clip(mixed_j + 1, 0, n - 1)] = True
+
+    target_width = X[1:] - X[:-1]
+    new_slot_material = np.full((2, n), -1, dtype=np.int64)
+    new_slot_material[0] = m0
+    new = {"mass": np.zeros((2, n)), "energy": np.zeros((2, n)), "volume": np.zeros((2, n))}
+    new["mass"][0], new["energy"][0], new["volume"][0] = new_mass, new_energy, target_width
+    special_j = np.flatnonzero(special)
+    if special_j.size:
+        _finish_special_cells(special_j, n, n_materials, new, new_slot_material, to_right, donor, X, x,
+                              m0, mass0, energy0, width0, mixed_j, m1, mass1, energy1, width1, gamma,
+                              flux_mass0, flux_energy0, flux_volume0, flux_material0,
+                              sparse, flux_mass1, flux_energy1, flux_volume1, flux_material1)
+    new_mixed_j = np.flatnonzero(new_slot_material[1] >= 0)
+    if np.any(np.abs(new_mixed_j[1:] - new_mixed_j[:-1]) <= 1):
+        bad = int(new_mixed_j[np.flatnonzero(np.abs(new_mixed_j[1:] - new_mixed_j[:-1]) <= 1)[0]])
+        raise RemapFailure(f"cells {int(cells[bad])} and {int(cells[bad + 1])}: interfaces in "
+                           "neighbouring cells (a layer about one cell thick); the mixed-cell "
+                           "solve needs a pure cell between them: refine the mesh")
+
+    # -- momentum through the dual faces ---------------------------------------------------
+    result = _momentum(n, n_nodes, nodes, x, X, xl, xr, hi0, mixed_j, gamma, new_mixed_j,
+                       X[:-1] + new["volume"][0], rho0, srho0, centre0, rho1, srho1, centre1,
+                       corner_mass[:, cells], node_velocity, order, mixed_sorted_mask, mixed_velocity,
+                       m0, m1, cell_left_node, cell_right_node, cells, material_volume)
+    if result is None:
+        return None
+    node_mass, momentum, corner_new_sorted, kinetic_change = result
+
+    # -- back to cell order --------------------------------------------------------------------
+    slots = 2 if new_mixed_j.size else 1
+    cell_material_new = np.full((slots, cells.size), -1, dtype=np.int64)
+    mass_new = np.zeros((slots, cells.size))
+    energy_new = np.zeros((slots, cells.size))
+    volume_new = np.zeros((slots, cells.size))
+    for slot in range(slots):
+        cell_material_new[slot, cells] = new_slot_material[slot]
+        mass_new[slot, cells] = new["mass"][slot]
+        volume_new[slot, cells] = new["volume"][slot]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            energy_new[slot, cells] = np.where(new["mass"][slot] > 0, new["energy"][slot]
+                                               / np.where(new["mass"][slot] > 0, new["mass"][slot], 1.0), 0.0)
+    corner_new = np.zeros((2, cells.size))
+    corner_new[:, cells] = corner_new_sorted
+    velocity = momentum / node_mass
+    return RemapResult(cell_material_new, mass_new, energy_new, volume_new, corner_new, node_mass,
+                       velocity, cells[new_mixed_j], kinetic_change, momentum)
+
+
+def _finish_special_cells(special_j, n, n_materials, new, new_slot_material, to_right, donor, X, x,
+                          m0, mass0, energy0, width0, mixed_j, m1, mass1, energy1, width1, gamma,
+                          flux_mass0, flux_energy0, flux_volume0, flux_material0,
+                          sparse, flux_mass1, flux_energy1, flux_volume1, flux_material1):
+    """Per-material content of the few cells where materials meet: own pieces, minus what
+    leaves through their nodes, plus what enters, gathered in a (cells, materials) table."""
+    index = np.full(n, -1)
+    index[special_j] = np.arange(special_j.size)
+    table = {k: np.zeros((special_j.size, n_materials)) for k in ("mass", "energy", "volume")}
+
+    def add(cells_, materials, mass, energy, volume, sign):
+        keep = index[cells_] >= 0
+        rows, mats = index[cells_[keep]], materials[keep]
+        np.add.at(table["mass"], (rows, mats), sign * mass[keep])
+        np.add.at(table["energy"], (rows, mats), sign * energy[keep])
+        np.add.at(table["volume"], (rows, mats), sign * volume[keep])
+
+    add(np.arange(n), m0, mass0, energy0, width0, 1.0)
+    add(mixed_j, m1, mass1, energy1, width1, 1.0)
+    receiving = np.where(to_right, np.arange(1, n), np.arange(n - 1))
+    add(receiving, flux_material0, flux_mass0, flux_energy0, flux_volume0, 1.0)
+    add(donor, flux_material0, flux_mass0, flux_energy0, flux_volume0, -1.0)
+    add(receiving[sparse], flux_material1, flux_mass1, flux_energy1, flux_volume1, 1.0)
+    add(donor[sparse], flux_material1, flux_mass1, flux_energy1, flux_volume1, -1.0)
+
+    width = X[special_j + 1] - X[special_j]
+    present = table["volume"] > 1e-12 * width[:, None]
+    count = present.sum(axis=1)
+    if np.any(count > 2):
+        bad = int(special_j[np.flatnonzero(count > 2)[0]])
+        raise RemapFailure(f"sorted cell {bad}: two interfaces meet in one cell (a layer thinner "
+                           "than a cell); refine the mesh")
+    # left material: the material at X_j (of the donor there); right: at X_{j+1}
+    left = _material_at(X[special_j], x, m0, mixed_j, m1, gamma, side=+1)
+    right = _material_at(X[special_j + 1], x, m0, mixed_j, m1, gamma, side=-1)
+    rows = np.arange(special_j.size)
+    for slot, mats in ((0, left), (1, right)):
+        use = np.ones(special_j.size, dtype=bool) if slot == 0 else (count == 2)
+        j, r, m = special_j[use], rows[use], mats[use]
+        new_slot_material[slot, j] = m
+        new["mass"][slot, j] = table["mass"][r, m]
+        new["energy"][slot, j] = table["energy"][r, m]
+        new["volume"][slot, j] = table["volume"][r, m]
+    pure = count == 1
+    new["volume"][0, special_j[pure]] = width[pure]
+    both = count == 2
+    new["volume"][1, special_j[both]] = width[both] - new["volume"][0, special_j[both]]
+
+
+def _material_at(position, x, m0, mixed_j, m1, gamma, side):
+    """Material just right (side +1) or left (side −1) of each position in the old layout."""
+    cell = np.clip(np.searchsorted(x, position, side="right" if side > 0 else "left") - 1, 0, m0.size - 1)
+    material = m0[cell].copy()
+    slot1_of = np.full(m0.size, -1)
+    slot1_of[mixed_j] = np.arange(mixed_j.size)
+    k = slot1_of[cell]
+    g = gamma[np.maximum(k, 0)] if gamma.size else np.zeros_like(position)
+    beyond = (k >= 0) & ((position >= g) if side > 0 else (position > g))
+    material[beyond] = m1[k[beyond]]
+    return material
+
+
+def _momentum(n, n_nodes, nodes, x, X, xl, xr, hi0, mixed_j, gamma, new_mixed_j, new_gamma,
+              rho0, srho0, centre0, rho1, srho1, centre1, corner_sorted, node_velocity, order,
+              mixed_mask, mixed_velocity, m0, m1_of_mixed, cell_left_node, cell_right_node, cells,
+              material_volume):
+    """Nodal momentum and lumped masses through the dual faces (enriched: a mixed cell's
+    face is Γ; a pure cell's its middle)."""
+    # Old parts: 2j = left part of cell j [xl, f], 2j+1 = right part [f, xr].
+    face = 0.5 * (xl + xr)
+    face[mixed_j] = gamma
+    new_face = 0.5 * (X[:-1] + X[1:])
+    new_face[new_mixed_j] = new_gamma[new_mixed_j]
+    # piece parameters of each part: left part → slot 0; right part → slot 1 if mixed else slot 0
+    slot1_of = np.full(n, -1)
+    slot1_of[mixed_j] = np.arange(mixed_j.size)
+    p_lo = np.empty(2 * n)
+    p_hi = np.empty(2 * n)
+    p_lo[0::2], p_hi[0::2] = xl, face
+    p_lo[1::2], p_hi[1::2] = face, xr
+    p_rho, p_srho, p_cen = np.empty(2 * n), np.empty(2 * n), np.empty(2 * n)
+    p_rho[0::2], p_srho[0::2], p_cen[0::2] = rho0, srho0, centre0
+    p_rho[1::2], p_srho[1::2], p_cen[1::2] = rho0, srho0, centre0
+    right_parts = 2 * mixed_j + 1
+    p_rho[right_parts], p_srho[right_parts], p_cen[right_parts] = rho1, srho1, centre1
+    p_mass = _integrate_linear(p_rho, p_srho, p_cen, p_lo, p_hi)
+    share = np.empty(2 * n)
+    share[0::2], share[1::2] = corner_sorted[0], corner_sorted[1]
+    scale = share / p_mass
+    centroid = _first_moment(p_rho, p_srho, p_cen, p_lo, p_hi) / p_mass
+    owner = np.empty(2 * n, dtype=np.int64)  # sorted node index
+    owner[0::2], owner[1::2] = np.arange(n), np.arange(1, n + 1)
+    u_sorted = node_velocity[:, nodes]
+    components = node_velocity.shape[0]
+    p_u = u_sorted[:, owner]
+    p_tau = np.zeros_like(p_u)
+    if order == 2:
+        # the same limited slopes as the general remap, on these parts
+        is_mixed_cell = np.zeros(cell_left_node.size, dtype=bool)
+        is_mixed_cell[cells[mixed_j]] = True
+        slot_of = np.zeros(cell_left_node.size, dtype=np.int64)
+        slot_of[cells[mixed_j]] = np.arange(mixed_j.size)
+        part_cell = cells[np.repeat(np.arange(n), 2)]
+        part_side = np.tile([0, 1], n)
+        part_material = np.repeat(m0, 2)
+        part_material[2 * mixed_j + 1] = m1_of_mixed
+        part_owner = nodes[owner]
+        p_tau = _velocity_slopes(_node_positions(nodes, x, n_nodes),
+                                 node_velocity, cell_left_node, cell_right_node, cells, is_mixed_cell,
+                                 slot_of, mixed_velocity, material_volume, part_owner, part_material,
+                                 np.arange(2 * n), part_cell, part_side)
+
+    # Face j (cell j): F < f → [F, f] from node j to node j+1; F > f → [f, F] from j+1 to j.
+    f, F = face, new_face
+    lower = F < f
+    a, b = np.minimum(F, f), np.maximum(F, f)
+    # the donor node's two parts around: for node j: parts 2j−1 and 2j; for node j+1: 2j+1, 2j+2
+    first_part = np.where(lower, 2 * np.arange(n) - 1, 2 * np.arange(n) + 1)
+    second_part = first_part + 1
+    valid_first = first_part >= 0
+    valid_second = second_part < 2 * n
+    lo_bound = np.where(valid_first, p_lo[np.maximum(first_part, 0)], p_lo[np.minimum(second_part, 2 * n - 1)])
+    hi_bound = np.where(valid_second, p_hi[np.minimum(second_part, 2 * n - 1)], p_hi[np.maximum(first_part, 0)])
+    if np.any((a < lo_bound - 1e-12 * (xr - xl)) | (b > hi_bound + 1e-12 * (xr - xl))):
+        return _too_far("a dual face moved beyond the parts of its donor node")
+    moved_mass = np.zeros(n)
+    moved_momentum = np.zeros((components, n))
+    for part, valid in ((first_part, valid_first), (second_part, valid_second)):
+        q = np.clip(part, 0, 2 * n - 1)
+        start = np.maximum(a, p_lo[q])
+        end = np.maximum(np.minimum(b, p_hi[q]), start)
+        end = np.where(valid, end, start)
+        mass_piece = _integrate_linear(p_rho[q], p_srho[q], p_cen[q], start, end) * scale[q]
+        moved_mass += mass_piece
+        for k in range(components):
+            moved_momentum[k] += _simpson_product(p_rho[q], p_srho[q], p_cen[q], p_u[k, q], p_tau[k, q],
+                                                  centroid[q], start, end) * scale[q]
+    # node masses and momenta (sorted nodes)
+    old_mass = np.zeros(n + 1)
+    np.add.at(old_mass, owner, share)
+    old_momentum = u_sorted * old_mass
+    sign = np.where(lower, 1.0, -1.0)  # +: from node j to node j+1
+    new_mass = old_mass.copy()
+    new_mass[:-1] -= sign * moved_mass
+    new_mass[1:] += sign * moved_mass
+    new_momentum = old_momentum.copy()
+    new_momentum[:, :-1] -= sign * moved_momentum
+    new_momentum[:, 1:] += sign * moved_momentum
+    if np.any(new_mass <= 0):
+        return _too_far("a node lost all its mass")
+    # New corner masses: the left corner of new cell j is [X_j, F_j]; its mass is node j's
+    # new mass minus its right corner in cell j−1, [F_{j−1}, X_j] (node 0: none).
+    # [F_{j−1}, X_j] = node j's part left of X_j: integrate node j's old parts over it,
+    # corrected by what crossed face j−1.
+    left_of_node = _scaled_mass_between(np.concatenate([[x[0]], F]), X, p_lo, p_hi, p_rho, p_srho, p_cen,
+                                        scale, n)
+    if left_of_node is None:
+        return _too_far("a new corner reaches beyond the parts around its node")
+    right_corner = left_of_node[1:]  # R_{j} for j = 0..n−1 is node j+1's mass left of X_{j+1}
+    left_corner = new_mass[:-1] - np.concatenate([[0.0], right_corner[:-1]])
+    corner_new = np.stack([left_corner, right_corner])
+    node_mass = np.zeros(n_nodes)
+    node_mass[nodes] = new_mass
+    momentum = np.zeros((components, n_nodes))
+    momentum[:, nodes] = new_momentum
+    kinetic_before = 0.5 * float(np.sum(old_mass * u_sorted**2))
+    kinetic_after = 0.5 * float(np.sum(new_mass * (new_momentum / new_mass) ** 2))
+    return node_mass, momentum, corner_new, kinetic_after - kinetic_before
+
+
+def _too_far(reason: str):
+    """The swept form does not apply this step; the caller uses the general intersection."""
+    _too_far.last_reason = reason
+    return None
+
+
+def _node_positions(nodes, x, n_nodes):
+    position = np.zeros(n_nodes)
+    position[nodes] = x
+    return position
+
+
+def _scaled_mass_between(lo_new, hi_new, p_lo, p_hi, p_rho, p_srho, p_cen, scale, n):
+    """For each sorted node k: the scaled (lumped) old mass in [F_{k−1}, X_k], i.e. the
+    part of node k's new dual cell left of its new position (k = 0: zero)."""
+    out = np.zeros(n + 1)
+    a, b = lo_new[1:], hi_new[1:]  # k = 1..n: [F_{k−1}, X_k]
+    # F_{k−1} lies in old cells k−2 .. k and X_k in cells k−1 .. k: the interval lies
+    # within parts 2k−3 .. 2k+1
+    covered_lo = p_lo[np.clip(2 * np.arange(1, n + 1) - 3, 0, 2 * n - 1)]
+    covered_hi = p_hi[np.clip(2 * np.arange(1, n + 1) + 1, 0, 2 * n - 1)]
+    if np.any((a < covered_lo) | (b > covered_hi)):
+        return None
+    for offset in (-3, -2, -1, 0, 1):
+        q = 2 * np.arange(1, n + 1) + offset
+        valid = (q >= 0) & (q < 2 * n)
+        qc = np.clip(q, 0, 2 * n - 1)
+        start = np.maximum(a, p_lo[qc])
+        end = np.maximum(np.minimum(b, p_hi[qc]), start)
+        end = np.where(valid, end, start)
+        out[1:] += _integrate_linear(p_rho[qc], p_srho[qc], p_cen[qc], start, end) * scale[qc]
+    return out
