@@ -21,7 +21,7 @@ from __future__ import annotations
 import numpy as np
 
 from ale_xfem.remap import (RemapFailure, RemapResult, _first_moment, _integrate_linear,
-                            _limited_slopes, _simpson_product, _velocity_slopes)
+                            _limited_slopes, _minmod, _simpson_product)
 
 
 def _clipped_integral(value, slope, centre, lo, hi, a, b):
@@ -255,27 +255,39 @@ def _material_at(position, x, m0, mixed_j, m1, gamma, side):
     return material
 
 
+PAD = 4  # dummy parts on each side, so that every neighbour of a part is a slice
+
+
+def _padded(values, fill=0.0):
+    out = np.full(values.shape[:-1] + (values.shape[-1] + 2 * PAD,), fill)
+    out[..., PAD:-PAD] = values
+    return out
+
+
+def _parts_at(array, n, offset):
+    """Entries 2k + offset, k = 0..n−1, of a padded part array (a strided view)."""
+    start = PAD + offset
+    return array[..., start:start + 2 * n:2]
+
+
 def _momentum(n, n_nodes, nodes, x, X, xl, xr, hi0, mixed_j, gamma, new_mixed_j, new_gamma,
               rho0, srho0, centre0, rho1, srho1, centre1, corner_sorted, node_velocity, order,
               mixed_mask, mixed_velocity, m0, m1_of_mixed, cell_left_node, cell_right_node, cells,
               material_volume):
     """Nodal momentum and lumped masses through the dual faces (enriched: a mixed cell's
-    face is Γ; a pure cell's its middle)."""
-    # Old parts: 2j = left part of cell j [xl, f], 2j+1 = right part [f, xr].
+    face is Γ; a pure cell's its middle).  Parts: 2j = left part of cell j (owner: sorted
+    node j), 2j+1 = right part (owner j+1)."""
     face = 0.5 * (xl + xr)
     face[mixed_j] = gamma
     new_face = 0.5 * (X[:-1] + X[1:])
     new_face[new_mixed_j] = new_gamma[new_mixed_j]
-    # piece parameters of each part: left part → slot 0; right part → slot 1 if mixed else slot 0
-    slot1_of = np.full(n, -1)
-    slot1_of[mixed_j] = np.arange(mixed_j.size)
-    p_lo = np.empty(2 * n)
-    p_hi = np.empty(2 * n)
+    p_lo, p_hi = np.empty(2 * n), np.empty(2 * n)
     p_lo[0::2], p_hi[0::2] = xl, face
     p_lo[1::2], p_hi[1::2] = face, xr
     p_rho, p_srho, p_cen = np.empty(2 * n), np.empty(2 * n), np.empty(2 * n)
-    p_rho[0::2], p_srho[0::2], p_cen[0::2] = rho0, srho0, centre0
-    p_rho[1::2], p_srho[1::2], p_cen[1::2] = rho0, srho0, centre0
+    for target, value in ((p_rho, rho0), (p_srho, srho0), (p_cen, centre0)):
+        target[0::2] = value
+        target[1::2] = value
     right_parts = 2 * mixed_j + 1
     p_rho[right_parts], p_srho[right_parts], p_cen[right_parts] = rho1, srho1, centre1
     p_mass = _integrate_linear(p_rho, p_srho, p_cen, p_lo, p_hi)
@@ -283,57 +295,50 @@ def _momentum(n, n_nodes, nodes, x, X, xl, xr, hi0, mixed_j, gamma, new_mixed_j,
     share[0::2], share[1::2] = corner_sorted[0], corner_sorted[1]
     scale = share / p_mass
     centroid = _first_moment(p_rho, p_srho, p_cen, p_lo, p_hi) / p_mass
-    owner = np.empty(2 * n, dtype=np.int64)  # sorted node index
-    owner[0::2], owner[1::2] = np.arange(n), np.arange(1, n + 1)
-    u_sorted = node_velocity[:, nodes]
-    components = node_velocity.shape[0]
-    p_u = u_sorted[:, owner]
+    u = node_velocity[:, nodes]  # (components, n + 1), sorted nodes
+    components = u.shape[0]
+    p_u = np.empty((components, 2 * n))
+    p_u[:, 0::2], p_u[:, 1::2] = u[:, :-1], u[:, 1:]
     p_tau = np.zeros_like(p_u)
     if order == 2:
-        # the same limited slopes as the general remap, on these parts
-        is_mixed_cell = np.zeros(cell_left_node.size, dtype=bool)
-        is_mixed_cell[cells[mixed_j]] = True
-        slot_of = np.zeros(cell_left_node.size, dtype=np.int64)
-        slot_of[cells[mixed_j]] = np.arange(mixed_j.size)
-        part_cell = cells[np.repeat(np.arange(n), 2)]
-        part_side = np.tile([0, 1], n)
-        part_material = np.repeat(m0, 2)
-        part_material[2 * mixed_j + 1] = m1_of_mixed
-        part_owner = nodes[owner]
-        p_tau = _velocity_slopes(_node_positions(nodes, x, n_nodes),
-                                 node_velocity, cell_left_node, cell_right_node, cells, is_mixed_cell,
-                                 slot_of, mixed_velocity, material_volume, part_owner, part_material,
-                                 np.arange(2 * n), part_cell, part_side)
+        node_slope = _node_velocity_slopes(u, x, mixed_j, gamma, mixed_velocity, m0, m1_of_mixed)
+        p_tau[:, 0::2], p_tau[:, 1::2] = node_slope[:, :-1], node_slope[:, 1:]
 
-    # Face j (cell j): F < f → [F, f] from node j to node j+1; F > f → [f, F] from j+1 to j.
+    # padded copies: every part 2k + offset is a strided view
+    P = {name: _padded(v) for name, v in (("lo", p_lo), ("hi", p_hi), ("rho", p_rho), ("srho", p_srho),
+                                         ("cen", p_cen), ("scale", scale), ("centroid", centroid))}
+    P["lo"][:PAD], P["hi"][:PAD] = x[0], x[0]
+    P["lo"][-PAD:], P["hi"][-PAD:] = x[-1], x[-1]
+    Pu, Ptau = _padded(p_u), _padded(p_tau)
+
+    # Face j (cell j): F < f → [F, f] moves from node j to node j+1 (donor parts 2j−1, 2j);
+    # F > f → [f, F] moves from node j+1 to node j (donor parts 2j+1, 2j+2).
     f, F = face, new_face
     lower = F < f
     a, b = np.minimum(F, f), np.maximum(F, f)
-    # the donor node's two parts around: for node j: parts 2j−1 and 2j; for node j+1: 2j+1, 2j+2
-    first_part = np.where(lower, 2 * np.arange(n) - 1, 2 * np.arange(n) + 1)
-    second_part = first_part + 1
-    valid_first = first_part >= 0
-    valid_second = second_part < 2 * n
-    lo_bound = np.where(valid_first, p_lo[np.maximum(first_part, 0)], p_lo[np.minimum(second_part, 2 * n - 1)])
-    hi_bound = np.where(valid_second, p_hi[np.minimum(second_part, 2 * n - 1)], p_hi[np.maximum(first_part, 0)])
-    if np.any((a < lo_bound - 1e-12 * (xr - xl)) | (b > hi_bound + 1e-12 * (xr - xl))):
-        return _too_far("a dual face moved beyond the parts of its donor node")
+    width = xr - xl
     moved_mass = np.zeros(n)
     moved_momentum = np.zeros((components, n))
-    for part, valid in ((first_part, valid_first), (second_part, valid_second)):
-        q = np.clip(part, 0, 2 * n - 1)
-        start = np.maximum(a, p_lo[q])
-        end = np.maximum(np.minimum(b, p_hi[q]), start)
-        end = np.where(valid, end, start)
-        mass_piece = _integrate_linear(p_rho[q], p_srho[q], p_cen[q], start, end) * scale[q]
-        moved_mass += mass_piece
+    bounds = []
+    for shift in (0, 1):  # first and second donor part
+        pick = {name: np.where(lower, _parts_at(v, n, -1 + shift), _parts_at(v, n, 1 + shift))
+                for name, v in P.items()}
+        start = np.maximum(a, pick["lo"])
+        end = np.maximum(np.minimum(b, pick["hi"]), start)
+        bounds.append((pick["lo"], pick["hi"]))
+        piece_mass = _integrate_linear(pick["rho"], pick["srho"], pick["cen"], start, end) * pick["scale"]
+        moved_mass += piece_mass
         for k in range(components):
-            moved_momentum[k] += _simpson_product(p_rho[q], p_srho[q], p_cen[q], p_u[k, q], p_tau[k, q],
-                                                  centroid[q], start, end) * scale[q]
-    # node masses and momenta (sorted nodes)
+            pu = np.where(lower, _parts_at(Pu[k], n, -1 + shift), _parts_at(Pu[k], n, 1 + shift))
+            ptau = np.where(lower, _parts_at(Ptau[k], n, -1 + shift), _parts_at(Ptau[k], n, 1 + shift))
+            moved_momentum[k] += _simpson_product(pick["rho"], pick["srho"], pick["cen"], pu, ptau,
+                                                  pick["centroid"], start, end) * pick["scale"]
+    if np.any((a < bounds[0][0] - 1e-12 * width) | (b > bounds[1][1] + 1e-12 * width)):
+        return _too_far("a dual face moved beyond the parts of its donor node")
     old_mass = np.zeros(n + 1)
-    np.add.at(old_mass, owner, share)
-    old_momentum = u_sorted * old_mass
+    old_mass[:-1] += share[0::2]
+    old_mass[1:] += share[1::2]
+    old_momentum = u * old_mass
     sign = np.where(lower, 1.0, -1.0)  # +: from node j to node j+1
     new_mass = old_mass.copy()
     new_mass[:-1] -= sign * moved_mass
@@ -343,24 +348,52 @@ def _momentum(n, n_nodes, nodes, x, X, xl, xr, hi0, mixed_j, gamma, new_mixed_j,
     new_momentum[:, 1:] += sign * moved_momentum
     if np.any(new_mass <= 0):
         return _too_far("a node lost all its mass")
-    # New corner masses: the left corner of new cell j is [X_j, F_j]; its mass is node j's
-    # new mass minus its right corner in cell j−1, [F_{j−1}, X_j] (node 0: none).
-    # [F_{j−1}, X_j] = node j's part left of X_j: integrate node j's old parts over it,
-    # corrected by what crossed face j−1.
-    left_of_node = _scaled_mass_between(np.concatenate([[x[0]], F]), X, p_lo, p_hi, p_rho, p_srho, p_cen,
-                                        scale, n)
-    if left_of_node is None:
+    # New corners: node k's new dual cell [F_{k−1}, F_k] splits at X_k; its part left of
+    # X_k, [F_{k−1}, X_k], is the right corner of new cell k−1.  F_{k−1} lies in old cells
+    # k−2 .. k and X_k in k−1 .. k: the old parts 2k−3 .. 2k+1 hold it.
+    a, b = F, X[1:]  # k = 1..n
+    covered_lo = _parts_at(P["lo"], n, -1)  # part 2k−3 for k = 1..n is 2(k−1) − 1
+    covered_hi = _parts_at(P["hi"], n, 3)
+    if np.any((a < covered_lo) | (b > covered_hi)):
         return _too_far("a new corner reaches beyond the parts around its node")
-    right_corner = left_of_node[1:]  # R_{j} for j = 0..n−1 is node j+1's mass left of X_{j+1}
+    right_corner = np.zeros(n)
+    for offset in (-1, 0, 1, 2, 3):  # parts 2(k−1) + offset, k = 1..n
+        start = np.maximum(a, _parts_at(P["lo"], n, offset))
+        end = np.maximum(np.minimum(b, _parts_at(P["hi"], n, offset)), start)
+        right_corner += _integrate_linear(_parts_at(P["rho"], n, offset), _parts_at(P["srho"], n, offset),
+                                          _parts_at(P["cen"], n, offset), start, end) \
+            * _parts_at(P["scale"], n, offset)
     left_corner = new_mass[:-1] - np.concatenate([[0.0], right_corner[:-1]])
     corner_new = np.stack([left_corner, right_corner])
     node_mass = np.zeros(n_nodes)
     node_mass[nodes] = new_mass
     momentum = np.zeros((components, n_nodes))
     momentum[:, nodes] = new_momentum
-    kinetic_before = 0.5 * float(np.sum(old_mass * u_sorted**2))
+    kinetic_before = 0.5 * float(np.sum(old_mass * u**2))
     kinetic_after = 0.5 * float(np.sum(new_mass * (new_momentum / new_mass) ** 2))
     return node_mass, momentum, corner_new, kinetic_after - kinetic_before
+
+
+def _node_velocity_slopes(u, x, mixed_j, gamma, mixed_velocity, m0, m1_of_mixed):
+    """Minmod slope of each node's velocity from the cells on either side, within one
+    material (the same slopes as :func:`ale_xfem.remap._velocity_slopes`).  A mixed cell
+    gives each of its internal nodes the gradient of that material's full field: the line
+    through the node and (x_Γ, u_Γ) for the normal component, none for a transverse one."""
+    gradient_left_part = (u[:, 1:] - u[:, :-1]) / (x[1:] - x[:-1])  # seen from cell j's left node
+    gradient_right_part = gradient_left_part.copy()  # seen from its right node
+    if mixed_j.size:
+        xa, xb = x[mixed_j], x[mixed_j + 1]
+        gradient_left_part[:, mixed_j] = 0.0
+        gradient_right_part[:, mixed_j] = 0.0
+        gradient_left_part[0, mixed_j] = (mixed_velocity - u[0, mixed_j]) / (gamma - xa)
+        gradient_right_part[0, mixed_j] = (mixed_velocity - u[0, mixed_j + 1]) / (gamma - xb)
+    # node k (1..n−1): right part of cell k−1 and left part of cell k
+    material_right_part = m0.copy()
+    material_right_part[mixed_j] = m1_of_mixed
+    same = material_right_part[:-1] == m0[1:]
+    slope = np.zeros((u.shape[0], u.shape[1]))
+    slope[:, 1:-1] = np.where(same, _minmod(gradient_right_part[:, :-1], gradient_left_part[:, 1:]), 0.0)
+    return slope
 
 
 def _too_far(reason: str):
@@ -369,29 +402,3 @@ def _too_far(reason: str):
     return None
 
 
-def _node_positions(nodes, x, n_nodes):
-    position = np.zeros(n_nodes)
-    position[nodes] = x
-    return position
-
-
-def _scaled_mass_between(lo_new, hi_new, p_lo, p_hi, p_rho, p_srho, p_cen, scale, n):
-    """For each sorted node k: the scaled (lumped) old mass in [F_{k−1}, X_k], i.e. the
-    part of node k's new dual cell left of its new position (k = 0: zero)."""
-    out = np.zeros(n + 1)
-    a, b = lo_new[1:], hi_new[1:]  # k = 1..n: [F_{k−1}, X_k]
-    # F_{k−1} lies in old cells k−2 .. k and X_k in cells k−1 .. k: the interval lies
-    # within parts 2k−3 .. 2k+1
-    covered_lo = p_lo[np.clip(2 * np.arange(1, n + 1) - 3, 0, 2 * n - 1)]
-    covered_hi = p_hi[np.clip(2 * np.arange(1, n + 1) + 1, 0, 2 * n - 1)]
-    if np.any((a < covered_lo) | (b > covered_hi)):
-        return None
-    for offset in (-3, -2, -1, 0, 1):
-        q = 2 * np.arange(1, n + 1) + offset
-        valid = (q >= 0) & (q < 2 * n)
-        qc = np.clip(q, 0, 2 * n - 1)
-        start = np.maximum(a, p_lo[qc])
-        end = np.maximum(np.minimum(b, p_hi[qc]), start)
-        end = np.where(valid, end, start)
-        out[1:] += _integrate_linear(p_rho[qc], p_srho[qc], p_cen[qc], start, end) * scale[qc]
-    return out
