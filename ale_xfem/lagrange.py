@@ -266,7 +266,7 @@ class ExplicitWilkins:
         """Advance by dt.  Returns (new state, evaluation of the new state, boundary work,
         boundary impulse).  Raises :class:`Breakdown` on an unphysical predicted or final
         state; ``state`` itself is never modified."""
-        if self.mixed is not None:
+        if self.mixed is not None and self.mixed.relaxation:
             state, relaxed = self.relax_mixed_cells(state)
             if relaxed:
                 start = None

@@ -90,6 +90,7 @@ class MixedCells:
     max_iterations: int = 50
     nonlinear: bool = True
     model: str = "enriched"  # or "single_velocity": one velocity field, equal strain + relaxation
+    relaxation: bool = True  # pressure relaxation at the start of every step
     stats: dict = field(default_factory=lambda: {"steps": 0, "iterations": 0, "max_iterations": 0,
                                                  "relaxations": 0})
 

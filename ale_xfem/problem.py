@@ -113,7 +113,7 @@ def build_problem(scene: Scene) -> Problem:
                            tolerance=scene.numerics.interface_tolerance,
                            max_iterations=scene.numerics.interface_max_iterations,
                            nonlinear=scene.interface.solver == "nonlinear",
-                           model=scene.interface.model)
+                           model=scene.interface.model, relaxation=scene.interface.relaxation)
     layout = MaterialLayout(cell_material, n_materials)
     # corner shares are (corner, cell) in the cells' own node order; mixed cells above were
     # written left/right, so swap where a cell lists its right node first.
@@ -143,8 +143,15 @@ def build_problem(scene: Scene) -> Problem:
             effects += ["mixed_cells_enriched", f"interface_solver_{scene.interface.solver}"]
         else:
             effects += ["mixed_cells_single_velocity"]
-        effects.append("pressure_relaxation")
-        state = initial_relaxation(mixed, state)
+        if scene.interface.relaxation:
+            effects.append("pressure_relaxation")
+            state = initial_relaxation(mixed, state)
+        else:  # the mixed cells start with their pressures as given
+            cells = mixed.cells
+            pressures = state.material_pressure[:, cells]
+            volumes = state.material_volume[:, cells]
+            state = state.evolved(interface_pressure=(pressures * volumes).sum(axis=0) / volumes.sum(axis=0),
+                                  interface_velocity=np.zeros(cells.size))
     return Problem(scene, mesh, materials, layout, node_mass, state, boundaries,
                    exact_reference(scene), effects, mixed, corner_by_position)
 

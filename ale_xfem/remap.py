@@ -392,6 +392,7 @@ class Remapper:
         numerics = problem.scene.numerics
         interface = problem.scene.interface
         self.model = interface.model if interface is not None else "enriched"
+        self.relaxation = interface is None or interface.relaxation
         self.solver_options = dict(tolerance=numerics.interface_tolerance,
                                    max_iterations=numerics.interface_max_iterations,
                                    nonlinear=interface is None or interface.solver == "nonlinear")
@@ -546,6 +547,7 @@ class Remapper:
                                          result.cell_material[0, c], result.cell_material[1, c],
                                          self.materials, **self.solver_options)
             new_mixed.model = mixed.model if mixed is not None else self.model
+            new_mixed.relaxation = mixed.relaxation if mixed is not None else self.relaxation
             if mixed is not None:
                 new_mixed.stats = mixed.stats
             interface_pressure = 0.5 * (pressure[0, c] + pressure[1, c])

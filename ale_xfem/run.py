@@ -177,7 +177,7 @@ def _remap(problem, stepper, remapper, state, evaluation, impulse):
     jump = state.node_velocity - before
     impulse = impulse + (node_mass * jump).sum(axis=1)
     kinetic_change += 0.5 * float(np.sum(node_mass * (state.node_velocity**2 - before**2)))
-    if mixed is not None:  # the remap leaves a pressure jump in mixed cells
+    if mixed is not None and mixed.relaxation:  # the remap leaves a pressure jump in mixed cells
         state, _ = stepper.relax_mixed_cells(state)
     return state, stepper.evaluate_state(state), impulse, kinetic_change
 

@@ -38,6 +38,7 @@ INTERFACE_DEFAULTS = {
     "solver": "nonlinear",  # nonlinear (predictor + corrector) | linearised (predictor alone)
     "stabilisation": "bubble",  # 2D only: bubble | nitsche
     "slip": "free",  # free | stick | coulomb
+    "relaxation": True,  # pressure relaxation of mixed cells at the start of every step
 }
 
 
@@ -113,6 +114,7 @@ class InterfaceSpec:
     solver: str
     stabilisation: str
     slip: str
+    relaxation: bool = True
 
 
 @dataclass(frozen=True)
@@ -384,7 +386,14 @@ def _validate_interface(table: Any) -> InterfaceSpec:
         solver=_choice(table["solver"], "interface.solver", ("nonlinear", "linearised")),
         stabilisation=_choice(table["stabilisation"], "interface.stabilisation", ("bubble", "nitsche")),
         slip=_choice(table["slip"], "interface.slip", ("free",), ("stick", "coulomb")),
+        relaxation=_boolean(table["relaxation"], "interface.relaxation"),
     )
+
+
+def _boolean(value: Any, key: str) -> bool:
+    if not isinstance(value, bool):
+        raise SceneError(key, value, "true or false")
+    return value
 
 
 # ----------------------------------------------------------------------------- region geometry
