@@ -159,12 +159,16 @@ class ExplicitWilkins:
         mixed_viscosity = mixed_sound_speed = None
         if mixed_view is not None:
             # The viscosity of a mixed cell acts on the whole cell (both materials alike, so
-            # it does not upset their pressure balance): its density is the cell's, its
-            # sound speed the larger of the two materials'.
+            # it does not upset their pressure balance).  Its sound speed is the larger of
+            # the two materials'; its density the volume-weighted harmonic mean
+            # 1/ρ = Σ f_α/ρ_α, which weights the material that takes the compression: with
+            # the mass-weighted mean, a light gas against a dense one is damped by the dense
+            # one's inertia and the mixed cell does not compress under a shock.
             rho_right = mixed_view.mass_right / mixed_view.volume_right
             c2_right = self.mixed.right_groups.eos_values(self.materials, rho_right,
                                                           mixed_view.energy_right)[3]
-            mixed_density = (mass0[0, cells] + mixed_view.mass_right) / volume[cells]
+            mixed_density = volume[cells] / (mixed_view.volume_left / density[0, cells]
+                                             + mixed_view.volume_right / rho_right)
             mixed_sound_speed = np.maximum(sound_speed[0, cells], np.sqrt(np.maximum(c2_right, 0.0)))
         if self.artificial_viscosity:
             # Quadratic (von Neumann–Richtmyer) + linear (Landshoff) viscosity in compression:
