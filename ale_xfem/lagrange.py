@@ -29,6 +29,20 @@ from ale_xfem.mixed import MixedCellFailure, MixedCells, with_mixed_state
 from ale_xfem.state import MaterialLayout, State, thermodynamics
 
 
+class _AssembledPredictor:
+    """The compiled forms of the predictor on the current mixed cells."""
+
+    def __init__(self, dolfinx_mesh, cells):
+        self.mesh = dolfinx_mesh
+        self.rebuild(cells)
+
+    def rebuild(self, cells):
+        from forms.mixed_cell import MixedCellPredictor
+
+        self.cells = cells
+        self.predictor = MixedCellPredictor(self.mesh, cells)
+
+
 def _two_slots(row0, mixed_cells, row1_mixed):
     """A (2, n_cells) array: row 0 given, row 1 zero but at the mixed cells."""
     out = np.empty((2, row0.size))
@@ -132,6 +146,11 @@ class ExplicitWilkins:
         self.numerics = numerics
         self.artificial_viscosity = artificial_viscosity
         self.mixed_seconds, self.mixed_calls = 0.0, 0  # time in the implicit interface solve
+        self.assembled_predictor = None  # set by use_assembled_predictor()
+
+    def use_assembled_predictor(self) -> None:
+        """Solve the predictor as the FE system assembled from UFL forms with PETSc."""
+        self.assembled_predictor = _AssembledPredictor(self.mesh.dolfinx_mesh, self.mixed.cells)
 
     def rebuild(self, layout: MaterialLayout, node_mass, mixed: MixedCells | None) -> None:
         """Take the material layout, lumped masses and mixed cells left by a remap."""
@@ -392,9 +411,14 @@ class ExplicitWilkins:
         offset = first.volume[mixed.cells] + dt * centred - slope * pi_n
         work_offset = 0.5 * (pi_n + first.mixed_viscosity + predicted.mixed_viscosity)
         start = self._mixed_start(state)
+        predictor = None
+        if self.assembled_predictor is not None:
+            predictor = self._assembled_predictor(state, first, predicted, mean_force, dt,
+                                                  mobility_a, mobility_b, start)
         try:
             pi, va, vb, details = mixed.solve(start, pi_n, (offset, slope),
-                                              (work_offset, np.full_like(pi_n, 0.5)))
+                                              (work_offset, np.full_like(pi_n, 0.5)),
+                                              predictor=predictor)
         except MixedCellFailure as failure:
             raise Breakdown("interface solve", -1, float("nan"), [0.0], str(failure)) from None
         change = 0.5 * (pi - pi_n)
@@ -422,6 +446,40 @@ class ExplicitWilkins:
     def _mixed_volumes(self, position):
         """Volumes of the mixed cells only (1D: x_b − x_a)."""
         return position[0, self.mixed.node_right] - position[0, self.mixed.node_left]
+
+    def _assembled_predictor(self, state, first, predicted, mean_force, dt, mobility_a, mobility_b, start):
+        """The predictor as the assembled FE system of forms/mixed_cell.py: returns a
+        callable (iterate → material pressure π) for MixedCells.solve."""
+        mixed, forms = self.mixed, self.assembled_predictor
+        if not np.array_equal(forms.cells, mixed.cells):  # a remap moved an interface: new submesh
+            forms.rebuild(mixed.cells)
+        a, b = mixed.node_left, mixed.node_right
+        forms.predictor.move(state.node_position)
+        pi_n = state.interface_pressure
+        q_star = predicted.mixed_viscosity
+        n_nodes = state.node_position.shape[1]
+        held = 1e30  # a held node: its row fixes ū to its prescribed value
+        mass = [np.zeros(n_nodes), np.zeros(n_nodes)]
+        rhs = [np.zeros((1, n_nodes)), np.zeros((1, n_nodes))]
+        u0 = state.node_velocity[0]
+        for k, node, mobility, sign in ((0, a, mobility_a, 1.0), (1, b, mobility_b, -1.0)):
+            m4 = np.where(mobility > 0, 4.0 / np.where(mobility > 0, mobility, 1.0), held)  # 4M/dt
+            mass[k][node] = m4
+            # 4M u^n/dt + 2F̄ + F^n: the doubled trapezoidal row (module docstring there)
+            explicit = np.where(mobility > 0, 2.0 * mean_force[0, node] + sign * (pi_n + q_star), 0.0)
+            rhs[k][0, node] = m4 * u0[node] + explicit
+        m_a, m_b, va0, vb0, _, _ = start
+        volume = va0 + vb0
+        x_gamma = state.node_position[0, a] + va0
+
+        def predict(va, vb, pa, pb, da, db):
+            offsets = [pa + da * (va0 - va) + q_star, pb + db * (vb0 - vb) + q_star]
+            pressure, _ = forms.predictor.solve(mass, rhs, [va0 / volume, vb0 / volume], [da * dt, db * dt],
+                                                offsets, np.ones((a.size, 1)), x_gamma[:, None],
+                                                np.ones(a.size))
+            return pressure - q_star  # the interface stress less the viscosity: π
+
+        return predict
 
     def _finish_mixed(self, state, solution, x_new, u_new, e_new, dt):
         """Assemble the new state: pure cells from the explicit update, mixed cells from the

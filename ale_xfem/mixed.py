@@ -145,7 +145,8 @@ class MixedCells:
         pb, _, eb, rho_b, c2b = self._adiabat(self.right_groups, m_b, total - v, eb0, vb0, work_pressure)
         return v, 0.5 * (pa + pb), (ea, eb, pa, pb, rho_a, rho_b, c2a, c2b), iteration
 
-    def solve(self, state0, pressure0, volume_affine, work_affine, record: bool = True):
+    def solve(self, state0, pressure0, volume_affine, work_affine, record: bool = True,
+              predictor=None):
         """Find the interface pressure π with V(π) = A + Bπ, work pressure W = w0 + w1 π.
 
         state0: (m_α, m_β, V_α0, V_β0, e_α0, e_β0) at the start; pressure0: first iterate.
@@ -160,7 +161,10 @@ class MixedCells:
             pa, da, *_ = self._adiabat(self.left_groups, m_a, va, ea0, va0, work)
             pb, db, *_ = self._adiabat(self.right_groups, m_b, vb, eb0, vb0, work)
             # Predictor: V_α = V_α^k + (π − p_α)/D_α, V_β likewise, V_α + V_β = A + Bπ.
-            pi_new = (a - va - vb + pa / da + pb / db) / (1.0 / da + 1.0 / db - b)
+            if predictor is None:
+                pi_new = (a - va - vb + pa / da + pb / db) / (1.0 / da + 1.0 / db - b)
+            else:  # the same linear system, assembled from the UFL forms (forms/mixed_cell.py)
+                pi_new = predictor(va, vb, pa, pb, da, db)
             total = a + b * pi_new
             work_new = w0 + w1 * pi_new
             if not self.nonlinear:

@@ -140,7 +140,8 @@ def build_problem(scene: Scene) -> Problem:
         effects.append("piston")
     if mixed is not None:
         if scene.interface.model == "enriched":
-            effects += ["mixed_cells_enriched", f"interface_solver_{scene.interface.solver}"]
+            effects += ["mixed_cells_enriched", f"interface_solver_{scene.interface.solver}",
+                        f"interface_predictor_{scene.interface.predictor}"]
         else:
             effects += ["mixed_cells_single_velocity"]
         if scene.interface.relaxation:

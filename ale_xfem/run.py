@@ -68,10 +68,14 @@ class Progress:
 
 def make_stepper(problem: Problem) -> ExplicitWilkins:
     keep_freed_memory()
-    return ExplicitWilkins(problem.mesh, problem.materials, problem.layout, problem.node_mass,
+    stepper = ExplicitWilkins(problem.mesh, problem.materials, problem.layout, problem.node_mass,
                            problem.boundaries, problem.scene.numerics,
                            artificial_viscosity="artificial_viscosity" in problem.effects,
                            mixed=problem.mixed)
+    interface = problem.scene.interface
+    if problem.mixed is not None and interface.model == "enriched" and interface.predictor == "assembled":
+        stepper.use_assembled_predictor()
+    return stepper
 
 
 def simulate(problem: Problem, progress: Progress | None = None, t_end: float | None = None,

@@ -39,6 +39,7 @@ INTERFACE_DEFAULTS = {
     "stabilisation": "bubble",  # 2D only: bubble | nitsche
     "slip": "free",  # free | stick | coulomb
     "relaxation": True,  # pressure relaxation of mixed cells at the start of every step
+    "predictor": "closed_form",  # closed_form (1D elimination) | assembled (UFL forms + PETSc)
 }
 
 
@@ -115,6 +116,7 @@ class InterfaceSpec:
     stabilisation: str
     slip: str
     relaxation: bool = True
+    predictor: str = "closed_form"
 
 
 @dataclass(frozen=True)
@@ -387,6 +389,7 @@ def _validate_interface(table: Any) -> InterfaceSpec:
         stabilisation=_choice(table["stabilisation"], "interface.stabilisation", ("bubble", "nitsche")),
         slip=_choice(table["slip"], "interface.slip", ("free",), ("stick", "coulomb")),
         relaxation=_boolean(table["relaxation"], "interface.relaxation"),
+        predictor=_choice(table["predictor"], "interface.predictor", ("closed_form", "assembled")),
     )
 
 
