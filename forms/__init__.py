@@ -3,6 +3,9 @@ compiled once per run (never inside the time loop).
 
 - :mod:`forms.corner_forces`: the weak pressure force −∫_K σ:∇ψ_i dx with σ = −P I and P
   constant per cell, the force the explicit Wilkins loop evaluates in numpy.  It is the
-  reference the numpy corner forces are checked against, and the volume term of the
-  mixed-cell system that the implicit interface solve assembles.
+  reference the numpy corner forces are checked against.
+- :mod:`forms.mixed_cell`: the predictor of the implicit interface solve — doubled P1
+  velocities and a DG0 interface pressure on the submesh of the mixed cells, the
+  linearised constitutive law, interface traction and normal-velocity continuity —
+  assembled with DOLFINx and solved with PETSc (``[interface] predictor = "assembled"``).
 """
