@@ -264,12 +264,6 @@ def _padded(values, fill=0.0):
     return out
 
 
-def _parts_at(array, n, offset):
-    """Entries 2k + offset, k = 0..n−1, of a padded part array (a strided view)."""
-    start = PAD + offset
-    return array[..., start:start + 2 * n:2]
-
-
 def _momentum(n, n_nodes, nodes, x, X, xl, xr, hi0, mixed_j, gamma, new_mixed_j, new_gamma,
               rho0, srho0, centre0, rho1, srho1, centre1, corner_sorted, node_velocity, order,
               mixed_mask, mixed_velocity, m0, m1_of_mixed, cell_left_node, cell_right_node, cells,
@@ -304,65 +298,81 @@ def _momentum(n, n_nodes, nodes, x, X, xl, xr, hi0, mixed_j, gamma, new_mixed_j,
         node_slope = _node_velocity_slopes(u, x, mixed_j, gamma, mixed_velocity, m0, m1_of_mixed)
         p_tau[:, 0::2], p_tau[:, 1::2] = node_slope[:, :-1], node_slope[:, 1:]
 
-    # padded copies: every part 2k + offset is a strided view
-    P = {name: _padded(v) for name, v in (("lo", p_lo), ("hi", p_hi), ("rho", p_rho), ("srho", p_srho),
-                                         ("cen", p_cen), ("scale", scale), ("centroid", centroid))}
-    P["lo"][:PAD], P["hi"][:PAD] = x[0], x[0]
-    P["lo"][-PAD:], P["hi"][-PAD:] = x[-1], x[-1]
-    Pu, Ptau = _padded(p_u), _padded(p_tau)
+    # Left parts L_j = [x_j, f_j] (owner node j) and right parts R_j = [f_j, x_{j+1}] (owner
+    # j+1) as separate contiguous arrays, padded so that neighbours are slices.
+    def sides(values):
+        return _padded(np.ascontiguousarray(values[..., 0::2])), _padded(np.ascontiguousarray(values[..., 1::2]))
 
-    # Face j (cell j): F < f → [F, f] moves from node j to node j+1 (donor parts 2j−1, 2j);
-    # F > f → [f, F] moves from node j+1 to node j (donor parts 2j+1, 2j+2).
+    names = ("lo", "hi", "rho", "srho", "cen", "scale", "centroid")
+    Lp, Rp = {}, {}
+    for name, values in zip(names, (p_lo, p_hi, p_rho, p_srho, p_cen, scale, centroid)):
+        Lp[name], Rp[name] = sides(values)
+    for side in (Lp, Rp):
+        side["lo"][:PAD], side["hi"][:PAD] = x[0], x[0]
+        side["lo"][-PAD:], side["hi"][-PAD:] = x[-1], x[-1]
+    Lu, Ru = sides(p_u)
+    Ltau, Rtau = sides(p_tau)
+
+    def cells_at(array, shift):
+        """Entries j + shift, j = 0..n−1, of a padded per-cell array (a contiguous view)."""
+        return array[..., PAD + shift:PAD + shift + n]
+
+    def overlap_integrals(side, u_side, tau_side, shift, a, b):
+        """Scaled mass and momentum of the part (side, j + shift) over [a, b] ∩ part."""
+        lo, hi = cells_at(side["lo"], shift), cells_at(side["hi"], shift)
+        start = np.maximum(a, lo)
+        end = np.maximum(np.minimum(b, hi), start)
+        rho, srho, cen = cells_at(side["rho"], shift), cells_at(side["srho"], shift), cells_at(side["cen"], shift)
+        weight = cells_at(side["scale"], shift)
+        mass = _integrate_linear(rho, srho, cen, start, end) * weight
+        momentum = np.stack([_simpson_product(rho, srho, cen, cells_at(u_side[k], shift),
+                                              cells_at(tau_side[k], shift), cells_at(side["centroid"], shift),
+                                              start, end) * weight for k in range(components)])
+        return mass, momentum
+
+    # Face j: the swept interval between f_j and F_j lies left of f_j (in node j's parts
+    # R_{j−1}, L_j: it moves to node j+1) or right of it (in node j+1's parts R_j, L_{j+1}:
+    # it moves to node j); the parts on the other side give zero overlap.
     f, F = face, new_face
-    lower = F < f
     a, b = np.minimum(F, f), np.maximum(F, f)
     width = xr - xl
-    moved_mass = np.zeros(n)
-    moved_momentum = np.zeros((components, n))
-    bounds = []
-    for shift in (0, 1):  # first and second donor part
-        pick = {name: np.where(lower, _parts_at(v, n, -1 + shift), _parts_at(v, n, 1 + shift))
-                for name, v in P.items()}
-        start = np.maximum(a, pick["lo"])
-        end = np.maximum(np.minimum(b, pick["hi"]), start)
-        bounds.append((pick["lo"], pick["hi"]))
-        piece_mass = _integrate_linear(pick["rho"], pick["srho"], pick["cen"], start, end) * pick["scale"]
-        moved_mass += piece_mass
-        for k in range(components):
-            pu = np.where(lower, _parts_at(Pu[k], n, -1 + shift), _parts_at(Pu[k], n, 1 + shift))
-            ptau = np.where(lower, _parts_at(Ptau[k], n, -1 + shift), _parts_at(Ptau[k], n, 1 + shift))
-            moved_momentum[k] += _simpson_product(pick["rho"], pick["srho"], pick["cen"], pu, ptau,
-                                                  pick["centroid"], start, end) * pick["scale"]
-    if np.any((a < bounds[0][0] - 1e-12 * width) | (b > bounds[1][1] + 1e-12 * width)):
+    if np.any((a < cells_at(Rp["lo"], -1) - 1e-12 * width) | (b > cells_at(Lp["hi"], 1) + 1e-12 * width)):
         return _too_far("a dual face moved beyond the parts of its donor node")
+    to_right_mass, to_right_momentum = overlap_integrals(Rp, Ru, Rtau, -1, a, b)
+    m, mom = overlap_integrals(Lp, Lu, Ltau, 0, a, b)
+    to_right_mass += m
+    to_right_momentum += mom
+    to_left_mass, to_left_momentum = overlap_integrals(Rp, Ru, Rtau, 0, a, b)
+    m, mom = overlap_integrals(Lp, Lu, Ltau, 1, a, b)
+    to_left_mass += m
+    to_left_momentum += mom
+    moved_mass = to_right_mass - to_left_mass
+    moved_momentum = to_right_momentum - to_left_momentum
     old_mass = np.zeros(n + 1)
     old_mass[:-1] += share[0::2]
     old_mass[1:] += share[1::2]
     old_momentum = u * old_mass
-    sign = np.where(lower, 1.0, -1.0)  # +: from node j to node j+1
     new_mass = old_mass.copy()
-    new_mass[:-1] -= sign * moved_mass
-    new_mass[1:] += sign * moved_mass
+    new_mass[:-1] -= moved_mass
+    new_mass[1:] += moved_mass
     new_momentum = old_momentum.copy()
-    new_momentum[:, :-1] -= sign * moved_momentum
-    new_momentum[:, 1:] += sign * moved_momentum
+    new_momentum[:, :-1] -= moved_momentum
+    new_momentum[:, 1:] += moved_momentum
     if np.any(new_mass <= 0):
         return _too_far("a node lost all its mass")
     # New corners: node k's new dual cell [F_{k−1}, F_k] splits at X_k; its part left of
     # X_k, [F_{k−1}, X_k], is the right corner of new cell k−1.  F_{k−1} lies in old cells
-    # k−2 .. k and X_k in k−1 .. k: the old parts 2k−3 .. 2k+1 hold it.
-    a, b = F, X[1:]  # k = 1..n
-    covered_lo = _parts_at(P["lo"], n, -1)  # part 2k−3 for k = 1..n is 2(k−1) − 1
-    covered_hi = _parts_at(P["hi"], n, 3)
-    if np.any((a < covered_lo) | (b > covered_hi)):
+    # k−2 .. k and X_k in k−1 .. k: the parts R_{k−2}, L_{k−1}, R_{k−1}, L_k, R_k hold it.
+    a, b = F, X[1:]  # for j = k − 1 = 0..n−1
+    if np.any((a < cells_at(Rp["lo"], -1)) | (b > cells_at(Rp["hi"], 1))):
         return _too_far("a new corner reaches beyond the parts around its node")
     right_corner = np.zeros(n)
-    for offset in (-1, 0, 1, 2, 3):  # parts 2(k−1) + offset, k = 1..n
-        start = np.maximum(a, _parts_at(P["lo"], n, offset))
-        end = np.maximum(np.minimum(b, _parts_at(P["hi"], n, offset)), start)
-        right_corner += _integrate_linear(_parts_at(P["rho"], n, offset), _parts_at(P["srho"], n, offset),
-                                          _parts_at(P["cen"], n, offset), start, end) \
-            * _parts_at(P["scale"], n, offset)
+    for side, shift in ((Rp, -1), (Lp, 0), (Rp, 0), (Lp, 1), (Rp, 1)):
+        lo, hi = cells_at(side["lo"], shift), cells_at(side["hi"], shift)
+        start = np.maximum(a, lo)
+        end = np.maximum(np.minimum(b, hi), start)
+        right_corner += _integrate_linear(cells_at(side["rho"], shift), cells_at(side["srho"], shift),
+                                          cells_at(side["cen"], shift), start, end) * cells_at(side["scale"], shift)
     left_corner = new_mass[:-1] - np.concatenate([[0.0], right_corner[:-1]])
     corner_new = np.stack([left_corner, right_corner])
     node_mass = np.zeros(n_nodes)
