@@ -10,7 +10,7 @@ import numpy as np
 from ale_xfem import exact
 from ale_xfem.lagrange import Boundary
 from ale_xfem.mesh import MeshArrays, interval_mesh
-from ale_xfem.mixed import MixedCells, with_mixed_state
+from ale_xfem.mixed import MixedCellFailure, MixedCells, with_mixed_state
 from ale_xfem.scene import Scene
 from ale_xfem.state import Material, MaterialLayout, State, thermodynamics
 
@@ -38,6 +38,7 @@ class Problem:
     effects: list[str] = field(default_factory=list)
     mixed: MixedCells | None = None  # the enriched mixed cells, when the scene has any
     corner_mass: np.ndarray | None = None  # (2, n_cells) mass lumped on each cell's left/right node
+    setup_failure: str = ""  # a set-up step that could not be done (the run reports it)
 
 
 def build_problem(scene: Scene) -> Problem:
@@ -134,6 +135,7 @@ def build_problem(scene: Scene) -> Problem:
     for boundary in boundaries:  # walls and pistons hold from t = 0
         boundary.apply(state.node_velocity)
     effects = ["lagrange_explicit"]
+    setup_failure = ""
     if scene.numerics.q_quadratic > 0 or scene.numerics.q_linear > 0:
         effects.append("artificial_viscosity")
     if any(b.kind == "velocity" for b in boundaries):
@@ -146,15 +148,24 @@ def build_problem(scene: Scene) -> Problem:
             effects += ["mixed_cells_single_velocity"]
         if scene.interface.relaxation:
             effects.append("pressure_relaxation")
-            state = initial_relaxation(mixed, state)
+            try:
+                state = initial_relaxation(mixed, state)
+            except MixedCellFailure as failure:  # reported by the run, with this state
+                setup_failure = f"initial pressure relaxation: {failure}"
         else:  # the mixed cells start with their pressures as given
             cells = mixed.cells
             pressures = state.material_pressure[:, cells]
             volumes = state.material_volume[:, cells]
             state = state.evolved(interface_pressure=(pressures * volumes).sum(axis=0) / volumes.sum(axis=0),
                                   interface_velocity=np.zeros(cells.size))
+    if setup_failure:  # an unrelaxed mixed cell has no interface pressure yet
+        cells = mixed.cells
+        volumes = state.material_volume[:, cells]
+        state = state.evolved(
+            interface_pressure=(state.material_pressure[:, cells] * volumes).sum(axis=0) / volumes.sum(axis=0),
+            interface_velocity=np.zeros(cells.size))
     return Problem(scene, mesh, materials, layout, node_mass, state, boundaries,
-                   exact_reference(scene), effects, mixed, corner_by_position)
+                   exact_reference(scene), effects, mixed, corner_by_position, setup_failure)
 
 
 def _left_material_first(scene, names, left, right, first, second):

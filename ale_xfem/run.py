@@ -99,7 +99,9 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
     dt_previous, dt_min, dt_max = np.inf, np.inf, 0.0
     steps, status, diagnostic = 0, "ok", ""
     clock = time.perf_counter()
-    while state.time < t_end * (1.0 - 1e-14):
+    if problem.setup_failure:
+        status, diagnostic = "failed", f"step 0, t = 0: {problem.setup_failure}"
+    while status == "ok" and state.time < t_end * (1.0 - 1e-14):
         if stop_after_steps is not None and steps >= stop_after_steps:
             break
         if steps >= max_steps:
