@@ -61,23 +61,29 @@ PHASE_CASES = (
 )
 
 
-def phase_times(cells: int, steps: int, overrides=(), scene: str = "sod-two-gamma") -> dict:
-    """Seconds per step in each phase over `steps` steps of a scene (after 5 warm-up steps
-    that also run the initial relaxation and compile nothing: no forms are involved)."""
+def phase_times(cells: int, steps: int, overrides=(), scene: str = "sod-two-gamma",
+                repeats: int = 3) -> dict:
+    """Seconds per step in each phase over `steps` steps of a scene (after 5 warm-up steps),
+    from the fastest of `repeats` runs."""
     from ale_xfem.run import simulate
 
-    problem = build_problem(load_scene(resolve_scene_path(scene), [f"mesh.cells={cells}", "t_end=1e9",
-                                                                   *overrides]))
-    warm = simulate(problem, stop_after_steps=5)
-    problem.state = warm.state
-    result = simulate(problem, stop_after_steps=steps)
-    per_step = {k: v / steps for k, v in result.phase_seconds.items()}
-    per_step["total"] = result.wall_seconds / steps
-    return per_step
+    best = None
+    for _ in range(repeats):  # best of `repeats` runs: this machine's timings are noisy
+        problem = build_problem(load_scene(resolve_scene_path(scene), [f"mesh.cells={cells}", "t_end=1e9",
+                                                                       *overrides]))
+        warm = simulate(problem, stop_after_steps=5)
+        problem.state = warm.state
+        result = simulate(problem, stop_after_steps=steps)
+        per_step = {k: v / steps for k, v in result.phase_seconds.items()
+                    if k in ("lagrange", "mixed_cell_solve", "remap")}
+        per_step["total"] = result.wall_seconds / steps
+        if best is None or per_step["total"] < best["total"]:
+            best = per_step
+    return best
 
 
 def run_phase_bench(sizes=(1_000, 100_000), out=print) -> list[dict]:
-    out("time per step by phase (ms), 1D two-gamma tube, the interface strictly inside a cell")
+    out("time per step by phase (ms, best of 3 runs), 1D two-gamma tube, the interface strictly inside a cell")
     out(f"{'cells':>8} {'case':<42} {'lagrange':>9} {'mixed':>9} {'remap':>9} {'total':>9} {'ratio':>7}")
     rows = []
     for cells in sizes:

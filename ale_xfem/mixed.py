@@ -124,13 +124,16 @@ class MixedCells:
                                    "cannot hold both materials below their compression limits")
         v = np.clip(guess, lo, hi)
         for iteration in range(1, 101):
-            pa, da, *_ = self._adiabat(self.left_groups, m_a, v, ea0, va0, work_pressure)
-            pb, db, *_ = self._adiabat(self.right_groups, m_b, total - v, eb0, vb0, work_pressure)
+            pa, da, ea, rho_a, c2a = self._adiabat(self.left_groups, m_a, v, ea0, va0, work_pressure)
+            pb, db, eb, rho_b, c2b = self._adiabat(self.right_groups, m_b, total - v, eb0, vb0, work_pressure)
             h = pa - pb  # decreasing in V_α
             slope = da + db
             # balanced: the pressures agree far below the solver tolerance (|slope|·V is
             # the cell's bulk modulus); such cells keep their volume
             balanced = np.abs(h) <= 1e-3 * self.tolerance * np.abs(slope) * total
+            if np.all(balanced):  # the values just computed are those of the result
+                self.last_slopes = (da, db)
+                return v, 0.5 * (pa + pb), (ea, eb, pa, pb, rho_a, rho_b, c2a, c2b), iteration
             lo = np.where(h > 0, v, lo)
             hi = np.where(h <= 0, v, hi)
             newton = v - h / slope
@@ -141,8 +144,9 @@ class MixedCells:
             # or round-off bounds what Newton can still change (a few ulps of the volume)
             if np.all(balanced | (change <= 8e-16 * total) | (hi - lo <= 8e-16 * total)):
                 break
-        pa, _, ea, rho_a, c2a = self._adiabat(self.left_groups, m_a, v, ea0, va0, work_pressure)
-        pb, _, eb, rho_b, c2b = self._adiabat(self.right_groups, m_b, total - v, eb0, vb0, work_pressure)
+        pa, da, ea, rho_a, c2a = self._adiabat(self.left_groups, m_a, v, ea0, va0, work_pressure)
+        pb, db, eb, rho_b, c2b = self._adiabat(self.right_groups, m_b, total - v, eb0, vb0, work_pressure)
+        self.last_slopes = (da, db)
         return v, 0.5 * (pa + pb), (ea, eb, pa, pb, rho_a, rho_b, c2a, c2b), iteration
 
     def solve(self, state0, pressure0, volume_affine, work_affine, record: bool = True,
@@ -156,10 +160,14 @@ class MixedCells:
         w0, w1 = work_affine
         m_a, m_b, va0, vb0, ea0, eb0 = state0
         va, vb, pi = va0.copy(), vb0.copy(), pressure0.copy()
+        previous = None  # the corrector's result: pressures and slopes at the new iterate
         for iteration in range(1, self.max_iterations + 1):
             work = w0 + w1 * pi
-            pa, da, *_ = self._adiabat(self.left_groups, m_a, va, ea0, va0, work)
-            pb, db, *_ = self._adiabat(self.right_groups, m_b, vb, eb0, vb0, work)
+            if previous is None:
+                pa, da, *_ = self._adiabat(self.left_groups, m_a, va, ea0, va0, work)
+                pb, db, *_ = self._adiabat(self.right_groups, m_b, vb, eb0, vb0, work)
+            else:  # the corrector just evaluated both materials there, with this work
+                pa, pb, da, db = previous
             # Predictor: V_α = V_α^k + (π − p_α)/D_α, V_β likewise, V_α + V_β = A + Bπ.
             if predictor is None:
                 pi_new = (a - va - vb + pa / da + pb / db) / (1.0 / da + 1.0 / db - b)
@@ -183,6 +191,7 @@ class MixedCells:
             # does: the iterate then stops moving, which is convergence too.
             converged |= np.abs(pi_new - pi) <= 64 * np.finfo(float).eps * np.maximum(np.abs(pi_new), scale)
             va, vb, pi = va_new, total - va_new, pi_new
+            previous = (details[2], details[3], *self.last_slopes)
             if np.all(converged):
                 if record:
                     self._record(iteration)
