@@ -33,14 +33,19 @@ class _AssembledPredictor:
     """The compiled forms of the predictor on the current mixed cells."""
 
     def __init__(self, dolfinx_mesh, cells):
+        from forms.mixed_cell import MixedCellForms
+
         self.mesh = dolfinx_mesh
+        self.forms = MixedCellForms(dolfinx_mesh.comm, dolfinx_mesh.topology.cell_name(),
+                                    dolfinx_mesh.geometry.dim)  # compiled once per run
         self.rebuild(cells)
 
     def rebuild(self, cells):
+        """Bind the compiled forms to the current mixed cells (no compilation)."""
         from forms.mixed_cell import MixedCellPredictor
 
         self.cells = cells
-        self.predictor = MixedCellPredictor(self.mesh, cells)
+        self.predictor = MixedCellPredictor(self.mesh, cells, self.forms)
 
 
 def _two_slots(row0, mixed_cells, row1_mixed):

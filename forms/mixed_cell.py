@@ -17,9 +17,10 @@ node (M_α = 0, no explicit force) — plus the continuity of the normal velocit
 ∫_Γ (ū_α − ū_β)·n_α q = 0.  Interface integrals use ∫_Γ g = (|Γ|/|K|) ∫_K [g + (x_Γ − x)·∇g]
 (exact for the linear integrands here; a point interface in 1D has |Γ| = 1).
 
-The forms are compiled once per set of mixed cells (a remap that moves an interface to
-another cell rebuilds the spaces; FFCx's cache serves the same kernels); matrix, vectors
-and the KSP are created once and refilled.
+The forms are compiled once per run (:class:`MixedCellForms`, on an abstract mesh); a
+remap that moves an interface to another cell binds them to new spaces on the new
+submesh without compiling.  Matrix, vectors and the KSP are created once per set of mixed
+cells and refilled every iteration.
 """
 
 from __future__ import annotations
@@ -33,10 +34,60 @@ import ufl
 from petsc4py import PETSc
 
 
+_COEFFICIENTS = ("mass_a", "mass_b", "fraction_a", "fraction_b", "stiffness_a", "stiffness_b",
+                 "offset_a", "offset_b", "normal", "interface", "interface_measure")
+
+
+class MixedCellForms:
+    """The predictor's bilinear and linear forms, written on an abstract mesh of one cell
+    type and compiled once per run; :class:`MixedCellPredictor` binds them to the current
+    mixed cells (a remap that moves an interface to another cell binds them anew, without
+    compiling)."""
+
+    def __init__(self, comm, cell_name: str, gdim: int):
+        cell = basix.CellType[cell_name]
+        domain = ufl.Mesh(basix.ufl.element("Lagrange", cell, 1, shape=(gdim,)))
+        velocity = basix.ufl.element("Lagrange", cell, 1, shape=(gdim,))
+        pressure = basix.ufl.element("DG", cell, 0)
+        self.mixed_element = basix.ufl.mixed_element([velocity, velocity, pressure])
+        space = ufl.FunctionSpace(domain, self.mixed_element)
+        P1 = ufl.FunctionSpace(domain, basix.ufl.element("Lagrange", cell, 1))
+        DG0 = ufl.FunctionSpace(domain, basix.ufl.element("DG", cell, 0))
+        DG0v = ufl.FunctionSpace(domain, basix.ufl.element("DG", cell, 0, shape=(gdim,)))
+        kinds = {"mass": P1, "fraction": DG0, "stiffness": DG0, "offset": DG0, "normal": DG0v,
+                 "interface": DG0v, "interface_measure": DG0}
+        self.coefficients = {name: ufl.Coefficient(kinds[name.rsplit("_", 1)[0]
+                                                        if name.endswith(("_a", "_b")) else name])
+                             for name in _COEFFICIENTS}
+        c = self.coefficients
+        (u_a, u_b, p) = ufl.TrialFunctions(space)
+        (v_a, v_b, q) = ufl.TestFunctions(space)
+        x = ufl.SpatialCoordinate(domain)
+        volume = ufl.CellVolume(domain)
+        lumped = ufl.dx(scheme="vertex", degree=1)
+        n, xg, area = c["normal"], c["interface"], c["interface_measure"]
+
+        def on_interface(g):
+            return area / volume * (g + ufl.dot(xg - x, ufl.grad(g))) * ufl.dx
+
+        bilinear = 0
+        linear = 0
+        for u, v, side, sign in ((u_a, v_a, "a", 1.0), (u_b, v_b, "b", -1.0)):
+            m, f = c[f"mass_{side}"], c[f"fraction_{side}"]
+            k, offset = c[f"stiffness_{side}"], c[f"offset_{side}"]
+            bilinear += m * ufl.inner(u, v) * lumped
+            bilinear -= f * k * f * volume * ufl.div(u) * ufl.div(v) * ufl.dx
+            bilinear += on_interface(sign * p * ufl.dot(n, v))
+            linear += f * offset * ufl.div(v) * ufl.dx
+        bilinear += on_interface(ufl.dot(u_a - u_b, n) * q)
+        self.bilinear = dolfinx.fem.compile_form(comm, bilinear)
+        self.linear = dolfinx.fem.compile_form(comm, linear)
+
+
 class MixedCellPredictor:
     """Assemble and solve the linearised interface system of all mixed cells at once."""
 
-    def __init__(self, mesh, mixed_cells: np.ndarray):
+    def __init__(self, mesh, mixed_cells: np.ndarray, forms: MixedCellForms):
         self.parent = mesh
         mesh.topology.create_connectivity(mesh.topology.dim, 0)
         self.submesh, entity_map, _, self.geometry_map = dolfinx.mesh.create_submesh(
@@ -48,10 +99,7 @@ class MixedCellPredictor:
         position = {int(c): i for i, c in enumerate(mixed_cells)}
         self.input_index = np.array([position[int(c)] for c in parent], dtype=np.int64)
         gdim = sub.geometry.dim
-        cell = sub.basix_cell()
-        velocity = basix.ufl.element("Lagrange", cell, 1, shape=(gdim,))
-        pressure = basix.ufl.element("DG", cell, 0)
-        self.space = dolfinx.fem.functionspace(sub, basix.ufl.mixed_element([velocity, velocity, pressure]))
+        self.space = dolfinx.fem.functionspace(sub, forms.mixed_element)
         collapsed = [self.space.sub(i).collapse() for i in range(3)]
         self.maps = [np.asarray(m).ravel() for _, m in collapsed]
         P1 = dolfinx.fem.functionspace(sub, ("Lagrange", 1))
@@ -65,30 +113,15 @@ class MixedCellPredictor:
         self.normal = dolfinx.fem.Function(DG0v)  # n_α, outward from α
         self.interface = dolfinx.fem.Function(DG0v)  # x_Γ
         self.interface_measure = dolfinx.fem.Function(DG0)  # |Γ_K|
-
-        (u_a, u_b, p) = ufl.TrialFunctions(self.space)
-        (v_a, v_b, q) = ufl.TestFunctions(self.space)
-        x = ufl.SpatialCoordinate(sub)
-        volume = ufl.CellVolume(sub)
-        lumped = ufl.dx(scheme="vertex", degree=1)
-        n, xg, area = self.normal, self.interface, self.interface_measure
-
-        def on_interface(g):
-            return area / volume * (g + ufl.dot(xg - x, ufl.grad(g))) * ufl.dx
-
-        a = 0
-        L = 0
-        for u, v, m, f, k, c, sign in ((u_a, v_a, self.mass[0], self.fraction[0], self.stiffness[0],
-                                        self.offset[0], 1.0),
-                                       (u_b, v_b, self.mass[1], self.fraction[1], self.stiffness[1],
-                                        self.offset[1], -1.0)):
-            a += m * ufl.inner(u, v) * lumped
-            a -= f * k * f * volume * ufl.div(u) * ufl.div(v) * ufl.dx
-            a += on_interface(sign * p * ufl.dot(n, v))
-            L += f * c * ufl.div(v) * ufl.dx
-        a += on_interface(ufl.dot(u_a - u_b, n) * q)
-        self.bilinear = dolfinx.fem.form(a)
-        self.linear = dolfinx.fem.form(L)
+        functions = {"mass_a": self.mass[0], "mass_b": self.mass[1],
+                     "fraction_a": self.fraction[0], "fraction_b": self.fraction[1],
+                     "stiffness_a": self.stiffness[0], "stiffness_b": self.stiffness[1],
+                     "offset_a": self.offset[0], "offset_b": self.offset[1], "normal": self.normal,
+                     "interface": self.interface, "interface_measure": self.interface_measure}
+        coefficient_map = {forms.coefficients[name]: functions[name] for name in _COEFFICIENTS}
+        self.bilinear = dolfinx.fem.create_form(forms.bilinear, [self.space, self.space], sub, {},
+                                                coefficient_map, {})
+        self.linear = dolfinx.fem.create_form(forms.linear, [self.space], sub, {}, coefficient_map, {})
         self.matrix = dolfinx.fem.petsc.create_matrix(self.bilinear)
         self.vector = dolfinx.fem.petsc.create_vector(self.space)
         self.solution = self.matrix.createVecRight()
