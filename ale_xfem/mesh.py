@@ -41,6 +41,10 @@ class Corners:
         """node_values (dim, n_nodes) → [corner][component] arrays (n_cells,)."""
         return [[component[i] for component in node_values] for i in self.index]
 
+    def scatter(self, corner_values) -> np.ndarray:
+        """Sum per-corner values (a sequence over corners of (n_cells,) arrays) onto nodes."""
+        return self.scatter_scaled(list(corner_values), 1.0)
+
     def scatter_scaled(self, coefficients, common, out=None) -> np.ndarray:
         """Σ over corners of coefficients[i] * common onto nodes (into ``out`` if given,
         overwritten); a coefficient may be a scalar (±1 for intervals, where it costs no
@@ -195,11 +199,6 @@ class MeshArrays:
     def nodes_where(self, predicate) -> np.ndarray:
         """Indices of nodes whose position satisfies predicate(x) (x: (dim, n_nodes))."""
         return np.flatnonzero(predicate(self.node_position))
-
-    def scatter_cell_shares(self, cell_values) -> np.ndarray:
-        """Give each node an equal corner share of its cells' values (lumping)."""
-        share = cell_values / self.cell_type.nodes_per_cell
-        return self.corners.scatter_scaled([1.0] * self.cell_type.nodes_per_cell, share)
 
 
 def from_dolfinx(mesh) -> MeshArrays:

@@ -116,20 +116,17 @@ def build_problem(scene: Scene) -> Problem:
                            nonlinear=scene.interface.solver == "nonlinear",
                            model=scene.interface.model, relaxation=scene.interface.relaxation)
     layout = MaterialLayout(cell_material, n_materials)
-    # corner shares are (corner, cell) in the cells' own node order; mixed cells above were
-    # written left/right, so swap where a cell lists its right node first.
+    # Corner shares were written left/right by position (as the remap reads them); the
+    # state takes them in each cell's own node order.
     flipped = x[:, 0] > x[:, 1]
-    corner_mass[:, flipped] = corner_mass[::-1][:, flipped]
-    corner_momentum[:, :, flipped] = corner_momentum[:, ::-1][:, :, flipped]
-    node_mass = _scatter_corners(mesh, corner_mass)
-    # corner masses by position (left node, right node), as the remap reads them
-    corner_by_position = corner_mass.copy()
-    corner_by_position[:, flipped] = corner_mass[::-1][:, flipped]
-    velocity = np.stack([_scatter_corners(mesh, c) for c in corner_momentum]) / node_mass
-    density = np.where(material_volume > 0, material_mass / np.where(material_volume > 0, material_volume, 1.0), 0.0)
-    pressure, sound_speed = thermodynamics(materials, layout, density, material_energy)
-    state = State(0.0, mesh.node_position.copy(), velocity, material_mass, material_energy,
-                  material_volume, density, pressure, sound_speed)
+    corner_by_position = corner_mass
+    own_mass = corner_mass.copy()
+    own_mass[:, flipped] = corner_mass[::-1][:, flipped]
+    own_momentum = corner_momentum.copy()
+    own_momentum[:, :, flipped] = corner_momentum[:, ::-1][:, :, flipped]
+    state, node_mass = state_from_cells(mesh, materials, layout, material_mass, material_energy,
+                                        material_volume=material_volume, corner_mass=own_mass,
+                                        corner_momentum=own_momentum)
 
     boundaries = side_boundaries(mesh, scene.mesh.extent, scene.boundaries)
     for boundary in boundaries:  # walls and pistons hold from t = 0
@@ -180,14 +177,6 @@ def _left_material_first(scene, names, left, right, first, second):
     return result
 
 
-def _scatter_corners(mesh, corner_values):
-    """Sum (corner, cell) values onto nodes."""
-    out = np.zeros(mesh.n_nodes)
-    for corner in range(corner_values.shape[0]):
-        out += np.bincount(mesh.cell_nodes[:, corner], weights=corner_values[corner], minlength=mesh.n_nodes)
-    return out
-
-
 def initial_relaxation(mixed: MixedCells, state: State) -> State:
     """Equilibrate the pressures of the initial mixed cells (energy conserved)."""
     cells = mixed.cells
@@ -201,19 +190,30 @@ def initial_relaxation(mixed: MixedCells, state: State) -> State:
 
 
 def state_from_cells(mesh: MeshArrays, materials, layout: MaterialLayout, material_mass,
-                     material_energy, cell_momentum) -> tuple[State, np.ndarray]:
-    """Initial state from per-cell, per-material mass and specific energy (S, n_cells) and
-    per-cell momentum (dim, n_cells).  Lumped nodal masses take equal corner shares of
-    their cells' mass; nodal velocities carry each cell's momentum in the same shares (a
-    node on a velocity jump takes the mass-weighted mean, so momentum is exact)."""
-    cell_mass = material_mass.sum(axis=0)
-    node_mass = mesh.scatter_cell_shares(cell_mass)
-    velocity = np.stack([mesh.scatter_cell_shares(p) for p in cell_momentum]) / node_mass
-    volume = mesh.cell_volumes()
-    density = material_mass / volume
+                     material_energy, cell_momentum=None, material_volume=None, corner_mass=None,
+                     corner_momentum=None) -> tuple[State, np.ndarray]:
+    """Initial state from per-cell, per-material mass and specific energy (S, n_cells).
+
+    Lumped nodal masses sum the cells' corner masses (corner_mass (corners, n_cells), in
+    each cell's node order; by default equal shares of the cell's mass); nodal velocities
+    carry the corner momenta (corner_momentum (components, corners, n_cells); by default
+    the same shares of cell_momentum (components, n_cells)), so momentum is exact and a node
+    on a velocity jump takes the mass-weighted mean.  material_volume defaults to the whole
+    cell for slot 0."""
+    corners = mesh.cell_type.nodes_per_cell
+    if corner_mass is None:
+        corner_mass = np.repeat(material_mass.sum(axis=0)[None, :] / corners, corners, axis=0)
+    if corner_momentum is None:
+        corner_momentum = np.repeat(np.asarray(cell_momentum)[:, None, :] / corners, corners, axis=1)
+    node_mass = mesh.corners.scatter(corner_mass)
+    velocity = np.stack([mesh.corners.scatter(c) for c in corner_momentum]) / node_mass
+    if material_volume is None:
+        material_volume = mesh.cell_volumes()[None, :].copy()
+    occupied = material_volume > 0
+    density = np.where(occupied, material_mass / np.where(occupied, material_volume, 1.0), 0.0)
     pressure, sound_speed = thermodynamics(materials, layout, density, material_energy)
     state = State(0.0, mesh.node_position.copy(), velocity, material_mass.copy(),
-                  material_energy.copy(), volume[None, :].copy(), density, pressure, sound_speed)
+                  material_energy.copy(), material_volume, density, pressure, sound_speed)
     return state, node_mass
 
 
