@@ -71,12 +71,6 @@ class MaterialGroups:
 
 
 @dataclass
-class MixedSolveReport:
-    iterations: int = 0
-    corrector_iterations: int = 0
-
-
-@dataclass
 class MixedCells:
     """The static description of the mixed cells of a 1D mesh and their solver."""
 

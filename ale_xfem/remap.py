@@ -64,6 +64,19 @@ def _limited_slopes(centre, value, material):
     return slope
 
 
+def piece_slopes(centre, width, density, energy_density, material, order):
+    """The limited slopes of a material's density and energy density over the pieces
+    (sorted left to right): minmod within one material, zero at Γ, and no more than keeps
+    the reconstruction of the same sign at both ends of the piece.  Order 1: zero."""
+    if order != 2:
+        return np.zeros_like(density), np.zeros_like(energy_density)
+    density_slope = np.clip(_limited_slopes(centre, density, material),
+                            -2.0 * density / width, 2.0 * density / width)
+    energy_slope = np.clip(_limited_slopes(centre, energy_density, material),
+                           -2.0 * np.abs(energy_density) / width, 2.0 * np.abs(energy_density) / width)
+    return density_slope, energy_slope
+
+
 def _integrate_linear(value, slope, centre, lo, hi):
     """∫_lo^hi value + slope (x − centre) dx."""
     return value * (hi - lo) + 0.5 * slope * ((hi - centre) ** 2 - (lo - centre) ** 2)
@@ -123,16 +136,7 @@ def remap_1d(order_of_cells, cell_left_node, cell_right_node, node_position, tar
     centre = 0.5 * (piece_lo + piece_hi)
     density = piece_mass / width
     energy_density = piece_energy / width
-    if order == 2:
-        density_slope = _limited_slopes(centre, density, piece_material)
-        # keep the reconstruction positive at both ends of the piece
-        density_slope = np.clip(density_slope, -2.0 * density / width, 2.0 * density / width)
-        energy_slope = _limited_slopes(centre, energy_density, piece_material)
-        energy_slope = np.clip(energy_slope, -2.0 * np.abs(energy_density) / width,
-                               2.0 * np.abs(energy_density) / width)
-    else:
-        density_slope = np.zeros(n_pieces)
-        energy_slope = np.zeros(n_pieces)
+    density_slope, energy_slope = piece_slopes(centre, width, density, energy_density, piece_material, order)
 
     # -- new cells, left to right, and their material content ------------------------------
     t_left = target_position[cell_left_node[cells]]

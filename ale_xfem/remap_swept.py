@@ -21,7 +21,7 @@ from __future__ import annotations
 import numpy as np
 
 from ale_xfem.remap import (RemapFailure, RemapResult, _first_moment, _integrate_linear,
-                            _limited_slopes, _minmod, _simpson_product)
+                            _minmod, _simpson_product, piece_slopes)
 
 
 def _clipped_integral(value, slope, centre, lo, hi, a, b):
@@ -80,13 +80,10 @@ def remap_1d_swept(order_of_cells, cell_left_node, cell_right_node, node_positio
                             (seq_mat, m0, m1)):
             arr[start] = v0
             arr[start[mixed_j] + 1] = v1
-        srho = _limited_slopes(seq_centre, seq_rho, seq_mat)
-        seps = _limited_slopes(seq_centre, seq_eps, seq_mat)
         w_seq = np.empty(total)
         w_seq[start] = width0
         w_seq[start[mixed_j] + 1] = width1
-        srho = np.clip(srho, -2.0 * seq_rho / w_seq, 2.0 * seq_rho / w_seq)
-        seps = np.clip(seps, -2.0 * np.abs(seq_eps) / w_seq, 2.0 * np.abs(seq_eps) / w_seq)
+        srho, seps = piece_slopes(seq_centre, w_seq, seq_rho, seq_eps, seq_mat, order)
         srho0, seps0 = srho[start], seps[start]
         srho1, seps1 = srho[start[mixed_j] + 1], seps[start[mixed_j] + 1]
     else:
@@ -167,7 +164,7 @@ def remap_1d_swept(order_of_cells, cell_left_node, cell_right_node, node_positio
     # -- momentum through the dual faces ---------------------------------------------------
     result = _momentum(n, n_nodes, nodes, x, X, xl, xr, hi0, mixed_j, gamma, new_mixed_j,
                        X[:-1] + new["volume"][0], rho0, srho0, centre0, rho1, srho1, centre1,
-                       corner_mass[:, cells], node_velocity, order, mixed_sorted_mask, mixed_velocity,
+                       corner_mass[:, cells], node_velocity, order, mixed_velocity,
                        m0, m1, cell_left_node, cell_right_node, cells, material_volume)
     if result is None:
         return None
@@ -266,7 +263,7 @@ def _padded(values, fill=0.0):
 
 def _momentum(n, n_nodes, nodes, x, X, xl, xr, hi0, mixed_j, gamma, new_mixed_j, new_gamma,
               rho0, srho0, centre0, rho1, srho1, centre1, corner_sorted, node_velocity, order,
-              mixed_mask, mixed_velocity, m0, m1_of_mixed, cell_left_node, cell_right_node, cells,
+              mixed_velocity, m0, m1_of_mixed, cell_left_node, cell_right_node, cells,
               material_volume):
     """Nodal momentum and lumped masses through the dual faces (enriched: a mixed cell's
     face is Γ; a pure cell's its middle).  Parts: 2j = left part of cell j (owner: sorted
