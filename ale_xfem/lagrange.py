@@ -169,15 +169,22 @@ class ExplicitWilkins:
     # -- forces -------------------------------------------------------------------------
 
     def evaluate(self, node_position, node_velocity, material_mass, material_energy,
-                 mixed_view: MixedView | None = None) -> ForceEvaluation:
+                 mixed_view: MixedView | None = None, slots: int = 1) -> ForceEvaluation:
+        """Forces of a state.  Density, pressure and sound speed come out as (slots,
+        n_cells) arrays with slot 0 filled (slots = 2: the caller fills slot 1 of the
+        mixed cells, every other entry of slot 1 is 0), so that the mixed-cell step takes
+        them as they are instead of copying rows."""
         cell_type, corners = self.mesh.cell_type, self.corners
         volume, gradient = cell_type.volume_and_gradient(corners.gather(node_position))
         mass0, energy0 = material_mass[:1], material_energy[:1]
-        density = mass0 / volume
+        density, pressure, sound_speed = (np.empty((slots, volume.size)) for _ in range(3))
+        for array in (density, pressure, sound_speed):
+            array[1:].fill(0.0)
+        np.divide(mass0, volume, out=density[:1])
         if mixed_view is not None:  # slot 0 of a mixed cell is its α part
             cells = self.mixed.cells
             density[0, cells] = mass0[0, cells] / mixed_view.volume_left
-        pressure, sound_speed = thermodynamics(self.materials, self.pure_layout, density, energy0)
+        thermodynamics(self.materials, self.pure_layout, density[:1], energy0, out=(pressure[:1], sound_speed[:1]))
         volume_rate = corner_dot(gradient, corners.gather(node_velocity))  # dV/dt = Σ ∂V/∂x_i·u_i
         velocity_jump = cell_type.velocity_jump(volume_rate, volume)
         mixed_viscosity = mixed_sound_speed = None
@@ -345,7 +352,11 @@ class ExplicitWilkins:
         x_new = velocity_sum[: x0.shape[0]] * (0.5 * dt)
         x_new += x0
         half_dt_over_mass *= 0.5  # F̄ = ½ (F^n + F*)
-        e_new = energy[:1] - self._corner_work([first, predicted], velocity_sum, half_dt_over_mass)
+        # With mixed cells the new energies fill slot 0 of a two-slot array (slot 1: the
+        # mixed cells' second materials, set by the interface solve).
+        e_new = np.empty((energy.shape[0] if self.mixed is not None else 1, energy.shape[1]))
+        np.subtract(energy[:1], self._corner_work([first, predicted], velocity_sum, half_dt_over_mass),
+                    out=e_new[:1])
 
         # Work and impulse of the boundary reactions R = M du/dt − F̄ on held nodes.
         dim = x0.shape[0]
@@ -492,16 +503,17 @@ class ExplicitWilkins:
         va, vb, (ea, eb, pa, pb, rho_a, rho_b, c2a, c2b) = solution
         cells, a = self.mixed.cells, self.mixed.node_left
         vb = self._mixed_volumes(x_new) - va  # the geometric cell volume takes the round-off
-        energy = np.zeros_like(state.material_energy)
-        energy[0] = e_new[0]
+        energy = e_new  # slot 0 from the explicit update
+        energy[1].fill(0.0)
         energy[0, cells], energy[1, cells] = ea, eb
         interface_pressure = 0.5 * (pa + pb)
         view = MixedView(va, vb, state.material_mass[1, cells], eb, interface_pressure)
-        final = self.evaluate(x_new, u_new, state.material_mass, energy, view)
-        volume, density, pressure, sound_speed = (_two_slots(row0, cells, row1) for row0, row1 in (
-            (final.volume, vb), (final.density[0], rho_b), (final.pressure[0], pb),
-            (final.sound_speed[0], np.sqrt(np.maximum(c2b, 0.0)))))
+        final = self.evaluate(x_new, u_new, state.material_mass, energy, view, slots=2)
+        volume = _two_slots(final.volume, cells, vb)
         volume[0, cells] = va
+        density, pressure, sound_speed = final.density, final.pressure, final.sound_speed
+        density[1, cells], pressure[1, cells] = rho_b, pb
+        sound_speed[1, cells] = np.sqrt(np.maximum(c2b, 0.0))
         interface_before = state.node_position[0, a] + state.material_volume[0, cells]
         interface_after = x_new[0, a] + va
         new_state = state.evolved(

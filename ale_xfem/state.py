@@ -75,15 +75,25 @@ class State:
         return replace(self, **changes)
 
 
-def thermodynamics(materials, layout: MaterialLayout, density, energy):
+def thermodynamics(materials, layout: MaterialLayout, density, energy, out=None):
     """Pressure and sound speed (S, n_cells) from density and specific energy, material by
-    material.  Empty slots get p = 0, c = 0."""
+    material.  Empty slots get p = 0, c = 0.  ``out``: a (pressure, sound speed) pair of
+    arrays shaped like density to fill instead of new ones."""
     if layout.single is not None:  # one material fills every slot: no gather or scatter
         eos = materials[layout.single].eos
         with np.errstate(invalid="ignore"):
-            return eos.pressure(density, energy), np.sqrt(eos.sound_speed_squared(density, energy))
-    pressure = np.zeros_like(density)
-    sound_speed = np.zeros_like(density)
+            pressure, sound_speed = eos.pressure(density, energy), np.sqrt(eos.sound_speed_squared(density, energy))
+        if out is None:
+            return pressure, sound_speed
+        out[0][...], out[1][...] = pressure, sound_speed
+        return out
+    if out is None:
+        pressure, sound_speed = np.zeros_like(density), np.zeros_like(density)
+    else:
+        pressure, sound_speed = out
+        if not layout.occupied.all():
+            pressure.fill(0.0)
+            sound_speed.fill(0.0)
     rho_flat, e_flat = density.reshape(-1), energy.reshape(-1)
     p_flat, c_flat = pressure.reshape(-1), sound_speed.reshape(-1)
     for material, where in layout.groups:
