@@ -20,8 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ale_xfem.remap import (RemapFailure, RemapResult, _first_moment, _integrate_linear,
-                            _minmod, _simpson_product, piece_slopes)
+from ale_xfem.remap import RemapFailure, RemapResult, _integrate_linear, _minmod, piece_slopes
 
 
 def _clipped_integral(value, slope, centre, lo, hi, a, b):
@@ -252,13 +251,85 @@ def _material_at(position, x, m0, mixed_j, m1, gamma, side):
     return material
 
 
-PAD = 4  # dummy parts on each side, so that every neighbour of a part is a slice
+class _Parts:
+    """The node parts of the old cells, one array per quantity: L_j = [x_j, f_j] (owner:
+    sorted node j) and R_j = [f_j, x_{j+1}] (owner j + 1), f_j the cell's middle or, in an
+    enriched mixed cell, Γ.  Each carries its density piece (value, slope, centre), the
+    factor taking its reconstructed mass to the lumped corner mass, the centroid of that
+    mass, and its owner's velocity and slope.  The L arrays have one more entry, an empty
+    part at the right end of the domain, so that L_{j+1} is a slice for j = 0..n−1."""
+
+    def __init__(self, lo, hi, rho, srho, cen, share, u, tau, pad_at=None):
+        if pad_at is not None:  # the empty part [pad_at, pad_at]
+            lo, hi = np.append(lo, pad_at), np.append(hi, pad_at)
+            rho, srho, cen, share = (np.append(v, 0.0) for v in (rho, srho, cen, share))
+            u, tau = (np.concatenate([v, np.zeros((v.shape[0], 1))], axis=1) for v in (u, tau))
+        self.lo, self.hi, self.rho, self.srho, self.cen, self.u, self.tau = lo, hi, rho, srho, cen, u, tau
+        length = hi - lo
+        mass = length * (rho + srho * (0.5 * (lo + hi) - cen))
+        empty = mass <= 0.0
+        safe = np.where(empty, 1.0, mass)
+        self.scale = np.where(empty, 0.0, share / safe)
+        # centroid of the part's mass: (M·mid + σ L³/12) / M
+        self.centroid = 0.5 * (lo + hi) + srho * length**3 / (12.0 * safe)
+
+    def take(self, index):
+        """The parts at an index array (a few, for the cells where Γ moves far)."""
+        part = object.__new__(_Parts)
+        for name in ("lo", "hi", "rho", "srho", "cen", "scale", "centroid"):
+            setattr(part, name, getattr(self, name)[index])
+        part.u, part.tau = self.u[:, index], self.tau[:, index]
+        return part
+
+    def window(self, first, count):
+        """Parts first .. first + count − 1 as views."""
+        part = object.__new__(_Parts)
+        for name in ("lo", "hi", "rho", "srho", "cen", "scale", "centroid"):
+            setattr(part, name, getattr(self, name)[first:first + count])
+        part.u, part.tau = self.u[:, first:first + count], self.tau[:, first:first + count]
+        return part
 
 
-def _padded(values, fill=0.0):
-    out = np.full(values.shape[:-1] + (values.shape[-1] + 2 * PAD,), fill)
-    out[..., PAD:-PAD] = values
-    return out
+def _overlap_mass(part, a, b):
+    """Lumped mass of the parts over [a, b] ∩ part (zero where they do not meet)."""
+    start = np.maximum(a, part.lo)
+    length = np.minimum(b, part.hi)
+    length -= start
+    np.maximum(length, 0.0, out=length)
+    mid = 0.5 * length
+    mid += start
+    mid -= part.cen
+    mid *= part.srho
+    mid += part.rho
+    mid *= length
+    mid *= part.scale
+    return mid
+
+
+def _overlap_mass_momentum(part, a, b):
+    """Lumped mass and momentum of the parts over [a, b] ∩ part.  The velocity is linear
+    on a part, u + τ (x − x̄), so ∫ρu = M (u + τ (x_M − x̄)) with x_M the centre of mass of
+    the overlap: M x_M = M·mid + σ L³/12 (exactly the general intersection's integral)."""
+    start = np.maximum(a, part.lo)
+    length = np.minimum(b, part.hi)
+    length -= start
+    np.maximum(length, 0.0, out=length)
+    mid = 0.5 * length
+    mid += start
+    mass = mid - part.cen
+    mass *= part.srho
+    mass += part.rho
+    mass *= length  # M (unscaled)
+    offset = length * length
+    offset *= length
+    offset *= part.srho
+    offset *= 1.0 / 12.0  # σ L³/12 = M (x_M − mid)
+    offset += (mid - part.centroid) * mass  # M (x_M − x̄)
+    mass *= part.scale
+    offset *= part.scale
+    momentum = part.tau * offset
+    momentum += part.u * mass
+    return mass, momentum
 
 
 def _momentum(n, n_nodes, nodes, x, X, xl, xr, hi0, mixed_j, gamma, new_mixed_j, new_gamma,
@@ -266,88 +337,49 @@ def _momentum(n, n_nodes, nodes, x, X, xl, xr, hi0, mixed_j, gamma, new_mixed_j,
               mixed_velocity, m0, m1_of_mixed, cell_left_node, cell_right_node, cells,
               material_volume):
     """Nodal momentum and lumped masses through the dual faces (enriched: a mixed cell's
-    face is Γ; a pure cell's its middle).  Parts: 2j = left part of cell j (owner: sorted
-    node j), 2j+1 = right part (owner j+1)."""
+    face is Γ; a pure cell's its middle).  A face's swept interval lies in its own cell
+    (the parts L_j, R_j) except where Γ moves into a neighbouring cell; those few faces
+    also take the neighbours' parts R_{j−1}, L_{j+1}."""
     face = 0.5 * (xl + xr)
     face[mixed_j] = gamma
     new_face = 0.5 * (X[:-1] + X[1:])
     new_face[new_mixed_j] = new_gamma[new_mixed_j]
-    p_lo, p_hi = np.empty(2 * n), np.empty(2 * n)
-    p_lo[0::2], p_hi[0::2] = xl, face
-    p_lo[1::2], p_hi[1::2] = face, xr
-    p_rho, p_srho, p_cen = np.empty(2 * n), np.empty(2 * n), np.empty(2 * n)
-    for target, value in ((p_rho, rho0), (p_srho, srho0), (p_cen, centre0)):
-        target[0::2] = value
-        target[1::2] = value
-    right_parts = 2 * mixed_j + 1
-    p_rho[right_parts], p_srho[right_parts], p_cen[right_parts] = rho1, srho1, centre1
-    p_mass = _integrate_linear(p_rho, p_srho, p_cen, p_lo, p_hi)
-    share = np.empty(2 * n)
-    share[0::2], share[1::2] = corner_sorted[0], corner_sorted[1]
-    scale = share / p_mass
-    centroid = _first_moment(p_rho, p_srho, p_cen, p_lo, p_hi) / p_mass
     u = node_velocity[:, nodes]  # (components, n + 1), sorted nodes
     components = u.shape[0]
-    p_u = np.empty((components, 2 * n))
-    p_u[:, 0::2], p_u[:, 1::2] = u[:, :-1], u[:, 1:]
-    p_tau = np.zeros_like(p_u)
     if order == 2:
         node_slope = _node_velocity_slopes(u, x, mixed_j, gamma, mixed_velocity, m0, m1_of_mixed)
-        p_tau[:, 0::2], p_tau[:, 1::2] = node_slope[:, :-1], node_slope[:, 1:]
+    else:
+        node_slope = np.zeros_like(u)
+    left = _Parts(xl, face, rho0, srho0, centre0, corner_sorted[0], u[:, :-1], node_slope[:, :-1],
+                  pad_at=x[-1])
+    r_rho, r_srho, r_cen = rho0.copy(), srho0.copy(), centre0.copy()
+    r_rho[mixed_j], r_srho[mixed_j], r_cen[mixed_j] = rho1, srho1, centre1
+    right = _Parts(face, xr, r_rho, r_srho, r_cen, corner_sorted[1], u[:, 1:], node_slope[:, 1:])
 
-    # Left parts L_j = [x_j, f_j] (owner node j) and right parts R_j = [f_j, x_{j+1}] (owner
-    # j+1) as separate contiguous arrays, padded so that neighbours are slices.
-    def sides(values):
-        return _padded(np.ascontiguousarray(values[..., 0::2])), _padded(np.ascontiguousarray(values[..., 1::2]))
-
-    names = ("lo", "hi", "rho", "srho", "cen", "scale", "centroid")
-    Lp, Rp = {}, {}
-    for name, values in zip(names, (p_lo, p_hi, p_rho, p_srho, p_cen, scale, centroid)):
-        Lp[name], Rp[name] = sides(values)
-    for side in (Lp, Rp):
-        side["lo"][:PAD], side["hi"][:PAD] = x[0], x[0]
-        side["lo"][-PAD:], side["hi"][-PAD:] = x[-1], x[-1]
-    Lu, Ru = sides(p_u)
-    Ltau, Rtau = sides(p_tau)
-
-    def cells_at(array, shift):
-        """Entries j + shift, j = 0..n−1, of a padded per-cell array (a contiguous view)."""
-        return array[..., PAD + shift:PAD + shift + n]
-
-    def overlap_integrals(side, u_side, tau_side, shift, a, b):
-        """Scaled mass and momentum of the part (side, j + shift) over [a, b] ∩ part."""
-        lo, hi = cells_at(side["lo"], shift), cells_at(side["hi"], shift)
-        start = np.maximum(a, lo)
-        end = np.maximum(np.minimum(b, hi), start)
-        rho, srho, cen = cells_at(side["rho"], shift), cells_at(side["srho"], shift), cells_at(side["cen"], shift)
-        weight = cells_at(side["scale"], shift)
-        mass = _integrate_linear(rho, srho, cen, start, end) * weight
-        momentum = np.stack([_simpson_product(rho, srho, cen, cells_at(u_side[k], shift),
-                                              cells_at(tau_side[k], shift), cells_at(side["centroid"], shift),
-                                              start, end) * weight for k in range(components)])
-        return mass, momentum
-
-    # Face j: the swept interval between f_j and F_j lies left of f_j (in node j's parts
-    # R_{j−1}, L_j: it moves to node j+1) or right of it (in node j+1's parts R_j, L_{j+1}:
-    # it moves to node j); the parts on the other side give zero overlap.
-    f, F = face, new_face
-    a, b = np.minimum(F, f), np.maximum(F, f)
-    width = xr - xl
-    if np.any((a < cells_at(Rp["lo"], -1) - 1e-12 * width) | (b > cells_at(Lp["hi"], 1) + 1e-12 * width)):
-        return _too_far("a dual face moved beyond the parts of its donor node")
-    to_right_mass, to_right_momentum = overlap_integrals(Rp, Ru, Rtau, -1, a, b)
-    m, mom = overlap_integrals(Lp, Lu, Ltau, 0, a, b)
-    to_right_mass += m
-    to_right_momentum += mom
-    to_left_mass, to_left_momentum = overlap_integrals(Rp, Ru, Rtau, 0, a, b)
-    m, mom = overlap_integrals(Lp, Lu, Ltau, 1, a, b)
-    to_left_mass += m
-    to_left_momentum += mom
+    # Face j: the swept interval between f_j and F_j moves to node j + 1 what lies in node
+    # j's parts (R_{j−1}, L_j) and to node j what lies in node j + 1's (R_j, L_{j+1}).
+    a, b = np.minimum(new_face, face), np.maximum(new_face, face)
+    to_right_mass, to_right_momentum = _overlap_mass_momentum(left.window(0, n), a, b)
+    to_left_mass, to_left_momentum = _overlap_mass_momentum(right, a, b)
+    far = np.flatnonzero((a < xl) | (b > xr))
+    if far.size:
+        width = xr[far] - xl[far]
+        before, after = np.maximum(far - 1, 0), far + 1
+        if np.any((far == 0) & (a[far] < xl[far])) or np.any(
+                (a[far] < right.lo[before] - 1e-12 * width) | (b[far] > left.hi[after] + 1e-12 * width)):
+            return _too_far("a dual face moved beyond the parts of its donor node")
+        m, mom = _overlap_mass_momentum(right.take(before), a[far], b[far])
+        m[far == 0], mom[:, far == 0] = 0.0, 0.0
+        to_right_mass[far] += m
+        to_right_momentum[:, far] += mom
+        m, mom = _overlap_mass_momentum(left.take(after), a[far], b[far])
+        to_left_mass[far] += m
+        to_left_momentum[:, far] += mom
     moved_mass = to_right_mass - to_left_mass
     moved_momentum = to_right_momentum - to_left_momentum
     old_mass = np.zeros(n + 1)
-    old_mass[:-1] += share[0::2]
-    old_mass[1:] += share[1::2]
+    old_mass[:-1] += corner_sorted[0]
+    old_mass[1:] += corner_sorted[1]
     old_momentum = u * old_mass
     new_mass = old_mass.copy()
     new_mass[:-1] -= moved_mass
@@ -357,19 +389,23 @@ def _momentum(n, n_nodes, nodes, x, X, xl, xr, hi0, mixed_j, gamma, new_mixed_j,
     new_momentum[:, 1:] += moved_momentum
     if np.any(new_mass <= 0):
         return _too_far("a node lost all its mass")
-    # New corners: node k's new dual cell [F_{k−1}, F_k] splits at X_k; its part left of
-    # X_k, [F_{k−1}, X_k], is the right corner of new cell k−1.  F_{k−1} lies in old cells
-    # k−2 .. k and X_k in k−1 .. k: the parts R_{k−2}, L_{k−1}, R_{k−1}, L_k, R_k hold it.
-    a, b = F, X[1:]  # for j = k − 1 = 0..n−1
-    if np.any((a < cells_at(Rp["lo"], -1)) | (b > cells_at(Rp["hi"], 1))):
-        return _too_far("a new corner reaches beyond the parts around its node")
-    right_corner = np.zeros(n)
-    for side, shift in ((Rp, -1), (Lp, 0), (Rp, 0), (Lp, 1), (Rp, 1)):
-        lo, hi = cells_at(side["lo"], shift), cells_at(side["hi"], shift)
-        start = np.maximum(a, lo)
-        end = np.maximum(np.minimum(b, hi), start)
-        right_corner += _integrate_linear(cells_at(side["rho"], shift), cells_at(side["srho"], shift),
-                                          cells_at(side["cen"], shift), start, end) * cells_at(side["scale"], shift)
+    # New corners: the right corner of new cell j is [F_j, X_{j+1}]; F_j lies in old cell j
+    # (parts L_j, R_j) and X_{j+1} in R_j or L_{j+1}, except where Γ moved into a
+    # neighbouring cell: there the parts R_{j−1} and R_{j+1} are added too.
+    a, b = new_face, X[1:]
+    right_corner = _overlap_mass(left.window(0, n), a, b)
+    right_corner += _overlap_mass(right, a, b)
+    right_corner += _overlap_mass(left.window(1, n), a, b)
+    far = np.flatnonzero((a < xl) | (b > left.hi[1:]))
+    if far.size:
+        before, after = np.maximum(far - 1, 0), np.minimum(far + 1, n - 1)
+        if np.any((a[far] < right.lo[before]) | (b[far] > right.hi[after])):
+            return _too_far("a new corner reaches beyond the parts around its node")
+        extra = _overlap_mass(right.take(before), a[far], b[far])
+        extra[far == 0] = 0.0
+        beyond = _overlap_mass(right.take(after), a[far], b[far])
+        beyond[far == n - 1] = 0.0
+        right_corner[far] += extra + beyond
     left_corner = new_mass[:-1] - np.concatenate([[0.0], right_corner[:-1]])
     corner_new = np.stack([left_corner, right_corner])
     node_mass = np.zeros(n_nodes)
