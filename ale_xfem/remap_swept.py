@@ -35,36 +35,315 @@ def _clipped_integral(value, slope, centre, lo, hi, a, b):
 def remap_1d_swept(order_of_cells, cell_left_node, cell_right_node, node_position, target_position,
                    cell_material, material_mass, material_energy, material_volume, corner_mass,
                    node_velocity, mixed_cells, interface_velocity, n_materials, order: int = 2):
+    """The remap of :func:`ale_xfem.remap.remap_1d` (same arguments; mixed cells sorted left
+    to right): the pure-cell kernel over the whole mesh, then the cells around each
+    interface (mixed cells and node-aligned material boundaries) redone material by
+    material in a window that holds them.  None when a step is out of the swept form's
+    reach (the caller then uses the general intersection)."""
     cells = order_of_cells
     n = cells.size
-    n_nodes = node_position.size
-    L, R = cell_left_node[cells], cell_right_node[cells]
-    nodes = np.concatenate([L[:1], R])  # sorted nodes
-    x = node_position[nodes]
-    X = target_position[nodes]
+    in_order = _in_order(cells, cell_left_node, cell_right_node)
+    if in_order:  # DOLFINx interval meshes: sorted arrays are views
+        nodes = slice(None)
+        by_cell = lambda array: array  # noqa: E731
+    else:
+        nodes = np.concatenate([cell_left_node[cells[:1]], cell_right_node[cells]])
+        by_cell = lambda array: array[..., cells]  # noqa: E731
+    x, X = node_position[nodes], target_position[nodes]
+    if X[0] != x[0] or X[-1] != x[-1]:
+        return _too_far("the ends of the domain move")
+    m0 = by_cell(cell_material[0])
+    mass0, energy0 = by_cell(material_mass[0]), by_cell(material_energy[0])
+    corner = by_cell(corner_mass)
+    u = node_velocity[:, nodes]
+    kernel = _pure_kernel(x, X, mass0, energy0, corner, u, order)
+    if kernel is None:
+        return None
+    new_mass, new_energy, right_corner, node_mass, momentum, old_node_mass, far_nodes = kernel
+
+    # -- windows around the interfaces ---------------------------------------------------
+    rank = np.arange(n) if in_order else _rank(cells, cell_left_node.size)
+    mixed_j = rank[mixed_cells]
+    special = np.union1d(mixed_j, np.flatnonzero(m0[:-1] != m0[1:]))
+    special = np.union1d(np.union1d(special, special + 1), np.union1d(far_nodes - 1, far_nodes))
+    special = special[special < n]
+    slots = 1
+    taken_cells = []
+    if special.size:
+        mixed_data = (material_volume[0, mixed_cells], cell_material[1, mixed_cells], material_mass[1, mixed_cells],
+                      material_energy[1, mixed_cells], interface_velocity)
+        slot_material = np.full((2, n), -1, dtype=np.int64)
+        slot_material[0] = m0
+        new_mass = np.vstack([new_mass, np.zeros(n)])
+        new_energy = np.vstack([new_energy, np.zeros(n)])
+        new_volume = np.zeros((2, n))
+        new_volume[0] = X[1:] - X[:-1]
+        for taken, window in _windows(special, n):
+            local = slice(window[0], window[1])
+            inside = (mixed_j >= window[0]) & (mixed_j < window[1])
+            result = _swept_sorted(
+                x[window[0]:window[1] + 1], X[window[0]:window[1] + 1], m0[local], mass0[local],
+                energy0[local], corner[:, local], u[:, window[0]:window[1] + 1], mixed_j[inside] - window[0],
+                *(values[inside] for values in mixed_data), n_materials, order,
+                cut=(window[0] > 0, window[1] < n))
+            if result is None:
+                return None
+            t = slice(taken[0] - window[0], taken[1] - window[0])  # the window's cells taken
+            j = slice(taken[0], taken[1])
+            slot_material[:, j] = result["slot_material"][:, t]
+            new_mass[:, j] = result["mass"][:, t]
+            new_energy[:, j] = result["energy"][:, t]
+            new_volume[:, j] = result["volume"][:, t]
+            right_corner[j] = result["corner"][1, t]
+            # nodes strictly inside the taken cells: both their dual faces are in the window
+            k = slice(taken[0] + 1, taken[1])
+            kt = slice(taken[0] + 1 - window[0], taken[1] - window[0])
+            node_mass[k] = result["node_mass"][kt]
+            momentum[:, k] = result["node_momentum"][:, kt]
+            taken_cells.append(np.arange(taken[0], taken[1]))
+        new_mixed_j = np.flatnonzero(slot_material[1] >= 0)
+        if np.any(np.abs(new_mixed_j[1:] - new_mixed_j[:-1]) <= 1):
+            bad = int(new_mixed_j[np.flatnonzero(np.abs(new_mixed_j[1:] - new_mixed_j[:-1]) <= 1)[0]])
+            raise RemapFailure(f"cells {int(cells[bad])} and {int(cells[bad + 1])}: interfaces in "
+                               "neighbouring cells (a layer about one cell thick); the mixed-cell "
+                               "solve needs a pure cell between them: refine the mesh")
+        slots = 2 if new_mixed_j.size else 1
+        slot_material, new_mass, new_energy, new_volume = (
+            a[:slots] for a in (slot_material, new_mass, new_energy, new_volume))
+    else:
+        new_mixed_j = np.zeros(0, dtype=np.int64)
+        slot_material = m0[None, :]
+        new_mass, new_energy = new_mass[None, :], new_energy[None, :]
+        new_volume = (X[1:] - X[:-1])[None, :]
+    if np.any(node_mass <= 0):
+        return _too_far("a node lost all its mass")
+    left_corner = node_mass[:-1].copy()
+    left_corner[1:] -= right_corner[:-1]
+    specific = new_energy / new_mass[:1] if slots == 1 else _specific(new_energy, new_mass, taken_cells)
+    velocity = momentum / node_mass
+    kinetic_change = 0.5 * float(np.sum(momentum * velocity) - np.sum(old_node_mass * u * u))
+
+    # -- back to cell (node) order ------------------------------------------------------
+    corner_new = np.stack([left_corner, right_corner])
+    if in_order:
+        return RemapResult(np.ascontiguousarray(slot_material), new_mass, specific, new_volume, corner_new,
+                           node_mass, velocity, cells[new_mixed_j], kinetic_change, momentum)
+    cell_material_new = np.empty_like(slot_material)
+    out = [np.empty_like(a) for a in (new_mass, specific, new_volume, corner_new)]
+    for target, values in zip([cell_material_new, *out], (slot_material, new_mass, specific, new_volume, corner_new)):
+        target[:, cells] = values
+    node_mass_out = np.empty_like(node_mass)
+    node_mass_out[nodes] = node_mass
+    velocity_out, momentum_out = np.empty_like(velocity), np.empty_like(momentum)
+    velocity_out[:, nodes], momentum_out[:, nodes] = velocity, momentum
+    return RemapResult(cell_material_new, out[0], out[1], out[2], out[3], node_mass_out, velocity_out,
+                       cells[new_mixed_j], kinetic_change, momentum_out)
+
+
+_ORDER_CACHE: dict = {}
+
+
+def _in_order(cells, left_node, right_node) -> bool:
+    """Whether cell j lies between nodes j and j + 1 for every j (checked once per mesh)."""
+    key = (id(cells), id(left_node), id(right_node))
+    if key not in _ORDER_CACHE:
+        n = cells.size
+        _ORDER_CACHE.clear()
+        _ORDER_CACHE[key] = (cells, left_node, right_node, bool(
+            np.array_equal(cells, np.arange(n)) and np.array_equal(left_node, np.arange(n))
+            and np.array_equal(right_node, np.arange(1, n + 1))))
+    return _ORDER_CACHE[key][3]
+
+
+def _rank(cells, n_cells):
+    rank = np.empty(n_cells, dtype=np.int64)
+    rank[cells] = np.arange(cells.size)
+    return rank
+
+
+def _specific(energy, mass, taken_cells):
+    """Specific energies: slot 0 everywhere, slot 1 only where the windows put material."""
+    specific = np.zeros_like(energy)
+    specific[0] = energy[0] / mass[0]
+    j = np.concatenate(taken_cells)
+    present = mass[1, j] > 0
+    specific[1, j[present]] = energy[1, j[present]] / mass[1, j[present]]
+    return specific
+
+
+# Cells around an interface taken from its window, and the window's margin on each side:
+# a new cell's content depends on the old cells up to two away (donor and its slope), a
+# node's momentum on the parts and velocity slopes up to three away.
+TAKEN_MARGIN, WINDOW_MARGIN = 3, 4
+
+
+def _windows(special, n):
+    """(taken cells, window) pairs of [first, last) sorted cell ranges around the special
+    cells, merged where they overlap."""
+    lo = np.maximum(special - TAKEN_MARGIN, 0)
+    hi = np.minimum(special + TAKEN_MARGIN + 1, n)
+    starts = np.flatnonzero(np.concatenate([[True], lo[1:] > hi[:-1]]))
+    ends = np.concatenate([starts[1:] - 1, [special.size - 1]])
+    for first, last in zip(lo[starts], hi[ends]):
+        yield (int(first), int(last)), (max(int(first) - WINDOW_MARGIN, 0), min(int(last) + WINDOW_MARGIN, n))
+
+
+def _minmod_fast(a, b):
+    """minmod(a, b) = max(min(a, b), 0) + min(max(a, b), 0): the same values as
+    :func:`ale_xfem.remap._minmod` in four passes."""
+    low = np.minimum(a, b)
+    np.maximum(low, 0.0, out=low)
+    high = np.maximum(a, b)
+    np.minimum(high, 0.0, out=high)
+    low += high
+    return low
+
+
+def _cell_slopes(value, centre, bound):
+    """Limited slopes over a run of pure cells of one material (the rule of
+    :func:`ale_xfem.remap.piece_slopes`): minmod of the one-sided differences, clipped to
+    ±bound; zero in the first and last cell."""
+    gradient = np.diff(value)
+    gradient /= np.diff(centre)
+    slope = np.zeros_like(value)
+    inner = _minmod_fast(gradient[:-1], gradient[1:])
+    np.clip(inner, -bound[1:-1], bound[1:-1], out=inner)
+    slope[1:-1] = inner
+    return slope
+
+
+def _pure_kernel(x, X, mass, specific_energy, corner, u, order):
+    """The swept-region remap of pure cells of one material, in flux form over the sorted
+    cells (what the windows then redo near interfaces does not matter here).  Returns the
+    new cell masses and total energies, right corner masses, node masses and momenta, and
+    the old node masses, and the nodes that moved by more than half a neighbouring cell
+    (the kernel's results around them are to be redone).
+
+    Node k (between cells k − 1 and k) moving by d = X_k − x_k sweeps [x_k, X_k] of its
+    donor cell (k − 1 if d < 0, k if d > 0): the mass −d (ρ_D + σ_D (x_k + d/2 − c_D))
+    crosses it rightward, energy likewise.  The dual face of cell j, its middle c_j, moves
+    by δ = (d_j + d_{j+1})/2 through the node part L_j (δ < 0, mass to node j + 1) or R_j
+    (δ > 0, to node j): mass −δ (ρ_j + σ_j δ/2) times the part's lumping factor, momentum
+    that mass times the part velocity at the swept mass's centre."""
+    width = x[1:] - x[:-1]
+    centre = x[:-1] + 0.5 * width
+    energy = mass * specific_energy
+    rho = mass / width
+    eps = energy / width
+    if order == 2:
+        bound = 2.0 * rho / width
+        srho = _cell_slopes(rho, centre, bound)
+        np.abs(eps, out=bound)
+        bound *= 2.0
+        bound /= width
+        seps = _cell_slopes(eps, centre, bound)
+    else:
+        srho = seps = np.zeros_like(rho)
+    d = X[1:-1] - x[1:-1]
+    # Nodes that move by more than half a neighbouring cell: the cells around them are
+    # redone in windows, like those around an interface.
+    far_nodes = np.flatnonzero(np.abs(d) > 0.5 * np.minimum(width[:-1], width[1:])) + 1
+    right_donor = d > 0.0
+    offset = 0.5 * d
+    offset += x[1:-1]
+    offset -= np.where(right_donor, centre[1:], centre[:-1])  # x_k + d/2 − c_D
+    flux_mass = np.where(right_donor, srho[1:], srho[:-1])
+    flux_mass *= offset
+    flux_mass += np.where(right_donor, rho[1:], rho[:-1])
+    flux_mass *= -d
+    flux_energy = np.where(right_donor, seps[1:], seps[:-1])
+    flux_energy *= offset
+    flux_energy += np.where(right_donor, eps[1:], eps[:-1])
+    flux_energy *= -d
+    new_mass = mass.copy()
+    new_mass[1:] += flux_mass
+    new_mass[:-1] -= flux_mass
+    new_energy = energy.copy()
+    new_energy[1:] += flux_energy
+    new_energy[:-1] -= flux_energy
+
+    # -- nodal momentum through the dual faces -------------------------------------------
+    share_left, share_right = corner[0], corner[1]
+    mass_left = srho * (-0.25 * width)
+    mass_left += rho
+    mass_left *= 0.5 * width  # ∫ over L_j = [x_j, c_j]
+    mass_right = mass - mass_left
+    scale_left = share_left / mass_left
+    scale_right = share_right / mass_right
+    delta = np.zeros(width.size)
+    delta[:-1] += 0.5 * d
+    delta[1:] += 0.5 * d
+    from_left = delta < 0.0
+    swept = srho * (0.5 * delta)
+    swept += rho
+    swept *= -delta  # signed: > 0 moves from node j to node j + 1
+    scale = np.where(from_left, scale_left, scale_right)
+    # centre of the chosen part's mass, from c_j: ∓w/4 + σ w³ / (96 M_part)
+    part_centre = width * width
+    part_centre *= width
+    part_centre *= srho
+    part_centre /= 96.0 * np.where(from_left, mass_left, mass_right)
+    part_centre += np.where(from_left, -0.25, 0.25) * width
+    # signed first moment about the part centre: M (δ/2 − x̄) − σ δ³/12
+    moment = 0.5 * delta
+    moment -= part_centre
+    moment *= swept
+    cube = delta * delta
+    cube *= delta
+    cube *= srho
+    cube *= 1.0 / 12.0
+    moment -= cube
+    moment *= scale
+    swept *= scale
+    if order == 2:
+        gradient = np.diff(u, axis=1)
+        gradient /= width
+        tau = np.zeros_like(u)
+        tau[:, 1:-1] = _minmod_fast(gradient[:, :-1], gradient[:, 1:])
+        moved_momentum = np.where(from_left, tau[:, :-1], tau[:, 1:])
+        moved_momentum *= moment
+    else:
+        moved_momentum = np.zeros_like(u[:, :-1])
+    moved_momentum += np.where(from_left, u[:, :-1], u[:, 1:]) * swept
+    old_node_mass = np.zeros(x.size)
+    old_node_mass[:-1] += share_left
+    old_node_mass[1:] += share_right
+    node_mass = old_node_mass.copy()
+    node_mass[:-1] -= swept
+    node_mass[1:] += swept
+    momentum = u * old_node_mass
+    momentum[:, :-1] -= moved_momentum
+    momentum[:, 1:] += moved_momentum
+    # right corner of new cell j = [F_j, X_{j+1}] = R_j + what the face moved into it −
+    # ∫ from x_{j+1} to X_{j+1} (the node's swept mass in the part beside the node)
+    right_corner = share_right + swept
+    right_corner[:-1] += flux_mass * np.where(right_donor, -scale_left[1:], -scale_right[:-1])
+    return new_mass, new_energy, right_corner, node_mass, momentum, old_node_mass, far_nodes
+
+
+def _swept_sorted(x, X, m0, mass0, specific0, corner_sorted, u, mixed_j, volume0_mixed, m1, mass1,
+                  specific1, mixed_velocity, n_materials, order, cut=(False, False)):
+    """The swept remap of a run of sorted cells (all of them, or a window of them: ``cut``
+    says which ends are inside the mesh, whose end nodes move and whose results near that
+    end the caller discards).  Mixed cells hold two materials; returns the new contents
+    in sorted order, or None when a step is beyond the swept form's reach."""
+    n = m0.size
+    if (X[0] != x[0] and not cut[0]) or (X[-1] != x[-1] and not cut[1]):
+        return _too_far("the ends of the domain move")
     mixed_sorted_mask = np.zeros(n, dtype=bool)
-    rank = np.empty(cell_left_node.size, dtype=np.int64)
-    rank[cells] = np.arange(n)
-    mixed_j = np.sort(rank[mixed_cells])
     mixed_sorted_mask[mixed_j] = True
-    order_in_mixed = np.argsort(rank[mixed_cells])
-    mixed_velocity = interface_velocity[order_in_mixed] if mixed_cells.size else interface_velocity
 
     # -- pieces: slot 0 over every cell, slot 1 over the mixed cells ---------------------------
     xl, xr = x[:-1], x[1:]
-    m0 = cell_material[0, cells]
-    mass0 = material_mass[0, cells]
-    energy0 = mass0 * material_energy[0, cells]
+    energy0 = mass0 * specific0
     hi0 = xr.copy()
-    gamma = xl[mixed_j] + material_volume[0, cells[mixed_j]]
+    gamma = xl[mixed_j] + volume0_mixed
     hi0[mixed_j] = gamma
     width0 = hi0 - xl
     rho0 = mass0 / width0
     eps0 = energy0 / width0
     centre0 = 0.5 * (xl + hi0)
-    m1 = cell_material[1, cells[mixed_j]] if mixed_j.size else np.zeros(0, dtype=np.int64)
-    mass1 = material_mass[1, cells[mixed_j]] if mixed_j.size else np.zeros(0)
-    energy1 = mass1 * (material_energy[1, cells[mixed_j]] if mixed_j.size else 0.0)
+    energy1 = mass1 * specific1
     lo1, hi1 = gamma, xr[mixed_j]
     width1 = hi1 - lo1
     rho1, eps1, centre1 = mass1 / width1, energy1 / width1, 0.5 * (lo1 + hi1)
@@ -94,8 +373,6 @@ def remap_1d_swept(order_of_cells, cell_left_node, cell_right_node, node_positio
     # for cell k; d > 0: [x_k, X_k] leaves cell k for cell k−1.
     d = X[1:-1] - x[1:-1]
     to_right = d < 0
-    if np.any(X[0] != x[0]) or np.any(X[-1] != x[-1]):
-        return _too_far("the ends of the domain move")
     donor = np.where(to_right, np.arange(n - 1), np.arange(1, n))
     if np.any(to_right & (X[1:-1] < xl[donor])) or np.any(~to_right & (X[1:-1] > xr[donor])):
         return _too_far("a node moved beyond its neighbouring cell")
@@ -154,39 +431,17 @@ def remap_1d_swept(order_of_cells, cell_left_node, cell_right_node, node_positio
                               flux_mass0, flux_energy0, flux_volume0, flux_material0,
                               sparse, flux_mass1, flux_energy1, flux_volume1, flux_material1)
     new_mixed_j = np.flatnonzero(new_slot_material[1] >= 0)
-    if np.any(np.abs(new_mixed_j[1:] - new_mixed_j[:-1]) <= 1):
-        bad = int(new_mixed_j[np.flatnonzero(np.abs(new_mixed_j[1:] - new_mixed_j[:-1]) <= 1)[0]])
-        raise RemapFailure(f"cells {int(cells[bad])} and {int(cells[bad + 1])}: interfaces in "
-                           "neighbouring cells (a layer about one cell thick); the mixed-cell "
-                           "solve needs a pure cell between them: refine the mesh")
 
     # -- momentum through the dual faces ---------------------------------------------------
-    result = _momentum(n, n_nodes, nodes, x, X, xl, xr, hi0, mixed_j, gamma, new_mixed_j,
-                       X[:-1] + new["volume"][0], rho0, srho0, centre0, rho1, srho1, centre1,
-                       corner_mass[:, cells], node_velocity, order, mixed_velocity,
-                       m0, m1, cell_left_node, cell_right_node, cells, material_volume)
+    result = _momentum(n, x, X, xl, xr, mixed_j, gamma, new_mixed_j, X[:-1] + new["volume"][0],
+                       rho0, srho0, centre0, rho1, srho1, centre1, corner_sorted, u, order,
+                       mixed_velocity, m0, m1, cut)
     if result is None:
         return None
-    node_mass, momentum, corner_new_sorted, kinetic_change = result
-
-    # -- back to cell order --------------------------------------------------------------------
-    slots = 2 if new_mixed_j.size else 1
-    cell_material_new = np.full((slots, cells.size), -1, dtype=np.int64)
-    mass_new = np.zeros((slots, cells.size))
-    energy_new = np.zeros((slots, cells.size))
-    volume_new = np.zeros((slots, cells.size))
-    for slot in range(slots):
-        cell_material_new[slot, cells] = new_slot_material[slot]
-        mass_new[slot, cells] = new["mass"][slot]
-        volume_new[slot, cells] = new["volume"][slot]
-        with np.errstate(invalid="ignore", divide="ignore"):
-            energy_new[slot, cells] = np.where(new["mass"][slot] > 0, new["energy"][slot]
-                                               / np.where(new["mass"][slot] > 0, new["mass"][slot], 1.0), 0.0)
-    corner_new = np.zeros((2, cells.size))
-    corner_new[:, cells] = corner_new_sorted
-    velocity = momentum / node_mass
-    return RemapResult(cell_material_new, mass_new, energy_new, volume_new, corner_new, node_mass,
-                       velocity, cells[new_mixed_j], kinetic_change, momentum)
+    node_mass, momentum, corner_new = result
+    return {"slot_material": new_slot_material, "mass": new["mass"], "energy": new["energy"],
+            "volume": new["volume"], "corner": corner_new, "node_mass": node_mass,
+            "node_momentum": momentum, "new_mixed_j": new_mixed_j}
 
 
 def _finish_special_cells(special_j, n, n_materials, new, new_slot_material, to_right, donor, X, x,
@@ -332,10 +587,8 @@ def _overlap_mass_momentum(part, a, b):
     return mass, momentum
 
 
-def _momentum(n, n_nodes, nodes, x, X, xl, xr, hi0, mixed_j, gamma, new_mixed_j, new_gamma,
-              rho0, srho0, centre0, rho1, srho1, centre1, corner_sorted, node_velocity, order,
-              mixed_velocity, m0, m1_of_mixed, cell_left_node, cell_right_node, cells,
-              material_volume):
+def _momentum(n, x, X, xl, xr, mixed_j, gamma, new_mixed_j, new_gamma, rho0, srho0, centre0,
+              rho1, srho1, centre1, corner_sorted, u, order, mixed_velocity, m0, m1_of_mixed, cut):
     """Nodal momentum and lumped masses through the dual faces (enriched: a mixed cell's
     face is Γ; a pure cell's its middle).  A face's swept interval lies in its own cell
     (the parts L_j, R_j) except where Γ moves into a neighbouring cell; those few faces
@@ -344,8 +597,6 @@ def _momentum(n, n_nodes, nodes, x, X, xl, xr, hi0, mixed_j, gamma, new_mixed_j,
     face[mixed_j] = gamma
     new_face = 0.5 * (X[:-1] + X[1:])
     new_face[new_mixed_j] = new_gamma[new_mixed_j]
-    u = node_velocity[:, nodes]  # (components, n + 1), sorted nodes
-    components = u.shape[0]
     if order == 2:
         node_slope = _node_velocity_slopes(u, x, mixed_j, gamma, mixed_velocity, m0, m1_of_mixed)
     else:
@@ -361,7 +612,7 @@ def _momentum(n, n_nodes, nodes, x, X, xl, xr, hi0, mixed_j, gamma, new_mixed_j,
     a, b = np.minimum(new_face, face), np.maximum(new_face, face)
     to_right_mass, to_right_momentum = _overlap_mass_momentum(left.window(0, n), a, b)
     to_left_mass, to_left_momentum = _overlap_mass_momentum(right, a, b)
-    far = np.flatnonzero((a < xl) | (b > xr))
+    far = _inside_cut(np.flatnonzero((a < xl) | (b > xr)), n, cut)
     if far.size:
         width = xr[far] - xl[far]
         before, after = np.maximum(far - 1, 0), far + 1
@@ -387,7 +638,8 @@ def _momentum(n, n_nodes, nodes, x, X, xl, xr, hi0, mixed_j, gamma, new_mixed_j,
     new_momentum = old_momentum.copy()
     new_momentum[:, :-1] -= moved_momentum
     new_momentum[:, 1:] += moved_momentum
-    if np.any(new_mass <= 0):
+    inner = new_mass[1 if cut[0] else 0:new_mass.size - 1 if cut[1] else new_mass.size]
+    if np.any(inner <= 0):
         return _too_far("a node lost all its mass")
     # New corners: the right corner of new cell j is [F_j, X_{j+1}]; F_j lies in old cell j
     # (parts L_j, R_j) and X_{j+1} in R_j or L_{j+1}, except where Γ moved into a
@@ -396,7 +648,7 @@ def _momentum(n, n_nodes, nodes, x, X, xl, xr, hi0, mixed_j, gamma, new_mixed_j,
     right_corner = _overlap_mass(left.window(0, n), a, b)
     right_corner += _overlap_mass(right, a, b)
     right_corner += _overlap_mass(left.window(1, n), a, b)
-    far = np.flatnonzero((a < xl) | (b > left.hi[1:]))
+    far = _inside_cut(np.flatnonzero((a < xl) | (b > left.hi[1:])), n, cut)
     if far.size:
         before, after = np.maximum(far - 1, 0), np.minimum(far + 1, n - 1)
         if np.any((a[far] < right.lo[before]) | (b[far] > right.hi[after])):
@@ -407,14 +659,18 @@ def _momentum(n, n_nodes, nodes, x, X, xl, xr, hi0, mixed_j, gamma, new_mixed_j,
         beyond[far == n - 1] = 0.0
         right_corner[far] += extra + beyond
     left_corner = new_mass[:-1] - np.concatenate([[0.0], right_corner[:-1]])
-    corner_new = np.stack([left_corner, right_corner])
-    node_mass = np.zeros(n_nodes)
-    node_mass[nodes] = new_mass
-    momentum = np.zeros((components, n_nodes))
-    momentum[:, nodes] = new_momentum
-    kinetic_before = 0.5 * float(np.sum(old_mass * u**2))
-    kinetic_after = 0.5 * float(np.sum(new_mass * (new_momentum / new_mass) ** 2))
-    return node_mass, momentum, corner_new, kinetic_after - kinetic_before
+    return new_mass, new_momentum, np.stack([left_corner, right_corner])
+
+
+def _inside_cut(index, n, cut):
+    """Drop the first / last cell of a window cut out of a larger mesh: its end node moves
+    and what lies beyond it is not in the window (the caller discards those cells)."""
+    keep = np.ones(index.size, dtype=bool)
+    if cut[0]:
+        keep &= index > 0
+    if cut[1]:
+        keep &= index < n - 1
+    return index[keep]
 
 
 def _node_velocity_slopes(u, x, mixed_j, gamma, mixed_velocity, m0, m1_of_mixed):
