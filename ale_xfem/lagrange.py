@@ -137,8 +137,7 @@ class ExplicitWilkins:
         self.mesh, self.materials, self.layout = mesh, materials, layout
         # The explicit loop evaluates slot 0 of every cell (a mixed cell's α); the mixed
         # cells' stresses are then replaced by their interface pressure.
-        self.pure_layout = layout if layout.slots == 1 else MaterialLayout(
-            layout.cell_material[:1], len(materials))
+        self.pure_layout = layout.first_slot()
         self.mixed = mixed
         self.corners = mesh.corners
         self.node_mass = node_mass
@@ -160,8 +159,7 @@ class ExplicitWilkins:
     def rebuild(self, layout: MaterialLayout, node_mass, mixed: MixedCells | None) -> None:
         """Take the material layout, lumped masses and mixed cells left by a remap."""
         self.layout = layout
-        self.pure_layout = layout if layout.slots == 1 else MaterialLayout(
-            layout.cell_material[:1], len(self.materials))
+        self.pure_layout = layout.first_slot()
         self.node_mass = node_mass
         self.inverse_node_mass = 1.0 / node_mass
         self.mixed = mixed
@@ -397,9 +395,10 @@ class ExplicitWilkins:
                 state.material_volume[0, cells], state.material_volume[1, cells],
                 state.material_energy[0, cells], state.material_energy[1, cells])
 
-    def relax_mixed_cells(self, state: State):
+    def relax_mixed_cells(self, state: State, in_place: bool = False):
         """Pressure relaxation of the mixed cells at the start of a step (paper §3): only
-        where the materials' pressures differ beyond the solver tolerance."""
+        where the materials' pressures differ beyond the solver tolerance.  ``in_place``:
+        change the state's arrays (a state just made by the remap) instead of copying."""
         cells = self.mixed.cells
         pa, pb = state.material_pressure[0, cells], state.material_pressure[1, cells]
         bulk = np.minimum(state.material_density[0, cells] * state.material_sound_speed[0, cells] ** 2,
@@ -409,7 +408,7 @@ class ExplicitWilkins:
             return state, False
         volume = state.material_volume[0, cells] + state.material_volume[1, cells]
         _, va, vb, details = self.mixed.relax(volume, self._mixed_start(state), 0.5 * (pa + pb))
-        return with_mixed_state(state, cells, va, vb, details, state.interface_velocity), True
+        return with_mixed_state(state, cells, va, vb, details, state.interface_velocity, in_place), True
 
     def _solve_mixed_cells(self, state, first, predicted, mean_force, dt, dt_over_node_mass):
         """The implicit interface solve; adds the mixed cells' n+1 stress to mean_force."""

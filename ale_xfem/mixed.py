@@ -219,12 +219,13 @@ class MixedCells:
         return result
 
 
-def with_mixed_state(state, cells, va, vb, details, interface_velocity):
-    """A copy of state with the mixed cells' material arrays replaced."""
+def with_mixed_state(state, cells, va, vb, details, interface_velocity, in_place: bool = False):
+    """A copy of state with the mixed cells' material arrays replaced (``in_place``: the
+    state's own arrays are changed, for a state nothing else refers to yet)."""
     ea, eb, pa, pb, rho_a, rho_b, c2a, c2b = details
-    arrays = {k: getattr(state, k).copy() for k in ("material_volume", "material_energy",
-                                                    "material_density", "material_pressure",
-                                                    "material_sound_speed")}
+    arrays = {k: getattr(state, k) if in_place else getattr(state, k).copy() for k in (
+        "material_volume", "material_energy", "material_density", "material_pressure",
+        "material_sound_speed")}
     for slot, values in enumerate(((va, ea, rho_a, pa, c2a), (vb, eb, rho_b, pb, c2b))):
         v, e, rho, p, c2 = values
         arrays["material_volume"][slot, cells] = v

@@ -12,7 +12,7 @@ from ale_xfem.lagrange import Boundary
 from ale_xfem.mesh import MeshArrays, interval_mesh
 from ale_xfem.mixed import MixedCellFailure, MixedCells, with_mixed_state
 from ale_xfem.scene import Scene
-from ale_xfem.state import Material, MaterialLayout, State, thermodynamics
+from ale_xfem.state import Material, MaterialLayout, State, density_of, thermodynamics
 
 
 @dataclass
@@ -209,8 +209,7 @@ def state_from_cells(mesh: MeshArrays, materials, layout: MaterialLayout, materi
     velocity = np.stack([mesh.corners.scatter(c) for c in corner_momentum]) / node_mass
     if material_volume is None:
         material_volume = mesh.cell_volumes()[None, :].copy()
-    occupied = material_volume > 0
-    density = np.where(occupied, material_mass / np.where(occupied, material_volume, 1.0), 0.0)
+    density = density_of(material_mass, material_volume)
     pressure, sound_speed = thermodynamics(materials, layout, density, material_energy)
     state = State(0.0, mesh.node_position.copy(), velocity, material_mass.copy(),
                   material_energy.copy(), material_volume, density, pressure, sound_speed)

@@ -464,7 +464,7 @@ class Remapper:
     def _remap_windows(self, state, layout, mixed, target, windows):
         """Remap only the cells between sorted nodes (first, last) of each window; the
         window's end nodes stay, and their parts outside the window are untouched."""
-        from ale_xfem.state import MaterialLayout, thermodynamics
+        from ale_xfem.state import MaterialLayout, density_of, thermodynamics
 
         arrays = {k: getattr(state, k).copy() for k in (
             "material_mass", "material_energy", "material_volume", "node_velocity")}
@@ -509,8 +509,7 @@ class Remapper:
             for key in ("material_mass", "material_energy", "material_volume"):
                 arrays[key][:, window_cells] = getattr(result, key)
         self.corner_mass = corner_mass
-        occupied = arrays["material_volume"] > 0
-        density = np.where(occupied, arrays["material_mass"] / np.where(occupied, arrays["material_volume"], 1.0), 0.0)
+        density = density_of(arrays["material_mass"], arrays["material_volume"])
         pressure, sound_speed = thermodynamics(self.materials, layout, density, arrays["material_energy"])
         new_state = state.evolved(node_position=target[None, :], material_density=density,
                                   material_pressure=pressure, material_sound_speed=sound_speed, **arrays)
@@ -519,7 +518,7 @@ class Remapper:
     def _remap_all(self, state, layout, mixed):
         from ale_xfem.remap_swept import remap_1d_swept
 
-        from ale_xfem.state import MaterialLayout, thermodynamics
+        from ale_xfem.state import MaterialLayout, density_of, thermodynamics
 
         cells = mixed.cells if mixed is not None else np.zeros(0, dtype=np.int64)
         interface_velocity = (state.interface_velocity if mixed is not None
@@ -541,8 +540,7 @@ class Remapper:
             self.general_remaps += 1
         self.corner_mass = result.corner_mass
         new_layout = MaterialLayout(result.cell_material, len(self.materials))
-        occupied = result.material_volume > 0
-        density = np.where(occupied, result.material_mass / np.where(occupied, result.material_volume, 1.0), 0.0)
+        density = density_of(result.material_mass, result.material_volume)
         pressure, sound_speed = thermodynamics(self.materials, new_layout, density, result.material_energy)
         new_mixed, interface_pressure, new_interface_velocity = None, None, None
         if result.mixed_cells.size:

@@ -177,14 +177,15 @@ def _remap(problem, stepper, remapper, state, evaluation, impulse):
     problem.layout, problem.mixed, problem.node_mass = layout, mixed, node_mass
     # The walls hold the remapped velocities too: their impulse is a boundary reaction, the
     # kinetic energy it removes part of the remap's change.
-    before = state.node_velocity.copy()
+    held = stepper.constrained_nodes
+    before = state.node_velocity[:, held].copy()
     for boundary in stepper.constraints:
-        boundary.apply(state.node_velocity)
-    jump = state.node_velocity - before
-    impulse = impulse + (node_mass * jump).sum(axis=1)
-    kinetic_change += 0.5 * float(np.sum(node_mass * (state.node_velocity**2 - before**2)))
+        boundary.apply(state.node_velocity)  # the remap's own array
+    after = state.node_velocity[:, held]
+    impulse = impulse + (node_mass[held] * (after - before)).sum(axis=1)
+    kinetic_change += 0.5 * float(np.sum(node_mass[held] * (after**2 - before**2)))
     if mixed is not None and mixed.relaxation:  # the remap leaves a pressure jump in mixed cells
-        state, _ = stepper.relax_mixed_cells(state)
+        state, _ = stepper.relax_mixed_cells(state, in_place=True)
     return state, stepper.evaluate_state(state), impulse, kinetic_change
 
 

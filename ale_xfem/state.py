@@ -32,27 +32,52 @@ class Material:
 class MaterialLayout:
     """Which material sits in which slot of which cell, grouped for EOS evaluation.
 
-    ``groups`` holds, per material, the flat indices into an (S, n_cells) array (a slice
-    when they are contiguous, which avoids a gather/scatter per evaluation)."""
+    ``groups`` holds (material, flat indices into an (S, n_cells) array) pairs, several per
+    material if need be: slot 0 as slices over the runs of cells of one material (sorted
+    meshes have a few long runs: no gather or scatter per evaluation), slot 1 as index
+    arrays (it is occupied only in the mixed cells)."""
 
     def __init__(self, cell_material: np.ndarray, n_materials: int):
         self.cell_material = np.ascontiguousarray(cell_material)
-        flat = self.cell_material.ravel()
+        self.n_materials = n_materials
+        first = self.cell_material[0]
+        n = first.size
         self.groups = []
-        for material in range(n_materials):
-            where = np.flatnonzero(flat == material)
-            if where.size == 0:
-                continue
-            if where[-1] - where[0] + 1 == where.size:
-                where = slice(int(where[0]), int(where[-1]) + 1)
-            self.groups.append((material, where))
-        self.occupied = flat >= 0
-        self.single = (self.groups[0][0] if len(self.groups) == 1 and bool(self.occupied.all())
-                       else None)
+        starts = np.concatenate([[0], np.flatnonzero(first[1:] != first[:-1]) + 1])
+        if starts.size <= 64:  # a few runs: slices
+            ends = np.append(starts[1:], n)
+            self.groups += [(int(first[a]), slice(int(a), int(b))) for a, b in zip(starts, ends)
+                            if first[a] >= 0]
+        else:  # many runs: one index array per material
+            self.groups += [(m, np.flatnonzero(first == m)) for m in range(n_materials)
+                            if np.any(first == m)]
+        self.occupied_all = self.first_occupied = bool(np.all(first >= 0))
+        if self.cell_material.shape[0] > 1:
+            second = self.cell_material[1:].ravel()
+            filled = np.flatnonzero(second >= 0)
+            self.occupied_all = self.occupied_all and filled.size == second.size
+            for material in np.unique(second[filled]):
+                self.groups.append((int(material), n + filled[second[filled] == material]))
+        present = {m for m, _ in self.groups}
+        self.single = next(iter(present)) if len(present) == 1 and self.occupied_all else None
 
     @property
     def slots(self) -> int:
         return self.cell_material.shape[0]
+
+    def first_slot(self) -> "MaterialLayout":
+        """The layout of slot 0 alone (the explicit loop's view of a mixed layout)."""
+        if self.slots == 1:
+            return self
+        layout = object.__new__(MaterialLayout)
+        layout.cell_material = self.cell_material[:1]
+        layout.n_materials = self.n_materials
+        n = layout.cell_material.shape[1]
+        layout.groups = [(m, w) for m, w in self.groups if isinstance(w, slice) or w.size == 0 or w[0] < n]
+        layout.occupied_all = layout.first_occupied = self.first_occupied
+        present = {m for m, _ in layout.groups}
+        layout.single = next(iter(present)) if len(present) == 1 and layout.occupied_all else None
+        return layout
 
 
 @dataclass(frozen=True)
@@ -75,6 +100,13 @@ class State:
         return replace(self, **changes)
 
 
+def density_of(mass, volume):
+    """ρ = m / V per slot, 0 in empty slots (V = 0)."""
+    density = np.zeros_like(mass)
+    np.divide(mass, volume, out=density, where=volume > 0)
+    return density
+
+
 def thermodynamics(materials, layout: MaterialLayout, density, energy, out=None):
     """Pressure and sound speed (S, n_cells) from density and specific energy, material by
     material.  Empty slots get p = 0, c = 0.  ``out``: a (pressure, sound speed) pair of
@@ -91,7 +123,7 @@ def thermodynamics(materials, layout: MaterialLayout, density, energy, out=None)
         pressure, sound_speed = np.zeros_like(density), np.zeros_like(density)
     else:
         pressure, sound_speed = out
-        if not layout.occupied.all():
+        if not layout.occupied_all:
             pressure.fill(0.0)
             sound_speed.fill(0.0)
     rho_flat, e_flat = density.reshape(-1), energy.reshape(-1)
