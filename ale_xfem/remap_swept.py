@@ -188,10 +188,10 @@ def _windows(special, n):
         yield (int(first), int(last)), (max(int(first) - WINDOW_MARGIN, 0), min(int(last) + WINDOW_MARGIN, n))
 
 
-def _minmod_fast(a, b):
+def _minmod_fast(a, b, out=None):
     """minmod(a, b) = max(min(a, b), 0) + min(max(a, b), 0): the same values as
     :func:`ale_xfem.remap._minmod` in four passes."""
-    low = np.minimum(a, b)
+    low = np.minimum(a, b, out=out)
     np.maximum(low, 0.0, out=low)
     high = np.maximum(a, b)
     np.minimum(high, 0.0, out=high)
@@ -199,16 +199,17 @@ def _minmod_fast(a, b):
     return low
 
 
-def _cell_slopes(value, centre, bound):
+def _cell_slopes(value, inverse_spacing, bound):
     """Limited slopes over a run of pure cells of one material (the rule of
-    :func:`ale_xfem.remap.piece_slopes`): minmod of the one-sided differences, clipped to
-    ±bound; zero in the first and last cell."""
+    :func:`ale_xfem.remap.piece_slopes`): minmod of the one-sided differences (spacing of
+    the cell centres given by its inverse), clipped to ±bound; zero in the first and last
+    cell."""
     gradient = np.diff(value)
-    gradient /= np.diff(centre)
-    slope = np.zeros_like(value)
-    inner = _minmod_fast(gradient[:-1], gradient[1:])
+    gradient *= inverse_spacing
+    slope = np.empty_like(value)
+    slope[0] = slope[-1] = 0.0
+    inner = _minmod_fast(gradient[:-1], gradient[1:], out=slope[1:-1])
     np.clip(inner, -bound[1:-1], bound[1:-1], out=inner)
-    slope[1:-1] = inner
     return slope
 
 
@@ -231,21 +232,25 @@ def _pure_kernel(x, X, mass, specific_energy, corner, u, order):
     rho = mass / width
     eps = energy / width
     if order == 2:
-        bound = 2.0 * rho / width
-        srho = _cell_slopes(rho, centre, bound)
+        inverse_spacing = np.diff(centre)
+        np.divide(1.0, inverse_spacing, out=inverse_spacing)
+        two_over_width = 2.0 / width
+        bound = rho * two_over_width
+        srho = _cell_slopes(rho, inverse_spacing, bound)
         np.abs(eps, out=bound)
-        bound *= 2.0
-        bound /= width
-        seps = _cell_slopes(eps, centre, bound)
+        bound *= two_over_width
+        seps = _cell_slopes(eps, inverse_spacing, bound)
     else:
         srho = seps = np.zeros_like(rho)
     d = X[1:-1] - x[1:-1]
+    half_d = 0.5 * d
     # Nodes that move by more than half a neighbouring cell: the cells around them are
     # redone in windows, like those around an interface.
-    far_nodes = np.flatnonzero(np.abs(d) > 0.5 * np.minimum(width[:-1], width[1:])) + 1
+    far_nodes = np.zeros(0, dtype=np.int64)
+    if np.abs(half_d).max(initial=0.0) > 0.25 * width.min():
+        far_nodes = np.flatnonzero(np.abs(d) > 0.5 * np.minimum(width[:-1], width[1:])) + 1
     right_donor = d > 0.0
-    offset = 0.5 * d
-    offset += x[1:-1]
+    offset = half_d + x[1:-1]
     offset -= np.where(right_donor, centre[1:], centre[:-1])  # x_k + d/2 − c_D
     flux_mass = np.where(right_donor, srho[1:], srho[:-1])
     flux_mass *= offset
@@ -271,8 +276,9 @@ def _pure_kernel(x, X, mass, specific_energy, corner, u, order):
     scale_left = share_left / mass_left
     scale_right = share_right / mass_right
     delta = np.zeros(width.size)
-    delta[:-1] += 0.5 * d
-    delta[1:] += 0.5 * d
+    if half_d.size:
+        np.add(half_d[:-1], half_d[1:], out=delta[1:-1])
+        delta[0], delta[-1] = half_d[0], half_d[-1]
     from_left = delta < 0.0
     swept = srho * (0.5 * delta)
     swept += rho
@@ -283,7 +289,7 @@ def _pure_kernel(x, X, mass, specific_energy, corner, u, order):
     part_centre *= width
     part_centre *= srho
     part_centre /= 96.0 * np.where(from_left, mass_left, mass_right)
-    part_centre += np.where(from_left, -0.25, 0.25) * width
+    part_centre += np.copysign(0.25 * width, delta)  # −w/4 for L_j (δ < 0), +w/4 for R_j
     # signed first moment about the part centre: M (δ/2 − x̄) − σ δ³/12
     moment = 0.5 * delta
     moment -= part_centre
