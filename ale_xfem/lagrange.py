@@ -167,22 +167,28 @@ class ExplicitWilkins:
     # -- forces -------------------------------------------------------------------------
 
     def evaluate(self, node_position, node_velocity, material_mass, material_energy,
-                 mixed_view: MixedView | None = None, slots: int = 1) -> ForceEvaluation:
+                 mixed_view: MixedView | None = None, slots: int = 1, known=None) -> ForceEvaluation:
         """Forces of a state.  Density, pressure and sound speed come out as (slots,
         n_cells) arrays with slot 0 filled (slots = 2: the caller fills slot 1 of the
         mixed cells, every other entry of slot 1 is 0), so that the mixed-cell step takes
-        them as they are instead of copying rows."""
+        them as they are instead of copying rows.  ``known``: the (density, pressure, sound
+        speed) of a state at these positions, taken instead of evaluated again."""
         cell_type, corners = self.mesh.cell_type, self.corners
         volume, gradient = cell_type.volume_and_gradient(corners.gather(node_position))
         mass0, energy0 = material_mass[:1], material_energy[:1]
-        density, pressure, sound_speed = (np.empty((slots, volume.size)) for _ in range(3))
-        for array in (density, pressure, sound_speed):
-            array[1:].fill(0.0)
-        np.divide(mass0, volume, out=density[:1])
-        if mixed_view is not None:  # slot 0 of a mixed cell is its α part
+        if mixed_view is not None:
             cells = self.mixed.cells
-            density[0, cells] = mass0[0, cells] / mixed_view.volume_left
-        thermodynamics(self.materials, self.pure_layout, density[:1], energy0, out=(pressure[:1], sound_speed[:1]))
+        if known is not None:
+            density, pressure, sound_speed = known
+        else:
+            density, pressure, sound_speed = (np.empty((slots, volume.size)) for _ in range(3))
+            for array in (density, pressure, sound_speed):
+                array[1:].fill(0.0)
+            np.divide(mass0, volume, out=density[:1])
+            if mixed_view is not None:  # slot 0 of a mixed cell is its α part
+                density[0, cells] = mass0[0, cells] / mixed_view.volume_left
+            thermodynamics(self.materials, self.pure_layout, density[:1], energy0,
+                           out=(pressure[:1], sound_speed[:1]))
         volume_rate = corner_dot(gradient, corners.gather(node_velocity))  # dV/dt = Σ ∂V/∂x_i·u_i
         velocity_jump = cell_type.velocity_jump(volume_rate, volume)
         mixed_viscosity = mixed_sound_speed = None
@@ -224,10 +230,15 @@ class ExplicitWilkins:
         return ForceEvaluation(volume, gradient, density, pressure, sound_speed, viscosity,
                                velocity_jump, stress, nodal_force, mixed_sound_speed, mixed_viscosity)
 
-    def evaluate_state(self, state: State) -> ForceEvaluation:
+    def evaluate_state(self, state: State, thermodynamics_known: bool = False) -> ForceEvaluation:
+        """Forces of a state; ``thermodynamics_known``: its densities, pressures and sound
+        speeds are those of its positions and energies (a state just built by the remap),
+        so they are taken as they are."""
         view = None if self.mixed is None else MixedView.of(state, self.mixed.cells)
+        known = (state.material_density, state.material_pressure,
+                 state.material_sound_speed) if thermodynamics_known else None
         return self.evaluate(state.node_position, state.node_velocity, state.material_mass,
-                             state.material_energy, view)
+                             state.material_energy, view, known=known)
 
     # -- time step ----------------------------------------------------------------------
 

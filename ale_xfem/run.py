@@ -186,7 +186,7 @@ def _remap(problem, stepper, remapper, state, evaluation, impulse):
     kinetic_change += 0.5 * float(np.sum(node_mass[held] * (after**2 - before**2)))
     if mixed is not None and mixed.relaxation:  # the remap leaves a pressure jump in mixed cells
         state, _ = stepper.relax_mixed_cells(state, in_place=True)
-    return state, stepper.evaluate_state(state), impulse, kinetic_change
+    return state, stepper.evaluate_state(state, thermodynamics_known=True), impulse, kinetic_change
 
 
 def conservation(start, end, boundary_work, boundary_impulse, node_mass, state) -> dict:
