@@ -1,6 +1,7 @@
 """The 1D remap in swept-region (face-flux) form: the same result as
 :func:`ale_xfem.remap.remap_1d` when every node and every dual face moves by less than
-the pieces around it (always, with a CFL-limited step), at a few passes over n_cells.
+the pieces around it (always, with a CFL-limited step), at about a hundred passes over
+n_cells.
 
 A new cell [X_j, X_{j+1}] holds the old cell j, plus what the swept interval between x_j
 and X_j (and x_{j+1}, X_{j+1}) brings in or takes out.  The swept interval lies in one
@@ -9,11 +10,19 @@ Nodal momentum moves the same way through the faces of the dual cells (a pure ce
 middle, or Γ in an enriched mixed cell), from the parts of the donor node.  Everything is
 added once and subtracted once, so mass, energy and momentum are conserved to round-off.
 
+Two levels:
+
+- :func:`_pure_kernel` does this over the whole mesh as if it were one material in pure
+  cells, with every node moving by at most half a cell: closed-form fluxes, no gather.
+- :func:`_swept_sorted` does it material by material (mixed cells, materials entering a
+  cell, nodes moving up to a whole cell) on a window of cells around each interface and
+  each node that moved further; its results replace the kernel's on the window's inner
+  cells, where the kernel's assumptions do not hold.  The window margins cover every
+  dependence (donor, slopes, node parts), so the two agree wherever both are valid.
+
 The reconstruction (piece densities and slopes, part velocities and slopes, lumped shares)
-is the one of :mod:`ale_xfem.remap`; only the way it is integrated differs.  Cells where
-materials meet (a mixed cell, or a material entering a cell) are finished with a small
-per-material table; they are few.  Returns None when a displacement is too large, and the
-caller uses the general intersection.
+is the one of :mod:`ale_xfem.remap`; only the way it is integrated differs.  Returns None
+when a displacement is too large, and the caller uses the general intersection.
 """
 
 from __future__ import annotations
@@ -70,8 +79,11 @@ def remap_1d_swept(order_of_cells, cell_left_node, cell_right_node, node_positio
     slots = 1
     taken_cells = []
     if special.size:
-        mixed_data = (material_volume[0, mixed_cells], cell_material[1, mixed_cells], material_mass[1, mixed_cells],
-                      material_energy[1, mixed_cells], interface_velocity)
+        if mixed_cells.size:
+            mixed_data = (material_volume[0, mixed_cells], cell_material[1, mixed_cells],
+                          material_mass[1, mixed_cells], material_energy[1, mixed_cells], interface_velocity)
+        else:  # one slot: no mixed cell yet
+            mixed_data = (np.zeros(0), np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0), np.zeros(0))
         slot_material = np.full((2, n), -1, dtype=np.int64)
         slot_material[0] = m0
         new_mass = np.vstack([new_mass, np.zeros(n)])

@@ -187,3 +187,45 @@ def test_swept_remap_equals_the_general_intersection(scene, order):
         state, evaluation, _, _ = _remap(problem, stepper, remapper, state, evaluation, np.zeros(2))
     assert compared == 80
     assert len(moved) > problem.mixed.count  # the interfaces changed cells along the way
+
+
+@pytest.mark.parametrize("scene", ["sod", "sod-two-gamma-enriched"])
+def test_swept_remap_redoes_nodes_that_moved_more_than_half_a_cell(scene):
+    """The pure-cell kernel covers nodes that move by up to half a cell; a node moved
+    further (here 0.7 of a cell, in a smooth region and next to the interface) has its
+    cells redone in a window, and the result is still the general intersection's."""
+    from ale_xfem import remap_swept
+    from ale_xfem.remap import Remapper, remap_1d
+    from ale_xfem.run import make_stepper
+
+    problem = build_problem(load_scene(resolve_scene_path(scene), ["mesh.cells=60", "mesh.motion=eulerian"]))
+    stepper = make_stepper(problem)
+    state, evaluation = problem.state, stepper.evaluate_state(problem.state)
+    for _ in range(3):  # a little motion, far less than a cell
+        state, evaluation, _, _ = stepper.step(state, stepper.stable_time_step(evaluation), evaluation)
+    remapper = Remapper(problem, "eulerian", 2)
+    x = state.node_position[0].copy()
+    dx = x[1] - x[0]
+    x[20] += 0.7 * dx  # far from the interface
+    cells = np.zeros(0, dtype=np.int64) if stepper.mixed is None else stepper.mixed.cells
+    if cells.size:
+        x[cells[0] - 2] -= 0.6 * dx  # two cells left of the mixed cell
+    velocity = np.zeros(0) if stepper.mixed is None else state.interface_velocity
+    arguments = (remapper.cell_order, remapper.left_node, remapper.right_node, x, remapper.initial.copy(),
+                 stepper.layout.cell_material, state.material_mass, state.material_energy,
+                 state.material_volume, remapper.corner_mass, state.node_velocity, cells, velocity,
+                 len(problem.materials), 2)
+    kernel = remap_swept._pure_kernel
+    seen = []
+    remap_swept._pure_kernel = lambda *a: seen.append(kernel(*a)) or seen[-1]
+    try:
+        swept = remap_swept.remap_1d_swept(*arguments)
+    finally:
+        remap_swept._pure_kernel = kernel
+    assert seen and 20 in seen[0][-1]  # the kernel handed node 20 to a window
+    general = remap_1d(*arguments)
+    assert swept is not None, remap_swept._too_far.last_reason
+    for name in ("material_mass", "material_energy", "material_volume", "corner_mass", "node_mass",
+                 "node_velocity"):
+        a, b = getattr(general, name), getattr(swept, name)
+        np.testing.assert_allclose(b, a, rtol=1e-11, atol=1e-13 * np.abs(a).max(), err_msg=name)
