@@ -27,6 +27,9 @@ def _parser() -> argparse.ArgumentParser:
                      help="override a scene key, e.g. --set mesh.cells=400 (repeatable)")
     run.add_argument("--no-plot", action="store_true", help="skip the PNG plot")
     run.add_argument("--quiet", action="store_true", help="no progress bar, no summary line")
+    run.add_argument("--explain", action="store_true",
+                     help="print which effects the scene switches on and why (which key), and exit "
+                          "without running")
 
     commands.add_parser("list", help="list the shipped scenes with their descriptions")
 
@@ -92,6 +95,12 @@ def _run(args) -> int:
 
     out = args.out if args.out is not None else Path("out") / scene.name
     problem = build_problem(scene)
+    if args.explain:
+        from ale_xfem.effects import explain
+
+        print(f"{scene.name}: {scene.description}" if scene.description else scene.name)
+        print(explain(problem.effect_table))
+        return EXIT_OK
     progress = Progress(scene.t_end, enabled=False if args.quiet else None)
     result = simulate(problem, progress)
     write_outputs(problem, result, out, plot=not args.no_plot)

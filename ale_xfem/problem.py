@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ale_xfem import exact
+from ale_xfem.effects import Effect, active, scene_effects
 from ale_xfem.lagrange import Boundary
 from ale_xfem.mesh import MeshArrays, interval_mesh
 from ale_xfem.mixed import MixedCellFailure, MixedCells, with_mixed_state
@@ -39,6 +40,7 @@ class Problem:
     mixed: MixedCells | None = None  # the enriched mixed cells, when the scene has any
     corner_mass: np.ndarray | None = None  # (2, n_cells) mass lumped on each cell's left/right node
     setup_failure: str = ""  # a set-up step that could not be done (the run reports it)
+    effect_table: list[Effect] = field(default_factory=list)  # every effect, on or off, and why
 
 
 def build_problem(scene: Scene) -> Problem:
@@ -131,20 +133,12 @@ def build_problem(scene: Scene) -> Problem:
     boundaries = side_boundaries(mesh, scene.mesh.extent, scene.boundaries)
     for boundary in boundaries:  # walls and pistons hold from t = 0
         boundary.apply(state.node_velocity)
-    effects = ["lagrange_explicit"]
+    effect_table = scene_effects(scene, 0 if mixed is None else mixed.cells.size,
+                                 [b.side for b in boundaries if b.kind == "velocity"])
+    effects = active(effect_table)
     setup_failure = ""
-    if scene.numerics.q_quadratic > 0 or scene.numerics.q_linear > 0:
-        effects.append("artificial_viscosity")
-    if any(b.kind == "velocity" for b in boundaries):
-        effects.append("piston")
     if mixed is not None:
-        if scene.interface.model == "enriched":
-            effects += ["mixed_cells_enriched", f"interface_solver_{scene.interface.solver}",
-                        f"interface_predictor_{scene.interface.predictor}"]
-        else:
-            effects += ["mixed_cells_single_velocity"]
-        if scene.interface.relaxation:
-            effects.append("pressure_relaxation")
+        if "pressure_relaxation" in effects:
             try:
                 state = initial_relaxation(mixed, state)
             except MixedCellFailure as failure:  # reported by the run, with this state
@@ -162,7 +156,7 @@ def build_problem(scene: Scene) -> Problem:
             interface_pressure=(state.material_pressure[:, cells] * volumes).sum(axis=0) / volumes.sum(axis=0),
             interface_velocity=np.zeros(cells.size))
     return Problem(scene, mesh, materials, layout, node_mass, state, boundaries,
-                   exact_reference(scene), effects, mixed, corner_by_position, setup_failure)
+                   exact_reference(scene), effects, mixed, corner_by_position, setup_failure, effect_table)
 
 
 def _left_material_first(scene, names, left, right, first, second):

@@ -72,8 +72,7 @@ def make_stepper(problem: Problem) -> ExplicitWilkins:
                            problem.boundaries, problem.scene.numerics,
                            artificial_viscosity="artificial_viscosity" in problem.effects,
                            mixed=problem.mixed)
-    interface = problem.scene.interface
-    if problem.mixed is not None and interface.model == "enriched" and interface.predictor == "assembled":
+    if "interface_predictor_assembled" in problem.effects:  # compiles the UFL forms
         stepper.use_assembled_predictor()
     return stepper
 
@@ -88,7 +87,7 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
     max_steps = problem.scene.numerics.max_steps
     stepper = make_stepper(problem)
     remapper = None
-    if problem.scene.mesh.motion != "lagrangian":
+    if any(name.startswith("remap_") for name in problem.effects):
         remapper = Remapper(problem, problem.scene.mesh.motion, problem.scene.numerics.remap_order)
     remap_energy_change, remap_seconds = 0.0, 0.0
     state = problem.state

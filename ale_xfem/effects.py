@@ -1,0 +1,83 @@
+"""The effects a scene switches on, and the key that decides each one.
+
+The stepper is composed of these: an effect that is off is not built (no mixed-cell
+solver, no compiled form, no remapper, no viscosity arrays, no transverse component) and
+costs nothing.  :func:`scene_effects` is the one place that decides; the problem keeps the
+names of the active ones (``summary.json`` lists them) and ``ale-xfem run --explain``
+prints the whole table.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class Effect:
+    name: str  # as listed in summary.json
+    on: bool
+    why: str  # the key(s) and value(s) that decide it
+
+
+def scene_effects(scene, n_mixed_cells: int, pistons: list[str]) -> list[Effect]:
+    """Every effect the code knows, on or off, for a scene whose initial layout has
+    ``n_mixed_cells`` cells holding two materials, with velocity boundaries on ``pistons``."""
+    numerics, interface = scene.numerics, scene.interface
+    effects = [Effect("lagrange_explicit", True, "always: the explicit Wilkins loop of the pure cells")]
+    q = f"numerics.q_quadratic = {numerics.q_quadratic:g}, numerics.q_linear = {numerics.q_linear:g}"
+    effects.append(Effect("artificial_viscosity", numerics.q_quadratic > 0 or numerics.q_linear > 0,
+                          q + (" (one > 0)" if numerics.q_quadratic > 0 or numerics.q_linear > 0
+                               else " (both 0: no viscosity is computed)")))
+    effects.append(Effect("piston", bool(pistons),
+                          ", ".join(f"boundaries.{side} = {{velocity = ...}}" for side in pistons)
+                          if pistons else "no boundary is {velocity = [...]}"))
+    transverse = max(len(r.velocity) for r in scene.regions) > 1
+    effects.append(Effect("transverse_velocity", transverse,
+                          "a region's velocity has two components (carried by the remap, no part in the dynamics)"
+                          if transverse else "every region's velocity = [u]: one component"))
+    mixed = n_mixed_cells > 0 and interface is not None
+    if interface is None:
+        why = "no [interface] table: materials never share a cell"
+    elif n_mixed_cells == 0:
+        why = "[interface] is given but every interface lies on a node: no mixed cell to solve"
+    else:
+        why = f"interface.model = \"{interface.model}\", {n_mixed_cells} cell(s) hold two materials"
+    enriched = mixed and interface.model == "enriched"
+    effects.append(Effect("mixed_cells_enriched", enriched, why))
+    effects.append(Effect("mixed_cells_single_velocity", mixed and not enriched, why))
+    for solver in ("nonlinear", "linearised"):
+        effects.append(Effect(f"interface_solver_{solver}", enriched and interface.solver == solver,
+                              f"interface.solver = \"{interface.solver}\"" if enriched
+                              else "needs enriched mixed cells"))
+    for predictor in ("closed_form", "assembled"):
+        effects.append(Effect(
+            f"interface_predictor_{predictor}", enriched and interface.predictor == predictor,
+            (f"interface.predictor = \"{interface.predictor}\""
+             + (" (UFL forms compiled once per run)" if predictor == "assembled" else ""))
+            if enriched else "needs enriched mixed cells"))
+    effects.append(Effect("pressure_relaxation", mixed and interface.relaxation,
+                          f"interface.relaxation = {str(interface.relaxation).lower()}" if mixed
+                          else "needs mixed cells"))
+    motion = scene.mesh.motion
+    remapped = motion != "lagrangian"
+    effects.append(Effect(f"remap_{motion}" if remapped else "remap", remapped,
+                          f"mesh.motion = \"{motion}\"" + (
+                              "" if remapped else ": the mesh moves with the material, nothing is remapped")))
+    effects.append(Effect(f"remap_order_{numerics.remap_order}", remapped,
+                          f"numerics.remap_order = {numerics.remap_order}" if remapped
+                          else "needs a remap (mesh.motion other than \"lagrangian\")"))
+    return effects
+
+
+def active(effects: list[Effect]) -> list[str]:
+    return [effect.name for effect in effects if effect.on]
+
+
+def explain(effects: list[Effect]) -> str:
+    """The table printed by ``ale-xfem run --explain``."""
+    width = max(len(effect.name) for effect in effects)
+    lines = ["effects switched on:"]
+    lines += [f"  {e.name:<{width}}  {e.why}" for e in effects if e.on]
+    lines.append("switched off (not built, no cost):")
+    lines += [f"  {e.name:<{width}}  {e.why}" for e in effects if not e.on]
+    return "\n".join(lines)

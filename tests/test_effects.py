@@ -1,0 +1,147 @@
+"""Effects: a scene builds only what its keys ask for; what is off is not built and
+changes nothing."""
+
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from ale_xfem.problem import build_problem
+from ale_xfem.run import simulate
+from ale_xfem.scene import load_scene, resolve_scene_path
+
+STATE_ARRAYS = ("node_position", "node_velocity", "material_mass", "material_energy", "material_volume",
+                "material_density", "material_pressure", "material_sound_speed")
+
+
+def _scene_file(tmp_path, name, extra="", replace=()):
+    text = resolve_scene_path(name).read_text()
+    for old, new in replace:
+        assert old in text
+        text = text.replace(old, new)
+    path = tmp_path / f"{name}-variant.toml"
+    path.write_text(text + extra)
+    return path
+
+
+def _run(path, *overrides, steps=60):
+    problem = build_problem(load_scene(path, ["mesh.cells=80", *overrides]))
+    return problem, simulate(problem, stop_after_steps=steps)
+
+
+def _assert_bit_identical(a, b):
+    for name in STATE_ARRAYS:
+        assert np.array_equal(getattr(a.state, name), getattr(b.state, name)), name
+    assert a.steps == b.steps and a.state.time == b.state.time
+
+
+@pytest.fixture
+def counters(monkeypatch):
+    """Count mixed-cell solvers, remappers and form compilations made during a test."""
+    import dolfinx_solver  # noqa: F401  (before dolfinx: it loads MPI and PETSc)
+    import dolfinx.jit
+
+    import ale_xfem.mixed
+    import ale_xfem.remap
+
+    counts = {"mixed_cell_solvers": 0, "remappers": 0, "compiled_forms": 0}
+
+    def counting(cls, key):
+        original = cls.__init__
+
+        def init(self, *args, **kwargs):
+            counts[key] += 1
+            original(self, *args, **kwargs)
+        monkeypatch.setattr(cls, "__init__", init)
+
+    counting(ale_xfem.mixed.MixedCells, "mixed_cell_solvers")
+    counting(ale_xfem.remap.Remapper, "remappers")
+    jit = dolfinx.jit.ffcx_jit
+
+    def counting_jit(*args, **kwargs):
+        counts["compiled_forms"] += 1
+        return jit(*args, **kwargs)
+    monkeypatch.setattr(dolfinx.jit, "ffcx_jit", counting_jit)
+    return counts
+
+
+def test_a_scene_without_interface_builds_no_mixed_cell_solver_and_compiles_no_form(counters):
+    problem, result = _run(resolve_scene_path("sod-two-gamma"))
+    assert result.status == "ok" and result.steps == 60
+    assert counters == {"mixed_cell_solvers": 0, "remappers": 0, "compiled_forms": 0}
+    assert problem.effects == ["lagrange_explicit", "artificial_viscosity"]
+
+
+def test_the_counters_do_count(counters):
+    """The same counters see the solver, the remapper and the forms when the scene asks."""
+    problem, result = _run(resolve_scene_path("sod-two-gamma-enriched"), "mesh.motion=eulerian",
+                           "interface.predictor=assembled", steps=3)
+    assert result.status == "ok"
+    assert counters["mixed_cell_solvers"] >= 1 and counters["remappers"] == 1
+    assert counters["compiled_forms"] >= 1
+
+
+def test_an_interface_table_with_the_interface_on_a_node_changes_nothing(tmp_path, counters):
+    """[interface] asks for mixed cells, but a node-aligned interface makes none: nothing is
+    built (not even the forms of the assembled predictor) and the run is bit-identical."""
+    plain = _run(resolve_scene_path("sod-two-gamma"))[1]
+    path = _scene_file(tmp_path, "sod-two-gamma",
+                       '\n[interface]\nmodel = "enriched"\npredictor = "assembled"\nrelaxation = true\n')
+    problem, with_table = _run(path)
+    _assert_bit_identical(plain, with_table)
+    assert counters == {"mixed_cell_solvers": 0, "remappers": 0, "compiled_forms": 0}
+    off = {e.name: e for e in problem.effect_table}
+    assert not off["mixed_cells_enriched"].on and "on a node" in off["mixed_cells_enriched"].why
+
+
+def test_remap_keys_of_a_lagrangian_scene_change_nothing(tmp_path, counters):
+    """mesh.motion = "lagrangian" written out, with a remap order: no remapper is built and
+    the run is bit-identical to the scene that never mentions them."""
+    plain = _run(resolve_scene_path("sod"))[1]
+    path = _scene_file(tmp_path, "sod", "\n[numerics]\nremap_order = 1\n")
+    problem, explicit = _run(path, "mesh.motion=lagrangian")
+    _assert_bit_identical(plain, explicit)
+    assert counters["remappers"] == 0
+    assert not any(name.startswith("remap") for name in problem.effects)
+
+
+def test_a_zero_transverse_velocity_leaves_the_dynamics_bit_identical(tmp_path):
+    """Transverse-velocity transport is an effect of its own: switched on by a second
+    velocity component, it adds that component and nothing else."""
+    plain_problem, plain = _run(resolve_scene_path("sod"))
+    path = _scene_file(tmp_path, "sod", replace=[("velocity = [0.0]", "velocity = [0.0, 0.0]")])
+    problem, transverse = _run(path)
+    assert "transverse_velocity" in problem.effects and "transverse_velocity" not in plain_problem.effects
+    assert transverse.state.node_velocity.shape[0] == 2
+    for name in STATE_ARRAYS:
+        a, b = getattr(plain.state, name), getattr(transverse.state, name)
+        assert np.array_equal(a, b[:1] if name == "node_velocity" else b), name
+    assert np.all(transverse.state.node_velocity[1] == 0.0)
+
+
+def test_zero_viscosity_coefficients_switch_the_viscosity_off():
+    problem = build_problem(load_scene(resolve_scene_path("sod"),
+                                       ["numerics.q_quadratic=0", "numerics.q_linear=0"]))
+    assert "artificial_viscosity" not in problem.effects
+    from ale_xfem.run import make_stepper
+
+    stepper = make_stepper(problem)
+    evaluation = stepper.evaluate_state(problem.state)
+    assert not stepper.artificial_viscosity and np.all(evaluation.viscosity == 0.0)
+
+
+def test_explain_prints_the_effects_and_their_keys_and_runs_nothing(tmp_path):
+    out = tmp_path / "out"
+    done = subprocess.run([sys.executable, "-m", "ale_xfem.cli", "run", "--explain", "sod-two-gamma-enriched",
+                           "--set", "mesh.motion=eulerian", "--out", str(out)],
+                          capture_output=True, text=True, check=True)
+    text = done.stdout
+    on, off = text.split("switched off")
+    for name, key in (("mixed_cells_enriched", "interface.model"), ("remap_eulerian", "mesh.motion"),
+                      ("pressure_relaxation", "interface.relaxation"), ("remap_order_2", "numerics.remap_order")):
+        line = next(line for line in on.splitlines() if line.strip().startswith(name))
+        assert key in line
+    assert "transverse_velocity" in off and "mixed_cells_single_velocity" in off
+    assert not Path(out).exists()
