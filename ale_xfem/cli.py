@@ -31,7 +31,20 @@ def _parser() -> argparse.ArgumentParser:
                      help="print which effects the scene switches on and why (which key), and exit "
                           "without running")
 
-    commands.add_parser("list", help="list the shipped scenes with their descriptions")
+    commands.add_parser("list", help="list the shipped scenes and studies with their descriptions")
+
+    study = commands.add_parser("study", help="accuracy against cost; stability of hard cases")
+    kinds = study.add_subparsers(dest="kind", required=True)
+    accuracy = kinds.add_parser(
+        "accuracy", help="run variants at several resolutions: CSV, Markdown table, work-precision chart")
+    accuracy.add_argument("target", help="a shipped study (see `list`), a study file, or a scene")
+    accuracy.add_argument("--cells", default=None,
+                          help="comma-separated resolutions (default: the study's, or 100,200,400,800,1600)")
+    accuracy.add_argument("--vary", action="append", default=[], metavar="KEY=V1,V2",
+                          help="with a scene: a key and its values; every combination is run (repeatable)")
+    accuracy.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                          help="with a scene: override a key in every variant (repeatable)")
+    accuracy.add_argument("--out", type=Path, default=None, help="output folder (default: out/study-<name>)")
 
     bench = commands.add_parser("bench", help="zone-cycles per second of the explicit loop")
     bench.add_argument("--cells", default="1000,10000,100000,1000000",
@@ -48,18 +61,69 @@ def main(argv: list[str] | None = None) -> int:
         return _list()
     if args.command == "bench":
         return _bench(args)
+    if args.command == "study":
+        return _study(args)
     return _run(args)
 
 
 def _list() -> int:
     from ale_xfem.scene import SceneError, load_scene, shipped_scenes
+    from ale_xfem.studies import load_study, shipped_studies
 
+    print("scenes (ale-xfem run NAME):")
     for path in shipped_scenes():
         try:
             description = load_scene(path).description
         except SceneError as error:
             description = f"(invalid: {error})"
-        print(f"{path.stem:<24} {description}")
+        print(f"  {path.stem:<24} {description}")
+    print("studies (ale-xfem study accuracy NAME):")
+    for path in shipped_studies():
+        try:
+            description = load_study(path).description
+        except (SceneError, KeyError) as error:
+            description = f"(invalid: {error})"
+        print(f"  {path.stem:<24} {description}")
+    return EXIT_OK
+
+
+def _cells(text: str, option: str = "--cells") -> list[int]:
+    try:
+        sizes = [int(v) for v in text.split(",")]
+        if not sizes or any(v < 1 for v in sizes):
+            raise ValueError
+    except ValueError:
+        raise ValueError(f"{option} = {text!r}: comma-separated positive integers") from None
+    return sizes
+
+
+def _study(args) -> int:
+    from ale_xfem.scene import SceneError, resolve_scene_path
+    from ale_xfem.studies import (DEFAULT_CELLS, _study_path, check_study, load_study,
+                                  run_accuracy_study, study_from_vary)
+
+    try:
+        cells = _cells(args.cells) if args.cells is not None else None
+        path = _study_path(args.target)
+        if path is not None:
+            if args.vary or args.overrides:
+                raise SceneError("--vary/--set", " ".join(args.vary + args.overrides),
+                                 "only with a scene (a study lists its own variants)")
+            study = load_study(path)
+            if cells is not None:
+                study.cells = cells
+        else:
+            if not resolve_scene_path(args.target).exists():
+                raise SceneError("target", args.target, "a shipped study or scene (see `ale-xfem list`), "
+                                                        "or a study or scene file")
+            study = study_from_vary(args.target, cells or list(DEFAULT_CELLS), args.vary, args.overrides)
+        check_study(study)
+    except (SceneError, ValueError) as error:
+        print(f"error: {error}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    out = args.out if args.out is not None else Path("out") / f"study-{study.name}"
+    run_accuracy_study(study, out)
+    print(f"written: {out}/accuracy.csv, accuracy.md, accuracy.png")
     return EXIT_OK
 
 

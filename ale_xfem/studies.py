@@ -1,0 +1,268 @@
+"""Studies: what accuracy costs in time (`ale-xfem study accuracy`).
+
+A study runs every variant at every resolution and writes, into its output folder:
+``accuracy.csv`` (a row per run), ``accuracy.md`` (the table, the fitted convergence
+rates, and which variant is cheapest for a given L1(ρ)), and ``accuracy.png`` (L1(ρ)
+against cells, and the work-precision chart: L1(ρ) against wall time, a line per variant).
+
+Variants come either from ``--vary key=v1,v2`` on one scene (every combination), or from a
+shipped study (``demos/studies/*.toml``): a list of labelled (scene, overrides) variants.
+Every variant's scene is loaded and checked before anything runs.
+"""
+
+from __future__ import annotations
+
+import csv
+import itertools
+import math
+import time
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ale_xfem.scene import SceneError, load_scene, resolve_scene_path
+
+STUDIES_DIR = Path(__file__).resolve().parent.parent / "demos" / "studies"
+DEFAULT_CELLS = (100, 200, 400, 800, 1600)
+COLUMNS = ("variant", "scene", "cells", "status", "steps", "wall_seconds", "L1_density", "L1_velocity",
+           "L1_pressure", "ms_per_step_lagrange", "ms_per_step_mixed_cell_solve", "ms_per_step_remap")
+
+
+@dataclass
+class Variant:
+    label: str
+    scene: str  # a shipped scene's name or a path
+    overrides: list[str] = field(default_factory=list)
+
+
+@dataclass
+class Study:
+    name: str
+    description: str
+    cells: list[int]
+    variants: list[Variant]
+
+
+def shipped_studies() -> list[Path]:
+    return sorted(STUDIES_DIR.glob("*.toml"))
+
+
+def _study_path(name: str) -> Path | None:
+    for candidate in (Path(name), STUDIES_DIR / name, STUDIES_DIR / f"{name}.toml"):
+        if candidate.suffix == ".toml" and candidate.exists():
+            try:
+                if "variants" in tomllib.loads(candidate.read_text()):
+                    return candidate
+            except tomllib.TOMLDecodeError:
+                return None
+    return None
+
+
+def load_study(path: Path) -> Study:
+    """A shipped (or user) study file: name, description, cells, [[variants]] with label,
+    scene and optional set = ["key=value", ...]."""
+    data = tomllib.loads(path.read_text())
+    allowed = {"name", "description", "cells", "variants"}
+    for key in data:
+        if key not in allowed:
+            raise SceneError(key, data[key], f"a study key ({', '.join(sorted(allowed))})")
+    cells = data.get("cells", list(DEFAULT_CELLS))
+    if not isinstance(cells, list) or not cells or not all(isinstance(c, int) and c > 0 for c in cells):
+        raise SceneError("cells", cells, "a list of positive integers")
+    variants = []
+    for i, table in enumerate(data["variants"]):
+        for key in table:
+            if key not in ("label", "scene", "set"):
+                raise SceneError(f"variants.{i}.{key}", table[key], "label, scene or set")
+        if "label" not in table or "scene" not in table:
+            raise SceneError(f"variants.{i}", table, "a table with label and scene (and optional set)")
+        overrides = table.get("set", [])
+        if not isinstance(overrides, list) or not all(isinstance(o, str) for o in overrides):
+            raise SceneError(f"variants.{i}.set", overrides, 'a list of "key=value" strings')
+        variants.append(Variant(str(table["label"]), str(table["scene"]), list(overrides)))
+    return Study(str(data.get("name", path.stem)), str(data.get("description", "")), cells, variants)
+
+
+def study_from_vary(scene: str, cells: list[int], vary: list[str], overrides: list[str]) -> Study:
+    """Every combination of the --vary values on one scene."""
+    axes = []
+    for item in vary:
+        key, sep, values = item.partition("=")
+        if not sep or not key.strip() or not values.strip():
+            raise SceneError("--vary", item, "key=v1,v2,... (e.g. numerics.remap_order=1,2)")
+        axes.append([f"{key.strip()}={v.strip()}" for v in _split_values(values)])
+    variants = []
+    for combination in itertools.product(*axes) if axes else [()]:
+        label = ", ".join(combination) if combination else "as given"
+        variants.append(Variant(label, scene, [*overrides, *combination]))
+    name = Path(scene).stem
+    return Study(name, f"{name}: " + ("; ".join(vary) if vary else "as given"), cells, variants)
+
+
+def _split_values(values: str) -> list[str]:
+    """Split on commas outside brackets (a value may be a list: velocity=[1.0],[2.0])."""
+    parts, depth, current = [], 0, ""
+    for char in values:
+        depth += char in "[{"
+        depth -= char in "]}"
+        if char == "," and depth == 0:
+            parts.append(current)
+            current = ""
+        else:
+            current += char
+    parts.append(current)
+    return [p for p in (p.strip() for p in parts) if p]
+
+
+def check_study(study: Study) -> None:
+    """Load every variant's scene at every resolution (SceneError on the first bad one)."""
+    for variant in study.variants:
+        path = resolve_scene_path(variant.scene)
+        for cells in study.cells:
+            load_scene(path, [f"mesh.cells={cells}", *variant.overrides])
+
+
+def run_accuracy_study(study: Study, out: Path, echo=print) -> list[dict]:
+    """Run every variant at every resolution; write the CSV, the Markdown table and the
+    chart into ``out``; return the rows."""
+    from ale_xfem.problem import build_problem
+    from ale_xfem.run import simulate
+
+    check_study(study)
+    out.mkdir(parents=True, exist_ok=True)
+    rows = []
+    total = len(study.variants) * len(study.cells)
+    clock = time.perf_counter()
+    for variant in study.variants:
+        for cells in study.cells:
+            scene = load_scene(resolve_scene_path(variant.scene), [f"mesh.cells={cells}", *variant.overrides])
+            problem = build_problem(scene)
+            result = simulate(problem)
+            errors = result.errors or {}
+            steps = max(result.steps, 1)
+            phases = result.phase_seconds
+            row = {"variant": variant.label, "scene": scene.name, "cells": cells, "status": result.status,
+                   "steps": result.steps, "wall_seconds": result.wall_seconds,
+                   "L1_density": errors.get("L1_density", math.nan),
+                   "L1_velocity": errors.get("L1_velocity", math.nan),
+                   "L1_pressure": errors.get("L1_pressure", math.nan),
+                   "ms_per_step_lagrange": 1e3 * phases.get("lagrange", 0.0) / steps,
+                   "ms_per_step_mixed_cell_solve": 1e3 * phases.get("mixed_cell_solve", 0.0) / steps,
+                   "ms_per_step_remap": 1e3 * phases.get("remap", 0.0) / steps}
+            rows.append(row)
+            echo(f"[{len(rows):>3}/{total}] {variant.label:<40} {cells:>6} cells  {result.status:<6} "
+                 f"L1(ρ) {row['L1_density']:.3e}  {result.wall_seconds:7.2f} s"
+                 f"  ({time.perf_counter() - clock:.0f} s so far)")
+    write_csv(rows, out / "accuracy.csv")
+    rates = fitted_rates(rows)
+    (out / "accuracy.md").write_text(markdown_report(study, rows, rates))
+    work_precision_chart(study, rows, rates, out / "accuracy.png")
+    return rows
+
+
+def write_csv(rows: list[dict], path: Path) -> None:
+    with path.open("w", newline="") as handle:
+        writer = csv.DictWriter(handle, fieldnames=COLUMNS)
+        writer.writeheader()
+        for row in rows:
+            writer.writerow({k: (f"{v:.6e}" if isinstance(v, float) else v) for k, v in row.items()})
+
+
+def _fit(x, y) -> float:
+    """Rate r of y ~ x^-r fitted over all points (log-log slope); nan with < 2 points."""
+    keep = np.isfinite(y) & (np.asarray(y) > 0)
+    if keep.sum() < 2:
+        return math.nan
+    return -float(np.polyfit(np.log(np.asarray(x)[keep]), np.log(np.asarray(y)[keep]), 1)[0])
+
+
+def fitted_rates(rows: list[dict]) -> dict[str, dict[str, float]]:
+    """Per variant: convergence rates of the three L1 errors over the resolutions that
+    finished."""
+    rates = {}
+    for label in dict.fromkeys(r["variant"] for r in rows):
+        mine = [r for r in rows if r["variant"] == label and r["status"] == "ok"]
+        cells = [r["cells"] for r in mine]
+        rates[label] = {q: _fit(cells, [r[f"L1_{q}"] for r in mine]) for q in ("density", "velocity", "pressure")}
+    return rates
+
+
+def cheapest_for(rows: list[dict]) -> tuple[float, list[tuple[str, float]]] | None:
+    """The L1(ρ) that every variant reaches, and each variant's wall time to reach it
+    (log-log interpolation between its two resolutions around it), cheapest first."""
+    curves = {}
+    for label in dict.fromkeys(r["variant"] for r in rows):
+        mine = sorted((r for r in rows if r["variant"] == label and r["status"] == "ok"
+                       and np.isfinite(r["L1_density"])), key=lambda r: r["cells"])
+        if len(mine) >= 2:
+            curves[label] = ([r["L1_density"] for r in mine], [max(r["wall_seconds"], 1e-9) for r in mine])
+    if len(curves) < 2:
+        return None
+    target = max(min(errors) for errors, _ in curves.values())
+    costs = []
+    for label, (errors, seconds) in curves.items():
+        log_e, log_t = np.log(errors), np.log(seconds)
+        order = np.argsort(log_e)  # interpolate wall time as a function of error
+        costs.append((label, float(np.exp(np.interp(np.log(target), log_e[order], log_t[order])))))
+    return target, sorted(costs, key=lambda item: item[1])
+
+
+def markdown_report(study: Study, rows: list[dict], rates: dict) -> str:
+    lines = [f"# Accuracy against cost: {study.name}", "", study.description, "",
+             "| variant | cells | status | steps | L1(ρ) | L1(u) | L1(p) | wall s | ms/step explicit "
+             "| ms/step mixed | ms/step remap |",
+             "|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    for r in rows:
+        lines.append(f"| {r['variant']} | {r['cells']} | {r['status']} | {r['steps']} | {r['L1_density']:.3e} "
+                     f"| {r['L1_velocity']:.3e} | {r['L1_pressure']:.3e} | {r['wall_seconds']:.3f} "
+                     f"| {r['ms_per_step_lagrange']:.3f} | {r['ms_per_step_mixed_cell_solve']:.3f} "
+                     f"| {r['ms_per_step_remap']:.3f} |")
+    lines += ["", "Convergence rates (L1 ~ cells^-rate, fitted over the resolutions that finished):", "",
+              "| variant | ρ | u | p |", "|---|---:|---:|---:|"]
+    for label, r in rates.items():
+        lines.append(f"| {label} | {r['density']:.2f} | {r['velocity']:.2f} | {r['pressure']:.2f} |")
+    cheapest = cheapest_for(rows)
+    if cheapest is not None:
+        target, costs = cheapest
+        lines += ["", f"Wall time to reach L1(ρ) = {target:.3e} (the finest error every variant reaches; "
+                      "log-log interpolation between resolutions):", ""]
+        lines += [f"- {label}: {seconds:.3g} s" for label, seconds in costs]
+        lines += ["", f"For L1(ρ) down to {target:.3e} on this problem, **{costs[0][0]}** is cheapest."]
+    return "\n".join(lines) + "\n"
+
+
+def work_precision_chart(study: Study, rows: list[dict], rates: dict, path: Path) -> None:
+    import matplotlib
+    import matplotlib.ticker
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    figure, (by_cells, by_time) = plt.subplots(1, 2, figsize=(11, 4.2))
+    for label in dict.fromkeys(r["variant"] for r in rows):
+        mine = [r for r in rows if r["variant"] == label and r["status"] == "ok" and np.isfinite(r["L1_density"])]
+        if not mine:
+            continue
+        cells = [r["cells"] for r in mine]
+        error = [r["L1_density"] for r in mine]
+        wall = [max(r["wall_seconds"], 1e-4) for r in mine]
+        rate = rates[label]["density"]
+        by_cells.loglog(cells, error, "o-", label=f"{label} (rate {rate:.2f})")
+        by_time.loglog(wall, error, "o-", label=label)
+    by_cells.set_xlabel("cells")
+    by_cells.set_ylabel("L1 error of density")
+    by_cells.set_title("convergence")
+    by_time.set_xlabel("wall time of the run (s)")
+    by_time.set_ylabel("L1 error of density")
+    by_time.set_title("work-precision (lower left is better)")
+    for axes in (by_cells, by_time):
+        axes.grid(True, which="both", alpha=0.3)
+        axes.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
+        axes.yaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
+    by_cells.legend(fontsize=7)
+    figure.suptitle(study.name)
+    figure.tight_layout()
+    figure.savefig(path, dpi=110)
+    plt.close(figure)
