@@ -45,6 +45,16 @@ def _parser() -> argparse.ArgumentParser:
     accuracy.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                           help="with a scene: override a key in every variant (repeatable)")
     accuracy.add_argument("--out", type=Path, default=None, help="output folder (default: out/study-<name>)")
+    stability = kinds.add_parser(
+        "stability", help="the hard cases (Toro 1-5, LeBlanc, water-air, plate impact, slivers, long run, "
+                          "random Riemann problems): a pass/fail table")
+    stability.add_argument("--cells", type=int, default=200, help="resolution of the suite (default 200)")
+    stability.add_argument("--random", type=int, default=10, help="random Riemann problems (default 10)")
+    stability.add_argument("--seed", type=int, default=1, help="seed of the random problems (default 1)")
+    stability.add_argument("--case", dest="cases", action="append", default=[], metavar="NAME",
+                           help="run only this case (repeatable)")
+    stability.add_argument("--out", type=Path, default=Path("out") / "study-stability",
+                           help="output folder (default: out/study-stability)")
 
     bench = commands.add_parser("bench", help="zone-cycles per second of the explicit loop")
     bench.add_argument("--cells", default="1000,10000,100000,1000000",
@@ -98,6 +108,8 @@ def _cells(text: str, option: str = "--cells") -> list[int]:
 
 
 def _study(args) -> int:
+    if args.kind == "stability":
+        return _stability(args)
     from ale_xfem.scene import SceneError, resolve_scene_path
     from ale_xfem.studies import (DEFAULT_CELLS, _study_path, check_study, load_study,
                                   run_accuracy_study, study_from_vary)
@@ -142,6 +154,23 @@ def _bench(args) -> int:
     else:
         run_bench(sizes)
     return EXIT_OK
+
+
+def _stability(args) -> int:
+    from ale_xfem.stability import random_riemann_cases, run_stability_study, suite
+
+    if args.cells < 20 or args.random < 0:
+        print(f"error: --cells = {args.cells}, --random = {args.random}: cells ≥ 20, random ≥ 0", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    known = [c.name for c in suite(args.cells) + random_riemann_cases(args.random, args.seed, args.cells)]
+    unknown = [name for name in args.cases if name not in known]
+    if unknown:
+        print(f"error: --case = {unknown[0]!r}: one of {', '.join(known)}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    rows = run_stability_study(args.out, args.cells, args.random, args.seed, names=args.cases or None)
+    passed = sum(r["verdict"] == "pass" for r in rows)
+    print(f"{passed} of {len(rows)} cases pass; written: {args.out}/stability.csv, stability.md")
+    return EXIT_OK if passed == len(rows) else 1
 
 
 def _run(args) -> int:

@@ -78,9 +78,10 @@ def make_stepper(problem: Problem) -> ExplicitWilkins:
 
 
 def simulate(problem: Problem, progress: Progress | None = None, t_end: float | None = None,
-             stop_after_steps: int | None = None) -> RunResult:
+             stop_after_steps: int | None = None, observe=None) -> RunResult:
     """Run to t_end (the scene's by default).  ``stop_after_steps`` ends the run early as a
-    normal stop (benchmarks); numerics.max_steps reached first is a failure.  With a
+    normal stop (benchmarks); numerics.max_steps reached first is a failure.  ``observe``:
+    called with each new state (and the initial one), e.g. to track extremes.  With a
     remapped mesh, problem.layout, problem.mixed and problem.node_mass follow the run (they
     describe the returned state)."""
     t_end = problem.scene.t_end if t_end is None else t_end
@@ -100,6 +101,8 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
     clock = time.perf_counter()
     if problem.setup_failure:
         status, diagnostic = "failed", f"step 0, t = 0: {problem.setup_failure}"
+    if observe is not None:
+        observe(state, problem)
     while status == "ok" and state.time < t_end * (1.0 - 1e-14):
         if stop_after_steps is not None and steps >= stop_after_steps:
             break
@@ -131,6 +134,8 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
         dt_previous = dt
         dt_min, dt_max = min(dt_min, dt), max(dt_max, dt)
         steps += 1
+        if observe is not None:
+            observe(state, problem)
         if progress is not None:
             progress.update(state.time, steps)
     wall = time.perf_counter() - clock
@@ -200,6 +205,7 @@ def conservation(start, end, boundary_work, boundary_impulse, node_mass, state) 
         "total_energy": (end["total_energy"] - start["total_energy"] - boundary_work)
         / abs(start["total_energy"]),
         "boundary_work": boundary_work,
+        "momentum_scale": momentum_scale,
     }
 
 

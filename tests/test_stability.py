@@ -1,0 +1,64 @@
+"""The stability suite at small resolution: every hard case must finish with positive
+densities, volumes and energies, volume fractions in [0, 1], mass and momentum conserved
+to round-off, and L1(ρ) falling from n to 2n cells where an exact solution exists."""
+
+import subprocess
+import sys
+
+import pytest
+from hypothesis import HealthCheck, assume, given, settings
+from hypothesis import strategies as st
+
+from ale_xfem.stability import random_case, run_case, suite, vacuum_forms
+
+SMALL = 60
+
+
+@pytest.mark.parametrize("case", suite(SMALL), ids=lambda case: case.name)
+def test_every_hard_case_passes(case):
+    row = run_case(case)
+    assert row["verdict"] == "pass", f"{case.name}: {row['verdict']} {row['diagnostic']}"
+    assert row["steps"] > 0
+    if case.name == "long-run-1e5-steps":
+        assert row["steps"] == 100_000
+    if case.name == "eulerian-crossing-100":
+        assert row["t_reached"] > 0
+
+
+def test_the_checks_can_fail():
+    """A case pushed past what the scheme takes (Toro's test 3 without artificial
+    viscosity, at CFL 1) is reported as failing."""
+    case = next(case for case in suite(SMALL) if case.name == "toro-3")
+    case.data = {**case.data, "numerics": {"cfl": 1.0, "q_quadratic": 0.0, "q_linear": 0.0}}
+    row = run_case(case, check_convergence=False)
+    assert row["verdict"] != "pass"
+
+
+magnitude = st.floats(min_value=-2.0, max_value=2.0)
+
+
+@settings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(rho=st.tuples(magnitude, magnitude), pressure=st.tuples(magnitude, st.floats(-2.0, 3.0)),
+       velocity=st.tuples(st.floats(-5.0, 5.0), st.floats(-5.0, 5.0)),
+       gamma=st.tuples(st.floats(1.2, 3.0), st.floats(1.2, 3.0)))
+def test_random_riemann_problems_stay_stable_and_converge(rho, pressure, velocity, gamma):
+    left = (10 ** rho[0], velocity[0], 10 ** pressure[0])
+    right = (10 ** rho[1], velocity[1], 10 ** pressure[1])
+    assume(not vacuum_forms(left, right, gamma))
+    row = run_case(random_case(0, left, right, gamma, cells=SMALL))
+    assert row["verdict"] == "pass", f"{left} | {right}, γ {gamma}: {row['verdict']} {row['diagnostic']}"
+
+
+def test_cli_writes_the_table_and_rejects_an_unknown_case(tmp_path):
+    out = tmp_path / "stability"
+    done = subprocess.run([sys.executable, "-m", "ale_xfem.cli", "study", "stability", "--cells", "40",
+                           "--random", "1", "--case", "toro-3", "--case", "random-1", "--out", str(out)],
+                          capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    assert "2 of 2 cases pass" in done.stdout
+    table = (out / "stability.md").read_text()
+    assert "| toro-3 | pass |" in table and "| random-1 | pass |" in table
+    assert (out / "stability.csv").read_text().count("\n") == 3
+    done = subprocess.run([sys.executable, "-m", "ale_xfem.cli", "study", "stability", "--case", "toro-9",
+                           "--out", str(tmp_path / "never")], capture_output=True, text=True)
+    assert done.returncode == 2 and "toro-9" in done.stderr and not (tmp_path / "never").exists()
