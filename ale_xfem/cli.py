@@ -27,6 +27,8 @@ def _parser() -> argparse.ArgumentParser:
                      help="override a scene key, e.g. --set mesh.cells=400 (repeatable)")
     run.add_argument("--no-plot", action="store_true", help="skip the PNG plot")
     run.add_argument("--quiet", action="store_true", help="no progress bar, no summary line")
+    run.add_argument("--xt", action="store_true",
+                     help="also write <name>-xt.png, the x–t diagram of density (1D)")
     run.add_argument("--explain", action="store_true",
                      help="print which effects the scene switches on and why (which key), and exit "
                           "without running")
@@ -195,8 +197,17 @@ def _run(args) -> int:
         print(explain(problem.effect_table))
         return EXIT_OK
     progress = Progress(scene.t_end, enabled=False if args.quiet else None)
-    result = simulate(problem, progress)
+    history = None
+    if args.xt:
+        from ale_xfem.plot import XTHistory
+
+        history = XTHistory()
+    result = simulate(problem, progress, observe=history.observe if history else None)
     write_outputs(problem, result, out, plot=not args.no_plot)
+    if history is not None:
+        from ale_xfem.plot import plot_xt
+
+        plot_xt(history, out / f"{scene.name}-xt.png", f"{scene.name}: density over x and t")
     if result.status != "ok":
         print(f"error: simulation failed: {result.diagnostic}; last good state (t = "
               f"{result.state.time:.6g}) written to {out}", file=sys.stderr)

@@ -88,3 +88,53 @@ def plot_comparison(runs, path: Path, title: str, fields=("density", "velocity",
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return path
+
+
+class XTHistory:
+    """Density over x and t, recorded as a run goes (pass :meth:`observe` to simulate):
+    the sorted node positions and the cell-average densities, every ``stride`` steps; past
+    ``max_rows`` rows every other row is dropped and the stride doubles."""
+
+    def __init__(self, max_rows: int = 600):
+        self.max_rows, self.stride, self.count = max_rows, 1, 0
+        self.times, self.edges, self.densities = [], [], []
+
+    def observe(self, state, problem) -> None:
+        self.count += 1
+        if (self.count - 1) % self.stride:
+            return
+        nodes = problem.mesh.cell_nodes
+        x = state.node_position[0][nodes]
+        left, right = x.min(axis=1), x.max(axis=1)
+        order = np.argsort(left + right)
+        mass = state.material_mass.sum(axis=0)
+        self.times.append(state.time)
+        self.edges.append(np.concatenate([left[order[:1]], right[order]]))
+        self.densities.append(mass[order] / (right - left)[order])
+        if len(self.times) > self.max_rows:
+            for rows in (self.times, self.edges, self.densities):
+                del rows[1::2]
+            self.stride *= 2
+
+
+def plot_xt(history: XTHistory, path: Path, title: str = "") -> Path:
+    """x–t diagram: density as colour over the mesh's own positions (a Lagrangian mesh's
+    cells are the strips between the node paths); logarithmic colours when the density
+    spans more than a factor 50."""
+    from matplotlib.colors import LogNorm, Normalize
+
+    x = np.array(history.edges)  # (rows, n + 1)
+    t = np.repeat(np.array(history.times)[:, None], x.shape[1], axis=1)
+    density = np.array(history.densities)[:-1]  # the colour of the strip above each row
+    low, high = float(density.min()), float(density.max())
+    norm = LogNorm(low, high) if low > 0 and high / low > 50 else Normalize(low, high)
+    fig, ax = plt.subplots(figsize=(8, 5))
+    mesh = ax.pcolormesh(x, t, density, norm=norm, cmap="viridis", shading="flat")
+    fig.colorbar(mesh, ax=ax, label="density")
+    ax.set_xlabel("x")
+    ax.set_ylabel("t")
+    ax.set_title(title or "density over x and t")
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return Path(path)

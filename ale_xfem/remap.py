@@ -98,13 +98,15 @@ def _segments(edges_a, edges_b):
 def remap_1d(order_of_cells, cell_left_node, cell_right_node, node_position, target_position,
              cell_material, material_mass, material_energy, material_volume, corner_mass,
              node_velocity, mixed_cells, interface_velocity, n_materials,
-             order: int = 2, condensed: bool = True) -> RemapResult:
+             order: int = 2, condensed: bool = True, heat: bool = True) -> RemapResult:
     """Remap a 1D state onto target node positions.
 
     order_of_cells: cells sorted left to right; cell_left_node / cell_right_node: (n_cells,)
     nodes of each cell; node_position, target_position: (n_nodes,); per-material arrays
     (S, n_cells) with slot 0 the left material of a mixed cell; node_velocity
-    (components, n_nodes); mixed_cells (n_mixed,) and interface_velocity (n_mixed,)."""
+    (components, n_nodes); mixed_cells (n_mixed,) and interface_velocity (n_mixed,).
+    ``heat``: the kinetic energy the momentum remap loses at each node goes into the
+    internal energy of the cells around it (:func:`deposit_kinetic_loss`)."""
     n_cells = cell_left_node.size
     n_nodes = node_position.size
     is_mixed = np.zeros(n_cells, dtype=bool)
@@ -255,14 +257,15 @@ def remap_1d(order_of_cells, cell_left_node, cell_right_node, node_position, tar
     # New corner masses: the lumped masses carried into each new part.  Dividing momentum
     # by them keeps a uniform velocity exactly uniform (no new extrema), and their sum is
     # the total mass.
-    new_part_mass = np.bincount(in_new, _integrate_linear(density[p], density_slope[p], centre[p], lo, hi)
-                                * scale, new_part_owner.size)
+    segment_mass = _integrate_linear(density[p], density_slope[p], centre[p], lo, hi) * scale
+    new_part_mass = np.bincount(in_new, segment_mass, new_part_owner.size)
     momentum = np.zeros((components, n_nodes))
+    segment_momentum = np.empty((components, lo.size))
     for k in range(components):
-        integrand = _simpson_product(density[p], density_slope[p], centre[p],
-                                     part_velocity[k, in_old], part_slope[k, in_old],
-                                     part_centroid[in_old], lo, hi)
-        momentum[k] = np.bincount(new_part_owner[in_new], integrand * scale, n_nodes)
+        segment_momentum[k] = _simpson_product(density[p], density_slope[p], centre[p],
+                                               part_velocity[k, in_old], part_slope[k, in_old],
+                                               part_centroid[in_old], lo, hi) * scale
+        momentum[k] = np.bincount(new_part_owner[in_new], segment_momentum[k], n_nodes)
 
     # -- back to cell order, new lumped masses and velocities ------------------------------
     cell_material_new = np.full((slots, n_cells), -1, dtype=np.int64)
@@ -278,10 +281,59 @@ def remap_1d(order_of_cells, cell_left_node, cell_right_node, node_position, tar
                                   2 * n_cells).reshape(n_cells, 2).T.copy()
     node_mass = np.bincount(new_part_owner, new_part_mass, n_nodes)
     velocity = momentum / node_mass
-    kinetic_before = 0.5 * np.sum(np.bincount(part_owner, part_share, n_nodes) * node_velocity**2)
+    old_node_mass = np.bincount(part_owner, part_share, n_nodes)
+    kinetic_before = 0.5 * np.sum(old_node_mass * node_velocity**2)
     kinetic_after = 0.5 * np.sum(node_mass * velocity**2)
+    if heat:
+        # What each old part hands to another node, as one lump per (part, new node): its
+        # kinetic energy ½ p²/m leaves the old node and reaches the new one.
+        old_owner, new_owner = part_owner[in_old], new_part_owner[in_new]
+        starts = np.concatenate([[True], (in_old[1:] != in_old[:-1]) | (new_owner[1:] != new_owner[:-1])])
+        group = np.cumsum(starts) - 1
+        lump_mass = np.bincount(group, segment_mass)
+        lump_momentum = np.array([np.bincount(group, m) for m in segment_momentum])
+        loss = 0.5 * old_node_mass * (node_velocity**2).sum(axis=0) - 0.5 * node_mass * (velocity**2).sum(axis=0)
+        loss += _handed_over(lump_mass, lump_momentum, old_owner[starts], new_owner[starts], n_nodes)
+        energy_new = deposit_kinetic_loss(loss, corner_mass_new, node_mass, cell_left_node, cell_right_node,
+                                          cell_material_new, mass_new, energy_new, cells[new_mixed_sorted],
+                                          condensed)
     return RemapResult(cell_material_new, mass_new, energy_new, volume_new, corner_mass_new, node_mass, velocity,
                        cells[new_mixed_sorted], kinetic_after - kinetic_before, momentum)
+
+
+def _handed_over(mass, momentum, from_node, to_node, n_nodes):
+    """Kinetic energy per node received minus given: lumps of (mass, momentum) going from
+    one node to another carry ½ |p|²/m."""
+    moving = (from_node != to_node) & (mass > 0)
+    kinetic = 0.5 * (momentum[:, moving] ** 2).sum(axis=0) / mass[moving]
+    return np.bincount(to_node[moving], kinetic, n_nodes) - np.bincount(from_node[moving], kinetic, n_nodes)
+
+
+def deposit_kinetic_loss(loss, corner_mass, node_mass, left_node, right_node, cell_material, material_mass,
+                         material_energy, mixed_cells, condensed: bool = True):
+    """Specific internal energies with each node's kinetic-energy loss added to the cells
+    around it, in proportion to the lumped (corner) masses they give it: the remap then
+    conserves total energy.  The loss of node k is ½M u² − ½M'u'² plus the kinetic energy
+    of what came in, less what went out; it sums to the discrete kinetic energy lost.  In
+    an enriched mixed cell a corner belongs to its node's internal material; a
+    single-velocity mixed cell shares it by mass."""
+    with np.errstate(invalid="ignore", divide="ignore"):
+        per_mass = np.where(node_mass > 0, loss / np.where(node_mass > 0, node_mass, 1.0), 0.0)
+    left, right = per_mass[left_node] * corner_mass[0], per_mass[right_node] * corner_mass[1]
+    heat = np.zeros_like(material_mass)
+    heat[0] = left + right
+    if mixed_cells.size:
+        c = mixed_cells
+        if condensed:
+            heat[0, c], heat[1, c] = left[c], right[c]
+        else:
+            total = left[c] + right[c]
+            fraction = material_mass[0, c] / (material_mass[0, c] + material_mass[1, c])
+            heat[0, c], heat[1, c] = total * fraction, total * (1.0 - fraction)
+    occupied = material_mass > 0
+    energy = material_energy.copy()
+    energy[occupied] += heat[occupied] / material_mass[occupied]
+    return energy
 
 
 class RemapFailure(RuntimeError):
@@ -389,6 +441,8 @@ class Remapper:
         self.node_order = np.argsort(x0, kind="stable")
         self.initial = x0.copy()
         self.motion, self.order = motion, order
+        # the kinetic energy lost by the momentum remap goes to internal energy
+        self.heat = problem.scene.numerics.remap_energy == "total"
         self.windows_remapped = 0  # interface-following motion: local remaps done
         self.general_remaps = 0  # steps remapped by the general intersection
         self.materials = problem.materials
@@ -490,7 +544,7 @@ class Remapper:
                               arrays["material_volume"][:, window_cells], corner_mass[:, window_cells],
                               arrays["node_velocity"][:, window_nodes], mixed_local,
                               state.interface_velocity[in_window], len(self.materials), self.order,
-                              condensed=mixed.model == "enriched")
+                              condensed=mixed.model == "enriched", heat=self.heat)
             if result.mixed_cells.size != mixed_local.size or not np.array_equal(
                     np.sort(result.mixed_cells), np.sort(mixed_local)):
                 raise RemapFailure("interface-following remap moved an interface out of its cell")
@@ -503,6 +557,23 @@ class Remapper:
             new_mass = result.node_mass + outside
             new_velocity = (result.node_momentum + outside * u_old) / new_mass
             kinetic_change += 0.5 * float(np.sum(new_mass * new_velocity**2) - np.sum(node_mass[window_nodes] * u_old**2))
+            if self.heat:
+                # The window's end nodes mix what the window gave them with their untouched
+                # parts outside it: that kinetic energy goes to their corner inside.
+                inside = result.node_mass
+                mixing = 0.5 * ((result.node_momentum**2).sum(axis=0) / np.where(inside > 0, inside, 1.0)
+                                + outside * (u_old**2).sum(axis=0) - new_mass * (new_velocity**2).sum(axis=0))
+                mixed_here = np.isin(np.arange(window_cells.size), result.mixed_cells)
+                for node, cell, side in ((0, 0, 0), (-1, window_cells.size - 1, 1)):
+                    mass = result.material_mass[:, cell]
+                    if not mixed_here[cell]:
+                        share = np.array([1.0] + [0.0] * (mass.size - 1))
+                    elif mixed.model == "enriched":  # the corner is its node's internal material's
+                        share = np.eye(mass.size)[side]
+                    else:
+                        share = mass / mass.sum()
+                    occupied = mass > 0
+                    result.material_energy[occupied, cell] += mixing[node] * share[occupied] / mass[occupied]
             arrays["node_velocity"][:, window_nodes] = new_velocity
             node_mass[window_nodes] = new_mass
             corner_mass[:, window_cells] = result.corner_mass
@@ -534,9 +605,9 @@ class Remapper:
         condensed = mixed is None or mixed.model == "enriched"
         # The swept form gives the same result at a few passes over the cells; the general
         # intersection serves the single-velocity closure and any step it does not cover.
-        result = remap_1d_swept(*arguments) if condensed else None
+        result = remap_1d_swept(*arguments, heat=self.heat) if condensed else None
         if result is None:
-            result = remap_1d(*arguments, condensed=condensed)
+            result = remap_1d(*arguments, condensed=condensed, heat=self.heat)
             self.general_remaps += 1
         self.corner_mass = result.corner_mass
         new_layout = MaterialLayout(result.cell_material, len(self.materials))

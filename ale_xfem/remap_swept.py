@@ -29,7 +29,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ale_xfem.remap import RemapFailure, RemapResult, _integrate_linear, _minmod, piece_slopes
+from ale_xfem.remap import (RemapFailure, RemapResult, _integrate_linear, _minmod, deposit_kinetic_loss,
+                            piece_slopes)
 
 
 def _clipped_integral(value, slope, centre, lo, hi, a, b):
@@ -43,7 +44,8 @@ def _clipped_integral(value, slope, centre, lo, hi, a, b):
 
 def remap_1d_swept(order_of_cells, cell_left_node, cell_right_node, node_position, target_position,
                    cell_material, material_mass, material_energy, material_volume, corner_mass,
-                   node_velocity, mixed_cells, interface_velocity, n_materials, order: int = 2):
+                   node_velocity, mixed_cells, interface_velocity, n_materials, order: int = 2,
+                   heat: bool = True):
     """The remap of :func:`ale_xfem.remap.remap_1d` (same arguments; mixed cells sorted left
     to right): the pure-cell kernel over the whole mesh, then the cells around each
     interface (mixed cells and node-aligned material boundaries) redone material by
@@ -68,7 +70,7 @@ def remap_1d_swept(order_of_cells, cell_left_node, cell_right_node, node_positio
     kernel = _pure_kernel(x, X, mass0, energy0, corner, u, order)
     if kernel is None:
         return None
-    new_mass, new_energy, right_corner, node_mass, momentum, old_node_mass, far_nodes = kernel
+    new_mass, new_energy, right_corner, node_mass, momentum, old_node_mass, kinetic, far_nodes = kernel
 
     # -- windows around the interfaces ---------------------------------------------------
     rank = np.arange(n) if in_order else _rank(cells, cell_left_node.size)
@@ -112,6 +114,7 @@ def remap_1d_swept(order_of_cells, cell_left_node, cell_right_node, node_positio
             kt = slice(taken[0] + 1 - window[0], taken[1] - window[0])
             node_mass[k] = result["node_mass"][kt]
             momentum[:, k] = result["node_momentum"][:, kt]
+            kinetic[k] = result["kinetic"][kt]
             taken_cells.append(np.arange(taken[0], taken[1]))
         new_mixed_j = np.flatnonzero(slot_material[1] >= 0)
         if np.any(np.abs(new_mixed_j[1:] - new_mixed_j[:-1]) <= 1):
@@ -133,23 +136,36 @@ def remap_1d_swept(order_of_cells, cell_left_node, cell_right_node, node_positio
     left_corner[1:] -= right_corner[:-1]
     specific = new_energy / new_mass[:1] if slots == 1 else _specific(new_energy, new_mass, taken_cells)
     velocity = momentum / node_mass
-    kinetic_change = 0.5 * float(np.sum(momentum * velocity) - np.sum(old_node_mass * u * u))
+    kinetic_new = 0.5 * (momentum * velocity).sum(axis=0)
+    kinetic_change = float(np.sum(kinetic_new)) - 0.5 * float(np.sum(old_node_mass * u * u))
+    loss = kinetic - kinetic_new if heat else None
 
     # -- back to cell (node) order ------------------------------------------------------
     corner_new = np.stack([left_corner, right_corner])
     if in_order:
-        return RemapResult(np.ascontiguousarray(slot_material), new_mass, specific, new_volume, corner_new,
-                           node_mass, velocity, cells[new_mixed_j], kinetic_change, momentum)
-    cell_material_new = np.empty_like(slot_material)
-    out = [np.empty_like(a) for a in (new_mass, specific, new_volume, corner_new)]
-    for target, values in zip([cell_material_new, *out], (slot_material, new_mass, specific, new_volume, corner_new)):
-        target[:, cells] = values
-    node_mass_out = np.empty_like(node_mass)
-    node_mass_out[nodes] = node_mass
-    velocity_out, momentum_out = np.empty_like(velocity), np.empty_like(momentum)
-    velocity_out[:, nodes], momentum_out[:, nodes] = velocity, momentum
-    return RemapResult(cell_material_new, out[0], out[1], out[2], out[3], node_mass_out, velocity_out,
-                       cells[new_mixed_j], kinetic_change, momentum_out)
+        result = RemapResult(np.ascontiguousarray(slot_material), new_mass, specific, new_volume, corner_new,
+                             node_mass, velocity, cells[new_mixed_j], kinetic_change, momentum)
+    else:
+        cell_material_new = np.empty_like(slot_material)
+        out = [np.empty_like(a) for a in (new_mass, specific, new_volume, corner_new)]
+        for target, values in zip([cell_material_new, *out],
+                                  (slot_material, new_mass, specific, new_volume, corner_new)):
+            target[:, cells] = values
+        node_mass_out = np.empty_like(node_mass)
+        node_mass_out[nodes] = node_mass
+        velocity_out, momentum_out = np.empty_like(velocity), np.empty_like(momentum)
+        velocity_out[:, nodes], momentum_out[:, nodes] = velocity, momentum
+        if heat:
+            loss_out = np.empty_like(loss)
+            loss_out[nodes] = loss
+            loss = loss_out
+        result = RemapResult(cell_material_new, out[0], out[1], out[2], out[3], node_mass_out, velocity_out,
+                             cells[new_mixed_j], kinetic_change, momentum_out)
+    if heat:
+        result.material_energy = deposit_kinetic_loss(
+            loss, result.corner_mass, result.node_mass, cell_left_node, cell_right_node, result.cell_material,
+            result.material_mass, result.material_energy, result.mixed_cells)
+    return result
 
 
 _ORDER_CACHE: dict = {}
@@ -332,11 +348,16 @@ def _pure_kernel(x, X, mass, specific_energy, corner, u, order):
     momentum = u * old_node_mass
     momentum[:, :-1] -= moved_momentum
     momentum[:, 1:] += moved_momentum
+    kinetic = 0.5 * old_node_mass * (u * u).sum(axis=0)  # less what is handed over, plus what comes in
+    kinetic_flux = _lump_kinetic(swept, moved_momentum)
+    np.copysign(kinetic_flux, swept, out=kinetic_flux)  # signed like the mass: > 0 rightward
+    kinetic[:-1] -= kinetic_flux
+    kinetic[1:] += kinetic_flux
     # right corner of new cell j = [F_j, X_{j+1}] = R_j + what the face moved into it −
     # ∫ from x_{j+1} to X_{j+1} (the node's swept mass in the part beside the node)
     right_corner = share_right + swept
     right_corner[:-1] += flux_mass * np.where(right_donor, -scale_left[1:], -scale_right[:-1])
-    return new_mass, new_energy, right_corner, node_mass, momentum, old_node_mass, far_nodes
+    return new_mass, new_energy, right_corner, node_mass, momentum, old_node_mass, kinetic, far_nodes
 
 
 def _swept_sorted(x, X, m0, mass0, specific0, corner_sorted, u, mixed_j, volume0_mixed, m1, mass1,
@@ -456,10 +477,10 @@ def _swept_sorted(x, X, m0, mass0, specific0, corner_sorted, u, mixed_j, volume0
                        mixed_velocity, m0, m1, cut)
     if result is None:
         return None
-    node_mass, momentum, corner_new = result
+    node_mass, momentum, corner_new, kinetic = result
     return {"slot_material": new_slot_material, "mass": new["mass"], "energy": new["energy"],
             "volume": new["volume"], "corner": corner_new, "node_mass": node_mass,
-            "node_momentum": momentum, "new_mixed_j": new_mixed_j}
+            "node_momentum": momentum, "new_mixed_j": new_mixed_j, "kinetic": kinetic}
 
 
 def _finish_special_cells(special_j, n, n_materials, new, new_slot_material, to_right, donor, X, x,
@@ -630,6 +651,9 @@ def _momentum(n, x, X, xl, xr, mixed_j, gamma, new_mixed_j, new_gamma, rho0, srh
     a, b = np.minimum(new_face, face), np.maximum(new_face, face)
     to_right_mass, to_right_momentum = _overlap_mass_momentum(left.window(0, n), a, b)
     to_left_mass, to_left_momentum = _overlap_mass_momentum(right, a, b)
+    # kinetic energy handed to the next node (rightward) less that handed back, one lump
+    # per old part (the general intersection's grouping)
+    kinetic_flux = _lump_kinetic(to_right_mass, to_right_momentum) - _lump_kinetic(to_left_mass, to_left_momentum)
     far = _inside_cut(np.flatnonzero((a < xl) | (b > xr)), n, cut)
     if far.size:
         width = xr[far] - xl[far]
@@ -641,9 +665,11 @@ def _momentum(n, x, X, xl, xr, mixed_j, gamma, new_mixed_j, new_gamma, rho0, srh
         m[far == 0], mom[:, far == 0] = 0.0, 0.0
         to_right_mass[far] += m
         to_right_momentum[:, far] += mom
+        kinetic_flux[far] += _lump_kinetic(m, mom)
         m, mom = _overlap_mass_momentum(left.take(after), a[far], b[far])
         to_left_mass[far] += m
         to_left_momentum[:, far] += mom
+        kinetic_flux[far] -= _lump_kinetic(m, mom)
     moved_mass = to_right_mass - to_left_mass
     moved_momentum = to_right_momentum - to_left_momentum
     old_mass = np.zeros(n + 1)
@@ -677,7 +703,17 @@ def _momentum(n, x, X, xl, xr, mixed_j, gamma, new_mixed_j, new_gamma, rho0, srh
         beyond[far == n - 1] = 0.0
         right_corner[far] += extra + beyond
     left_corner = new_mass[:-1] - np.concatenate([[0.0], right_corner[:-1]])
-    return new_mass, new_momentum, np.stack([left_corner, right_corner])
+    # ½M u² of each node, less the kinetic energy it handed over, plus what it received
+    kinetic = 0.5 * old_mass * (u * u).sum(axis=0)
+    kinetic[:-1] -= kinetic_flux
+    kinetic[1:] += kinetic_flux
+    return new_mass, new_momentum, np.stack([left_corner, right_corner]), kinetic
+
+
+def _lump_kinetic(mass, momentum):
+    """½ |p|²/m of lumps (0 for empty ones)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(mass != 0.0, 0.5 * (momentum * momentum).sum(axis=0) / np.where(mass != 0.0, mass, 1.0), 0.0)
 
 
 def _inside_cut(index, n, cut):

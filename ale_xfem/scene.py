@@ -31,6 +31,9 @@ NUMERICS_DEFAULTS = {
     "interface_tolerance": 1e-10,  # mixed cells: pressure balance, relative to ρc²
     "interface_max_iterations": 50,  # predictor/corrector iterations per step
     "remap_order": 2,  # 1: constant per piece; 2: limited linear reconstruction
+    # total: the kinetic energy the momentum remap loses goes into the internal energy of
+    # the cells around each node (total energy conserved); internal: it is lost (reported)
+    "remap_energy": "total",
 }
 
 INTERFACE_DEFAULTS = {
@@ -107,6 +110,7 @@ class Numerics:
     interface_tolerance: float = 1e-10
     interface_max_iterations: int = 50
     remap_order: int = 2
+    remap_energy: str = "total"
 
 
 @dataclass(frozen=True)
@@ -370,6 +374,7 @@ def _validate_numerics(table: Any) -> Numerics:
         interface_max_iterations=_integer(table["interface_max_iterations"],
                                           "numerics.interface_max_iterations"),
         remap_order=_choice_int(table["remap_order"], "numerics.remap_order", (1, 2)),
+        remap_energy=_choice(table["remap_energy"], "numerics.remap_energy", ("total", "internal")),
     )
 
 

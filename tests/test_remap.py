@@ -9,18 +9,25 @@ from ale_xfem.scene import load_scene, resolve_scene_path
 from conftest import fitted_rate, run_scene
 
 
-@pytest.mark.parametrize("motion", ["eulerian", "smoothed"])
+@pytest.mark.parametrize("motion", ["eulerian", "smoothed", "interface"])
 @pytest.mark.parametrize("order", [1, 2])
-def test_mass_momentum_and_internal_energy_conserved_through_lagrange_and_remap(motion, order):
+@pytest.mark.parametrize("energy", ["total", "internal"])
+def test_mass_momentum_and_energy_conserved_through_lagrange_and_remap(motion, order, energy):
     problem, result = run_scene("sod-two-gamma-enriched", "mesh.cells=200", f"mesh.motion={motion}",
-                                f"numerics.remap_order={order}")
+                                f"numerics.remap_order={order}", f"numerics.remap_energy={energy}")
     assert result.status == "ok"
     drift = result.conservation
     assert abs(drift["mass"]) < 1e-14
     assert drift["momentum"] < 1e-13
-    # The only change of total energy is the kinetic energy the remap dissipates.
-    assert drift["total_energy"] == pytest.approx(drift["remap_kinetic_energy_change"], abs=1e-13)
+    # The remap turns kinetic energy into heat ("total": total energy conserved to
+    # round-off) or loses it ("internal": the only change of total energy).
     assert -1e-2 < drift["remap_kinetic_energy_change"] <= 0.0
+    if motion != "interface":
+        assert drift["remap_kinetic_energy_change"] < -1e-6
+    if energy == "total":
+        assert abs(drift["total_energy"]) < 1e-13
+    else:
+        assert drift["total_energy"] == pytest.approx(drift["remap_kinetic_energy_change"], abs=1e-13)
     assert result.mixed_cells["count"] == 1
 
 
@@ -88,8 +95,7 @@ def test_single_velocity_closure_conserves_and_converges(motion):
                               "interface.model=single_velocity")
         assert result.status == "ok"
         assert abs(result.conservation["mass"]) < 1e-14 and result.conservation["momentum"] < 1e-13
-        expected = result.conservation.get("remap_kinetic_energy_change", 0.0)
-        assert result.conservation["total_energy"] == pytest.approx(expected, abs=1e-13)
+        assert abs(result.conservation["total_energy"]) < 1e-13  # the remap's heat included
         errors.append(result.errors["L1_density"])
     assert fitted_rate(sizes, errors) >= 0.7, errors
 
@@ -141,7 +147,7 @@ def test_interface_following_plate_impact_conserves_and_matches_impedance_matchi
     assert result.status == "ok"
     drift = result.conservation
     assert abs(drift["mass"]) < 1e-14 and drift["momentum"] < 1e-13
-    assert drift["total_energy"] == pytest.approx(drift["remap_kinetic_energy_change"], abs=1e-13)
+    assert abs(drift["total_energy"]) < 1e-13  # the local remaps' kinetic-energy loss became heat
     exact = problem.exact.solution
     assert result.state.interface_pressure[0] == pytest.approx(exact.contact_pressure, rel=0.02)
     assert result.state.interface_velocity[0] == pytest.approx(exact.contact_velocity, rel=0.02)
