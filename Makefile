@@ -12,7 +12,7 @@ find_python = $(shell \
     if command -v $$c >/dev/null 2>&1 && $$c -c 'import sys; sys.exit(sys.version_info < (3, 12))' 2>/dev/null; then \
       command -v $$c; break; fi; done)
 
-.PHONY: demo test bench clean
+.PHONY: demo test bench bench-peers clean
 
 $(STAMP): pyproject.toml
 	@if [ ! -x $(PY) ]; then \
@@ -36,6 +36,19 @@ test: $(STAMP)
 
 bench: $(STAMP)
 	$(VENV)/bin/ale-xfem bench
+
+# PyClaw (clawpack) side by side with ours on Sod's tube; clawpack builds from source with
+# gfortran and meson >= 1.2.3 (installed into .venv, with ninja and meson-python).
+bench-peers: $(STAMP)
+	@command -v gfortran >/dev/null 2>&1 || { \
+	  echo "error: PyClaw builds with gfortran, which is not installed."; \
+	  echo "Install it ('apt install gfortran' on Debian/Ubuntu, 'brew install gcc' on macOS) and run 'make bench-peers' again."; \
+	  exit 1; }
+	@$(PY) -c 'import clawpack.pyclaw' 2>/dev/null || { \
+	  echo "installing PyClaw into $(VENV) (a few minutes: it compiles its Fortran Riemann solvers)"; \
+	  $(PY) -m pip install --quiet 'meson>=1.2.3' ninja meson-python && \
+	  PATH="$(CURDIR)/$(VENV)/bin:$$PATH" $(PY) -m pip install --quiet --no-build-isolation clawpack; }
+	$(VENV)/bin/ale-xfem bench --peers
 
 clean:
 	rm -rf out .pytest_cache

@@ -64,6 +64,11 @@ def _parser() -> argparse.ArgumentParser:
     bench.add_argument("--phases", action="store_true",
                        help="time per step by phase (explicit, mixed-cell solve, remap) with and "
                             "without an enriched interface, at 1000 and 100000 cells (or --cells)")
+    bench.add_argument("--peers", action="store_true",
+                       help="Sod's tube: PyClaw's second-order solver against our Lagrangian and enriched "
+                            "runs, 100 ... 3200 cells (`make bench-peers` installs PyClaw)")
+    bench.add_argument("--out", type=Path, default=Path("out") / "bench-peers",
+                       help="with --peers: output folder (default: out/bench-peers)")
     return parser
 
 
@@ -143,6 +148,23 @@ def _study(args) -> int:
 
 def _bench(args) -> int:
     from ale_xfem.bench import run_bench, run_phase_bench
+
+    if args.peers:
+        from ale_xfem.peers import SIZES, pyclaw_available, run_peer_comparison
+
+        if not pyclaw_available():
+            print("error: --peers needs PyClaw (package clawpack), which is not installed: run "
+                  "`make bench-peers` (it installs clawpack into .venv; the build needs gfortran)", file=sys.stderr)
+            return EXIT_BAD_INPUT
+        sizes = SIZES if args.cells == "1000,10000,100000,1000000" else None
+        try:
+            sizes = sizes or _cells(args.cells)
+        except ValueError as error:
+            print(f"error: {error}", file=sys.stderr)
+            return EXIT_BAD_INPUT
+        run_peer_comparison(args.out, sizes)
+        print(f"written: {args.out}/peers.csv, peers.md, peers.png")
+        return EXIT_OK
 
     try:
         sizes = [int(v) for v in args.cells.split(",")]
