@@ -310,30 +310,30 @@ def _handed_over(mass, momentum, from_node, to_node, n_nodes):
 
 
 def deposit_kinetic_loss(loss, corner_mass, node_mass, left_node, right_node, cell_material, material_mass,
-                         material_energy, mixed_cells, condensed: bool = True):
-    """Specific internal energies with each node's kinetic-energy loss added to the cells
-    around it, in proportion to the lumped (corner) masses they give it: the remap then
-    conserves total energy.  The loss of node k is ½M u² − ½M'u'² plus the kinetic energy
-    of what came in, less what went out; it sums to the discrete kinetic energy lost.  In
-    an enriched mixed cell a corner belongs to its node's internal material; a
-    single-velocity mixed cell shares it by mass."""
-    with np.errstate(invalid="ignore", divide="ignore"):
-        per_mass = np.where(node_mass > 0, loss / np.where(node_mass > 0, node_mass, 1.0), 0.0)
-    left, right = per_mass[left_node] * corner_mass[0], per_mass[right_node] * corner_mass[1]
-    heat = np.zeros_like(material_mass)
-    heat[0] = left + right
+                         material_energy, mixed_cells, condensed: bool = True, in_order: bool = False):
+    """Add each node's kinetic-energy loss to the specific internal energies of the cells
+    around it (in place, on the remap's own arrays), in proportion to the lumped (corner)
+    masses they give it: the remap then conserves total energy.  The loss of node k is
+    ½M u² − ½M'u'² plus the kinetic energy of what came in, less what went out; it sums to
+    the discrete kinetic energy lost.  In an enriched mixed cell a corner belongs to its
+    node's internal material; a single-velocity mixed cell shares it by mass.
+    ``in_order``: cell j lies between nodes j and j + 1 (slices instead of gathers)."""
+    per_mass = np.zeros_like(loss)
+    np.divide(loss, node_mass, out=per_mass, where=node_mass > 0)
+    if in_order:
+        left, right = per_mass[:-1] * corner_mass[0], per_mass[1:] * corner_mass[1]
+    else:
+        left, right = per_mass[left_node] * corner_mass[0], per_mass[right_node] * corner_mass[1]
+    heat = left
+    heat += right  # slot 0 of every cell; moved to slot 1 below where a mixed cell holds it
     if mixed_cells.size:
         c = mixed_cells
-        if condensed:
-            heat[0, c], heat[1, c] = left[c], right[c]
-        else:
-            total = left[c] + right[c]
-            fraction = material_mass[0, c] / (material_mass[0, c] + material_mass[1, c])
-            heat[0, c], heat[1, c] = total * fraction, total * (1.0 - fraction)
-    occupied = material_mass > 0
-    energy = material_energy.copy()
-    energy[occupied] += heat[occupied] / material_mass[occupied]
-    return energy
+        to_second = right[c] if condensed else heat[c] * material_mass[1, c] / (material_mass[0, c] + material_mass[1, c])
+        heat[c] -= to_second
+        material_energy[1, c] += to_second / material_mass[1, c]
+    heat /= material_mass[0]
+    material_energy[0] += heat
+    return material_energy
 
 
 class RemapFailure(RuntimeError):

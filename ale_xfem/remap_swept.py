@@ -136,8 +136,9 @@ def remap_1d_swept(order_of_cells, cell_left_node, cell_right_node, node_positio
     left_corner[1:] -= right_corner[:-1]
     specific = new_energy / new_mass[:1] if slots == 1 else _specific(new_energy, new_mass, taken_cells)
     velocity = momentum / node_mass
-    kinetic_new = 0.5 * (momentum * velocity).sum(axis=0)
-    kinetic_change = float(np.sum(kinetic_new)) - 0.5 * float(np.sum(old_node_mass * u * u))
+    kinetic_new = _dot(momentum, velocity)
+    kinetic_new *= 0.5
+    kinetic_change = float(np.sum(kinetic_new)) - 0.5 * float(_dot(u, u) @ old_node_mass)
     loss = kinetic - kinetic_new if heat else None
 
     # -- back to cell (node) order ------------------------------------------------------
@@ -162,9 +163,9 @@ def remap_1d_swept(order_of_cells, cell_left_node, cell_right_node, node_positio
         result = RemapResult(cell_material_new, out[0], out[1], out[2], out[3], node_mass_out, velocity_out,
                              cells[new_mixed_j], kinetic_change, momentum_out)
     if heat:
-        result.material_energy = deposit_kinetic_loss(
-            loss, result.corner_mass, result.node_mass, cell_left_node, cell_right_node, result.cell_material,
-            result.material_mass, result.material_energy, result.mixed_cells)
+        deposit_kinetic_loss(loss, result.corner_mass, result.node_mass, cell_left_node, cell_right_node,
+                             result.cell_material, result.material_mass, result.material_energy, result.mixed_cells,
+                             in_order=in_order)
     return result
 
 
@@ -348,7 +349,9 @@ def _pure_kernel(x, X, mass, specific_energy, corner, u, order):
     momentum = u * old_node_mass
     momentum[:, :-1] -= moved_momentum
     momentum[:, 1:] += moved_momentum
-    kinetic = 0.5 * old_node_mass * (u * u).sum(axis=0)  # less what is handed over, plus what comes in
+    kinetic = _dot(u, u)  # ½M u², less what is handed over, plus what comes in
+    kinetic *= old_node_mass
+    kinetic *= 0.5
     kinetic_flux = _lump_kinetic(swept, moved_momentum)
     np.copysign(kinetic_flux, swept, out=kinetic_flux)  # signed like the mass: > 0 rightward
     kinetic[:-1] -= kinetic_flux
@@ -704,7 +707,7 @@ def _momentum(n, x, X, xl, xr, mixed_j, gamma, new_mixed_j, new_gamma, rho0, srh
         right_corner[far] += extra + beyond
     left_corner = new_mass[:-1] - np.concatenate([[0.0], right_corner[:-1]])
     # ½M u² of each node, less the kinetic energy it handed over, plus what it received
-    kinetic = 0.5 * old_mass * (u * u).sum(axis=0)
+    kinetic = 0.5 * old_mass * _dot(u, u)
     kinetic[:-1] -= kinetic_flux
     kinetic[1:] += kinetic_flux
     return new_mass, new_momentum, np.stack([left_corner, right_corner]), kinetic
@@ -712,8 +715,19 @@ def _momentum(n, x, X, xl, xr, mixed_j, gamma, new_mixed_j, new_gamma, rho0, srh
 
 def _lump_kinetic(mass, momentum):
     """½ |p|²/m of lumps (0 for empty ones)."""
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(mass != 0.0, 0.5 * (momentum * momentum).sum(axis=0) / np.where(mass != 0.0, mass, 1.0), 0.0)
+    kinetic = _dot(momentum, momentum)
+    kinetic *= 0.5
+    np.divide(kinetic, mass, out=kinetic, where=mass != 0.0)
+    kinetic[mass == 0.0] = 0.0
+    return kinetic
+
+
+def _dot(a, b):
+    """Σ_components a·b of (components, n) arrays, without a reduction over a new array."""
+    out = a[0] * b[0]
+    for k in range(1, a.shape[0]):
+        out += a[k] * b[k]
+    return out
 
 
 def _inside_cut(index, n, cut):
