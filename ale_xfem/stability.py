@@ -4,7 +4,9 @@ A suite of 1D cases, each run with an enriched interface inside a cell (unless t
 about something else), checked for: finished, positive densities, volumes and (ideal-gas)
 energies, admissible states (real sound speeds), volume fractions in [0, 1], mass and
 momentum conserved to round-off, and — where an exact solution exists — the L1 error of
-density falling from n to 2n cells.  It reports the extremes seen during the run, the
+density falling from n to 4n cells (4n rather than 2n: on the coarsest meshes a slow wave
+in a heavy material may be resolved by a few cells only, and the error can rise before it
+falls — seen on drawn problems at 60 → 120 cells).  It reports the extremes seen during the run, the
 conservation drifts, the worst new extremum of density against the exact solution, the
 mixed-cell solver's iterations and the steps.
 """
@@ -21,6 +23,7 @@ from ale_xfem.exact.riemann import GasState, RiemannSolution
 from ale_xfem.scene import Scene, validate
 
 MASS_TOLERANCE = 1e-13
+REFINEMENT = 4  # the convergence check compares n and REFINEMENT × n cells
 MOMENTUM_TOLERANCE = 1e-12
 
 
@@ -31,7 +34,7 @@ class Case:
     data: dict  # the scene's tables, as in its TOML file (mesh.cells is set per run)
     cells: int = 200  # resolution of the suite's run (the test suite halves it)
     max_steps: int | None = None  # stop after this many steps (the long run)
-    exact: bool = True  # has an exact solution: check that L1(ρ) falls from n to 2n cells
+    exact: bool = True  # has an exact solution: check that L1(ρ) falls from n to 4n cells
 
     def scene(self, cells: int, t_end: float | None = None) -> Scene:
         data = {**self.data, "mesh": {**self.data["mesh"], "cells": cells}}
@@ -191,7 +194,7 @@ class Extremes:
     min_ideal_energy: float = math.inf  # specific internal energy of ideal gases
     inadmissible: int = 0  # steps with a non-real or zero sound speed in an occupied slot
     reference_volume: float = 0.0
-    peak_momentum: float = 0.0  # largest Σ M|u| of the run: the scale of its momentum balance
+    peak_momentum: float = 0.0  # largest Σ M|u| of the run (at least M c at t = 0): momentum scale
     ideal: list = field(default_factory=list)
 
     def observe(self, state, problem) -> None:
@@ -199,6 +202,9 @@ class Extremes:
         self.peak_momentum = max(self.peak_momentum, float(np.sum(problem.node_mass * np.abs(state.node_velocity))))
         if self.reference_volume == 0.0:
             self.reference_volume = float(state.material_volume[0].min())
+            # a flow that stays at rest still has the acoustic momentum scale M c
+            self.peak_momentum = max(self.peak_momentum, float(np.sum(problem.node_mass))
+                                     * float(np.max(state.material_sound_speed)))
             self.ideal = [i for i, m in enumerate(problem.materials)
                           if m.eos_name == "ideal_gas"]
         self.min_density = min(self.min_density, float(state.material_density[occupied].min()))
@@ -219,7 +225,7 @@ class Extremes:
 
 
 def run_case(case: Case, cells: int | None = None, check_convergence: bool = True) -> dict:
-    """Run a case (and, with an exact solution, again at twice the cells); return its row."""
+    """Run a case (and, with an exact solution, again at REFINEMENT times the cells); return its row."""
     from ale_xfem.problem import build_problem
     from ale_xfem.run import simulate
 
@@ -236,24 +242,28 @@ def run_case(case: Case, cells: int | None = None, check_convergence: bool = Tru
            "min_ideal_energy": extremes.min_ideal_energy, "inadmissible_steps": extremes.inadmissible,
            "fraction_min": extremes.min_fraction, "fraction_max": extremes.max_fraction,
            "mass_drift": abs(result.conservation.get("mass", math.nan)),
-           # |Δ momentum − boundary impulse| over the run's largest Σ M|u| (at the end the
-           # flow may have come to rest, which would inflate a drift relative to the end)
+           # |Δ momentum − boundary impulse| over the run's largest Σ M|u| or the initial M c
+           # (at the end the flow may have come to rest, which would inflate a drift
+           # relative to the end)
            "momentum_drift": abs(result.conservation.get("momentum", math.nan))
            * result.conservation.get("momentum_scale", math.nan) / max(extremes.peak_momentum, 1e-300),
            "energy_drift": result.conservation.get("total_energy", math.nan),
            "remap_kinetic_change": result.conservation.get("remap_kinetic_energy_change", 0.0),
            "iterations_mean": math.nan, "iterations_max": math.nan,
-           "L1_density": math.nan, "L1_density_2n": math.nan, "overshoot": math.nan}
+           "L1_density": math.nan, "L1_density_fine": math.nan, "overshoot": math.nan}
     if result.mixed_cells and result.mixed_cells.get("solves"):
         row["iterations_mean"] = result.mixed_cells.get("iterations_mean", math.nan)
         row["iterations_max"] = result.mixed_cells.get("iterations_max", math.nan)
     if problem.exact is not None and case.exact and result.status == "ok":
         row["L1_density"] = result.errors["L1_density"]
         row["overshoot"] = density_overshoot(problem, result.state)
+        x = result.state.node_position[0]
+        row["L1_negligible"] = 1e-10 * float(np.max(problem.exact.sample(x, result.state.time)["density"])
+                                             * (x.max() - x.min()))
         if check_convergence:
-            fine = build_problem(case.scene(2 * cells, t_end=problem.scene.t_end))
+            fine = build_problem(case.scene(REFINEMENT * cells, t_end=problem.scene.t_end))
             fine_result = simulate(fine, stop_after_steps=case.max_steps)
-            row["L1_density_2n"] = (fine_result.errors or {}).get("L1_density", math.nan) \
+            row["L1_density_fine"] = (fine_result.errors or {}).get("L1_density", math.nan) \
                 if fine_result.status == "ok" else math.nan
     row["seconds"] = time.perf_counter() - clock
     row["verdict"] = verdict(row, case)
@@ -291,8 +301,10 @@ def verdict(row: dict, case: Case) -> str:
         problems.append(f"mass drift {row['mass_drift']:.1e}")
     if not row["momentum_drift"] <= MOMENTUM_TOLERANCE:
         problems.append(f"momentum drift {row['momentum_drift']:.1e}")
+    # (an error at round-off level, e.g. a lone contact on a Lagrangian mesh, need not fall)
     if case.exact and row["status"] == "ok" and math.isfinite(row["L1_density"]) and math.isfinite(
-            row["L1_density_2n"]) and not row["L1_density_2n"] < row["L1_density"]:
+            row["L1_density_fine"]) and not row["L1_density_fine"] < row["L1_density"] \
+            and not max(row["L1_density"], row["L1_density_fine"]) <= row.get("L1_negligible", 0.0):
         problems.append("L1(ρ) does not fall with resolution")
     return "pass" if not problems else "; ".join(problems)
 
@@ -300,7 +312,7 @@ def verdict(row: dict, case: Case) -> str:
 TABLE_COLUMNS = (("case", "case"), ("verdict", "verdict"), ("cells", "cells"), ("steps", "steps"),
                  ("min_density", "min ρ"), ("min_volume", "min V/V₀"), ("mass_drift", "mass drift"),
                  ("momentum_drift", "momentum drift"), ("energy_drift", "energy drift"),
-                 ("overshoot", "overshoot"), ("L1_density", "L1(ρ) n"), ("L1_density_2n", "L1(ρ) 2n"),
+                 ("overshoot", "overshoot"), ("L1_density", "L1(ρ) n"), ("L1_density_fine", "L1(ρ) 4n"),
                  ("iterations_mean", "iter. mean"), ("iterations_max", "iter. max"), ("seconds", "s"))
 
 
@@ -324,14 +336,14 @@ def markdown_table(rows: list[dict]) -> str:
 
 def text_table(rows: list[dict]) -> str:
     header = f"{'case':<24} {'verdict':<10} {'cells':>5} {'steps':>7} {'min ρ':>9} {'min V/V0':>9} " \
-             f"{'mass':>8} {'momentum':>8} {'overshoot':>9} {'L1 n':>9} {'L1 2n':>9} {'iter':>9} {'s':>6}"
+             f"{'mass':>8} {'momentum':>8} {'overshoot':>9} {'L1 n':>9} {'L1 4n':>9} {'iter':>9} {'s':>6}"
     lines = [header]
     for r in rows:
         iterations = "–" if math.isnan(r["iterations_mean"]) else f"{r['iterations_mean']:.1f}/{r['iterations_max']:.0f}"
         lines.append(f"{r['case']:<24} {r['verdict'][:10]:<10} {r['cells']:>5} {r['steps']:>7} "
                      f"{_cell(r['min_density']):>9} {_cell(r['min_volume']):>9} {_cell(r['mass_drift']):>8} "
                      f"{_cell(r['momentum_drift']):>8} {_cell(r['overshoot']):>9} {_cell(r['L1_density']):>9} "
-                     f"{_cell(r['L1_density_2n']):>9} {iterations:>9} {r['seconds']:>6.1f}")
+                     f"{_cell(r['L1_density_fine']):>9} {iterations:>9} {r['seconds']:>6.1f}")
         if r["verdict"] != "pass":
             lines.append(f"    {r['verdict']}" + (f" — {r['diagnostic']}" if r["diagnostic"] else ""))
     return "\n".join(lines)
@@ -340,7 +352,7 @@ def text_table(rows: list[dict]) -> str:
 CSV_COLUMNS = ("case", "verdict", "cells", "status", "steps", "t_reached", "min_density", "min_volume",
                "min_ideal_energy", "inadmissible_steps", "fraction_min", "fraction_max", "mass_drift",
                "momentum_drift", "energy_drift", "remap_kinetic_change", "overshoot", "L1_density",
-               "L1_density_2n", "iterations_mean", "iterations_max", "seconds", "diagnostic", "description")
+               "L1_density_fine", "iterations_mean", "iterations_max", "seconds", "diagnostic", "description")
 
 
 def run_stability_study(out, cells: int = 200, random_count: int = 10, seed: int = 1, echo=print,
@@ -366,8 +378,8 @@ def run_stability_study(out, cells: int = 200, random_count: int = 10, seed: int
         writer.writerows(rows)
     passed = sum(r["verdict"] == "pass" for r in rows)
     header = [f"# Stability suite: {passed} of {len(rows)} cases pass", "",
-              f"Suite resolution {cells} cells (each case with an exact solution also at {2 * cells}: "
-              f"'L1(ρ) 2n'); {random_count} random Riemann problems, seed {seed}.  min ρ: smallest density "
+              f"Suite resolution {cells} cells (each case with an exact solution also at {REFINEMENT * cells}: "
+              f"'L1(ρ) 4n'); {random_count} random Riemann problems, seed {seed}.  min ρ: smallest density "
               "seen during the run; min V/V₀: smallest material volume over the initial smallest cell; drifts "
               "relative (momentum over the run's largest Σ M|u|); overshoot: new density extrema against the "
               "exact solution, relative to its range; iterations of the mixed-cell solver per step.", "", ""]
