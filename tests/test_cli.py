@@ -107,3 +107,20 @@ def test_bench_prints_zone_cycles_per_second(capsys):
 
 def test_bench_rejects_bad_sizes(capsys):
     assert main(["bench", "--cells", "10,x"]) == 2
+
+
+def test_xt_writes_the_diagram_with_one_row_per_recorded_step(tmp_path):
+    from ale_xfem.plot import XTHistory
+    from ale_xfem.problem import build_problem
+    from ale_xfem.run import simulate
+    from ale_xfem.scene import resolve_scene_path
+
+    assert main(["run", "sod", "--set", "mesh.cells=60", "--xt", "--no-plot", "--quiet", "--out",
+                 str(tmp_path)]) == 0
+    assert (tmp_path / "sod-xt.png").stat().st_size > 10_000
+    history = XTHistory(max_rows=50)
+    result = simulate(build_problem(load_scene(resolve_scene_path("sod"), ["mesh.cells=60"])),
+                      observe=history.observe)
+    assert len(history.times) <= 51 and history.times[0] == 0.0  # thinned, from t = 0
+    assert history.edges[0].size == 61 and history.densities[0].size == 60
+    assert result.steps + 1 > len(history.times)  # every step observed, rows thinned
