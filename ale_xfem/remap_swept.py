@@ -587,32 +587,33 @@ class _Parts:
         return part
 
 
-def _overlap_mass(part, a, b):
-    """Lumped mass of the parts over [a, b] ∩ part (zero where they do not meet)."""
+def _overlap(part, a, b):
+    """Length and middle of [a, b] ∩ part (length 0 where they do not meet)."""
     start = np.maximum(a, part.lo)
     length = np.minimum(b, part.hi)
     length -= start
     np.maximum(length, 0.0, out=length)
     mid = 0.5 * length
     mid += start
-    mid -= part.cen
-    mid *= part.srho
-    mid += part.rho
-    mid *= length
-    mid *= part.scale
-    return mid
+    return length, mid
+
+
+def _overlap_mass(part, a, b):
+    """Lumped mass of the parts over [a, b] ∩ part (zero where they do not meet)."""
+    length, mass = _overlap(part, a, b)
+    mass -= part.cen
+    mass *= part.srho
+    mass += part.rho
+    mass *= length
+    mass *= part.scale
+    return mass
 
 
 def _overlap_mass_momentum(part, a, b):
     """Lumped mass and momentum of the parts over [a, b] ∩ part.  The velocity is linear
     on a part, u + τ (x − x̄), so ∫ρu = M (u + τ (x_M − x̄)) with x_M the centre of mass of
     the overlap: M x_M = M·mid + σ L³/12 (exactly the general intersection's integral)."""
-    start = np.maximum(a, part.lo)
-    length = np.minimum(b, part.hi)
-    length -= start
-    np.maximum(length, 0.0, out=length)
-    mid = 0.5 * length
-    mid += start
+    length, mid = _overlap(part, a, b)
     mass = mid - part.cen
     mass *= part.srho
     mass += part.rho
