@@ -469,9 +469,10 @@ class Remapper:
 
     # Interface-following motion: a mixed cell whose interface comes closer to one of its
     # nodes than this fraction of the cell has that node moved so that Γ is back in the
-    # middle of the cell (at most half-way into the neighbouring cell), and only the two
-    # cells sharing that node are remapped.
+    # middle of the cell (as far as the neighbouring cell keeps KEEP of its initial
+    # length), and only the two cells sharing that node are remapped.
     FOLLOW_BAND = 0.2
+    KEEP = 0.75  # the neighbour a moved node goes into keeps this fraction of its initial length
 
     def apply(self, state, layout, mixed):
         """Remap state; returns (new state, new layout, new mixed cells or None, new node
@@ -502,13 +503,24 @@ class Remapper:
                 if position == 0:
                     continue
                 outer = self.node_order[position - 1]
-                target[a[k]] = max(2.0 * interface - x[b[k]], 0.5 * (x[outer] + x[a[k]]))
+                # Γ back to the middle of the cell, but the neighbour keeps at least KEEP
+                # of its initial length (repeated moves would otherwise shrink it without
+                # end, and the time step with it)
+                limit = x[outer] + self.KEEP * (self.initial[a[k]] - self.initial[outer])
+                target[a[k]] = max(2.0 * interface - x[b[k]], limit)
+                if target[a[k]] >= x[a[k]]:
+                    target[a[k]] = x[a[k]]
+                    continue
                 windows.append((position - 1, position + 1))
             else:  # move node b right
                 if position + 1 == self.node_order.size - 1:
                     continue
                 outer = self.node_order[position + 2]
-                target[b[k]] = min(2.0 * interface - x[a[k]], 0.5 * (x[b[k]] + x[outer]))
+                limit = x[outer] - self.KEEP * (self.initial[outer] - self.initial[b[k]])
+                target[b[k]] = min(2.0 * interface - x[a[k]], limit)
+                if target[b[k]] <= x[b[k]]:
+                    target[b[k]] = x[b[k]]
+                    continue
                 windows.append((position, position + 2))
         if not windows:
             return state, layout, mixed, None, 0.0

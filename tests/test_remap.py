@@ -120,9 +120,9 @@ def test_single_velocity_diffuses_the_transverse_velocity_where_the_enriched_met
 
 def test_interface_following_motion_recentres_an_interface_near_a_node_and_keeps_rest():
     """Γ at a tenth of its cell: the node next to it is moved towards the middle position
-    of Γ, at most half-way into the neighbour cell (here: node moved by h/2, Γ then at
-    0.6h of a 1.5h cell, fraction 0.4); only the two cells sharing that node are remapped,
-    and a state at rest stays at rest."""
+    of Γ, as far as the neighbour cell keeps 3/4 of its initial length (here: node moved
+    by h/4, Γ then at 0.35h of a 1.25h cell, fraction 0.28); only the two cells sharing
+    that node are remapped, and a state at rest stays at rest."""
     scene = load_scene(resolve_scene_path("sod-two-gamma-enriched"), [
         "mesh.cells=100", "mesh.motion=interface", "t_end=1e9", "materials.right.gamma=1.4",
         "regions.1.density=1.0", "regions.1.pressure=1.0",
@@ -136,7 +136,7 @@ def test_interface_following_motion_recentres_an_interface_near_a_node_and_keeps
     assert result.status == "ok" and result.phase_seconds["local_remaps"] >= 1
     x = result.state.node_position[0]
     fraction = result.state.material_volume[0, cells] / (x[problem.mixed.node_right] - x[problem.mixed.node_left])
-    assert fraction[0] == pytest.approx(0.4, abs=1e-9)
+    assert fraction[0] == pytest.approx(0.35 / 1.25, abs=1e-9)
     assert np.abs(result.state.node_velocity).max() < 1e-12
     moved = np.flatnonzero(np.abs(x - problem.mesh.node_position[0]) > 1e-12)
     assert moved.size == 1  # one node moved: two cells remapped
