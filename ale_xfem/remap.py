@@ -46,34 +46,50 @@ class RemapResult:
     node_momentum: np.ndarray | None = None  # (components, n_nodes): Σ of the nodes' parts
 
 
-def _minmod(a, b):
-    return np.where(a * b > 0.0, np.sign(a) * np.minimum(np.abs(a), np.abs(b)), 0.0)
+def _minmod(a, b, out=None):
+    """minmod(a, b): the one of smaller magnitude when they have the same sign, else 0;
+    as max(min(a, b), 0) + min(max(a, b), 0), four passes."""
+    low = np.minimum(a, b, out=out)
+    np.maximum(low, 0.0, out=low)
+    high = np.maximum(a, b)
+    np.minimum(high, 0.0, out=high)
+    low += high
+    return low
 
 
-def _limited_slopes(centre, value, material):
-    """Minmod slopes of value over sorted pieces; a neighbour of another material (or none)
-    gives a zero slope, so no information crosses Γ."""
+def _limited_slopes(value, inverse_spacing, one_material, bound):
+    """Minmod slopes of value over sorted pieces (1 / spacing of their centres given),
+    clipped to ±bound; zero in the first and last piece and — ``one_material[k]``: pieces
+    k and k + 1 hold the same material; None: all do — next to a piece of another
+    material, so no information crosses Γ."""
     slope = np.zeros_like(value)
     if value.size < 3:
         return slope
-    same_left = material[1:-1] == material[:-2]
-    same_right = material[1:-1] == material[2:]
-    left = (value[1:-1] - value[:-2]) / (centre[1:-1] - centre[:-2])
-    right = (value[2:] - value[1:-1]) / (centre[2:] - centre[1:-1])
-    slope[1:-1] = np.where(same_left & same_right, _minmod(left, right), 0.0)
+    gradient = np.diff(value)
+    gradient *= inverse_spacing
+    inner = _minmod(gradient[:-1], gradient[1:], out=slope[1:-1])
+    np.clip(inner, -bound[1:-1], bound[1:-1], out=inner)
+    if one_material is not None:
+        inner[~(one_material[:-1] & one_material[1:])] = 0.0
     return slope
 
 
 def piece_slopes(centre, width, density, energy_density, material, order):
     """The limited slopes of a material's density and energy density over the pieces
     (sorted left to right): minmod within one material, zero at Γ, and no more than keeps
-    the reconstruction of the same sign at both ends of the piece.  Order 1: zero."""
+    the reconstruction of the same sign at both ends of the piece.  ``material``: per
+    piece, or None when all pieces hold one material.  Order 1: zero."""
     if order != 2:
         return np.zeros_like(density), np.zeros_like(energy_density)
-    density_slope = np.clip(_limited_slopes(centre, density, material),
-                            -2.0 * density / width, 2.0 * density / width)
-    energy_slope = np.clip(_limited_slopes(centre, energy_density, material),
-                           -2.0 * np.abs(energy_density) / width, 2.0 * np.abs(energy_density) / width)
+    inverse_spacing = np.diff(centre)
+    np.divide(1.0, inverse_spacing, out=inverse_spacing)
+    one_material = None if material is None else material[1:] == material[:-1]
+    two_over_width = 2.0 / width
+    bound = density * two_over_width
+    density_slope = _limited_slopes(density, inverse_spacing, one_material, bound)
+    np.abs(energy_density, out=bound)
+    bound *= two_over_width
+    energy_slope = _limited_slopes(energy_density, inverse_spacing, one_material, bound)
     return density_slope, energy_slope
 
 

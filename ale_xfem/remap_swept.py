@@ -217,31 +217,6 @@ def _windows(special, n):
         yield (int(first), int(last)), (max(int(first) - WINDOW_MARGIN, 0), min(int(last) + WINDOW_MARGIN, n))
 
 
-def _minmod_fast(a, b, out=None):
-    """minmod(a, b) = max(min(a, b), 0) + min(max(a, b), 0): the same values as
-    :func:`ale_xfem.remap._minmod` in four passes."""
-    low = np.minimum(a, b, out=out)
-    np.maximum(low, 0.0, out=low)
-    high = np.maximum(a, b)
-    np.minimum(high, 0.0, out=high)
-    low += high
-    return low
-
-
-def _cell_slopes(value, inverse_spacing, bound):
-    """Limited slopes over a run of pure cells of one material (the rule of
-    :func:`ale_xfem.remap.piece_slopes`): minmod of the one-sided differences (spacing of
-    the cell centres given by its inverse), clipped to ±bound; zero in the first and last
-    cell."""
-    gradient = np.diff(value)
-    gradient *= inverse_spacing
-    slope = np.empty_like(value)
-    slope[0] = slope[-1] = 0.0
-    inner = _minmod_fast(gradient[:-1], gradient[1:], out=slope[1:-1])
-    np.clip(inner, -bound[1:-1], bound[1:-1], out=inner)
-    return slope
-
-
 def _pure_kernel(x, X, mass, specific_energy, corner, u, order):
     """The swept-region remap of pure cells of one material, in flux form over the sorted
     cells (what the windows then redo near interfaces does not matter here).  Returns the
@@ -260,17 +235,7 @@ def _pure_kernel(x, X, mass, specific_energy, corner, u, order):
     energy = mass * specific_energy
     rho = mass / width
     eps = energy / width
-    if order == 2:
-        inverse_spacing = np.diff(centre)
-        np.divide(1.0, inverse_spacing, out=inverse_spacing)
-        two_over_width = 2.0 / width
-        bound = rho * two_over_width
-        srho = _cell_slopes(rho, inverse_spacing, bound)
-        np.abs(eps, out=bound)
-        bound *= two_over_width
-        seps = _cell_slopes(eps, inverse_spacing, bound)
-    else:
-        srho = seps = np.zeros_like(rho)
+    srho, seps = piece_slopes(centre, width, rho, eps, None, order)  # one material: no test at Γ
     d = X[1:-1] - x[1:-1]
     half_d = 0.5 * d
     # Nodes that move by more than half a neighbouring cell: the cells around them are
@@ -334,7 +299,7 @@ def _pure_kernel(x, X, mass, specific_energy, corner, u, order):
         gradient = np.diff(u, axis=1)
         gradient /= width
         tau = np.zeros_like(u)
-        tau[:, 1:-1] = _minmod_fast(gradient[:, :-1], gradient[:, 1:])
+        tau[:, 1:-1] = _minmod(gradient[:, :-1], gradient[:, 1:])
         moved_momentum = np.where(from_left, tau[:, :-1], tau[:, 1:])
         moved_momentum *= moment
     else:
