@@ -320,9 +320,26 @@ def remap_1d(order_of_cells, cell_left_node, cell_right_node, node_position, tar
 def _handed_over(mass, momentum, from_node, to_node, n_nodes):
     """Kinetic energy per node received minus given: lumps of (mass, momentum) going from
     one node to another carry ½ |p|²/m."""
-    moving = (from_node != to_node) & (mass > 0)
-    kinetic = 0.5 * (momentum[:, moving] ** 2).sum(axis=0) / mass[moving]
+    moving = from_node != to_node
+    kinetic = _lump_kinetic(mass[moving], momentum[:, moving])
     return np.bincount(to_node[moving], kinetic, n_nodes) - np.bincount(from_node[moving], kinetic, n_nodes)
+
+
+def _lump_kinetic(mass, momentum):
+    """½ |p|²/m of lumps (0 for empty ones)."""
+    kinetic = _dot(momentum, momentum)
+    kinetic *= 0.5
+    np.divide(kinetic, mass, out=kinetic, where=mass != 0.0)
+    kinetic[mass == 0.0] = 0.0
+    return kinetic
+
+
+def _dot(a, b):
+    """Σ_components a·b of (components, n) arrays, without a reduction over a new array."""
+    out = a[0] * b[0]
+    for k in range(1, a.shape[0]):
+        out += a[k] * b[k]
+    return out
 
 
 def deposit_kinetic_loss(loss, corner_mass, node_mass, left_node, right_node, cell_material, material_mass,

@@ -29,8 +29,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ale_xfem.remap import (RemapFailure, RemapResult, _integrate_linear, _minmod, deposit_kinetic_loss,
-                            piece_slopes)
+from ale_xfem.remap import (RemapFailure, RemapResult, _dot, _integrate_linear, _lump_kinetic, _minmod,
+                            deposit_kinetic_loss, piece_slopes)
 
 
 def _clipped_integral(value, slope, centre, lo, hi, a, b):
@@ -677,23 +677,6 @@ def _momentum(n, x, X, xl, xr, mixed_j, gamma, new_mixed_j, new_gamma, rho0, srh
     kinetic[:-1] -= kinetic_flux
     kinetic[1:] += kinetic_flux
     return new_mass, new_momentum, np.stack([left_corner, right_corner]), kinetic
-
-
-def _lump_kinetic(mass, momentum):
-    """½ |p|²/m of lumps (0 for empty ones)."""
-    kinetic = _dot(momentum, momentum)
-    kinetic *= 0.5
-    np.divide(kinetic, mass, out=kinetic, where=mass != 0.0)
-    kinetic[mass == 0.0] = 0.0
-    return kinetic
-
-
-def _dot(a, b):
-    """Σ_components a·b of (components, n) arrays, without a reduction over a new array."""
-    out = a[0] * b[0]
-    for k in range(1, a.shape[0]):
-        out += a[k] * b[k]
-    return out
 
 
 def _inside_cut(index, n, cut):
