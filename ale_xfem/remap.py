@@ -606,19 +606,13 @@ class Remapper:
                 # The window's end nodes mix what the window gave them with their untouched
                 # parts outside it: that kinetic energy goes to their corner inside.
                 inside = result.node_mass
-                mixing = 0.5 * ((result.node_momentum**2).sum(axis=0) / np.where(inside > 0, inside, 1.0)
-                                + outside * (u_old**2).sum(axis=0) - new_mass * (new_velocity**2).sum(axis=0))
-                mixed_here = np.isin(np.arange(window_cells.size), result.mixed_cells)
-                for node, cell, side in ((0, 0, 0), (-1, window_cells.size - 1, 1)):
-                    mass = result.material_mass[:, cell]
-                    if not mixed_here[cell]:
-                        share = np.array([1.0] + [0.0] * (mass.size - 1))
-                    elif mixed.model == "enriched":  # the corner is its node's internal material's
-                        share = np.eye(mass.size)[side]
-                    else:
-                        share = mass / mass.sum()
-                    occupied = mass > 0
-                    result.material_energy[occupied, cell] += mixing[node] * share[occupied] / mass[occupied]
+                mixing = _lump_kinetic(inside, result.node_momentum) + 0.5 * (
+                    outside * _dot(u_old, u_old) - new_mass * _dot(new_velocity, new_velocity))
+                end_loss = np.zeros_like(mixing)
+                end_loss[[0, -1]] = mixing[[0, -1]]
+                deposit_kinetic_loss(end_loss, result.corner_mass, inside, left, right, result.cell_material,
+                                     result.material_mass, result.material_energy, result.mixed_cells,
+                                     condensed=mixed.model == "enriched")
             arrays["node_velocity"][:, window_nodes] = new_velocity
             node_mass[window_nodes] = new_mass
             corner_mass[:, window_cells] = result.corner_mass
