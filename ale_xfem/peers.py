@@ -3,9 +3,9 @@ Lagrangian Wilkins run and our enriched run on Sod's tube (`ale-xfem bench --pee
 `make bench-peers` installs PyClaw first).
 
 All three run here, in one process, one after the other, at each resolution; the L1 error
-of density is measured the same way for all (our exact Riemann solver, sampled at 8
-points per cell, against each method's cell values) and the wall time is that of the time
-loop.  PyClaw: classic Clawpack solver (Lax–Wendroff with wave limiters, MC), Roe
+of density is measured the same way for all (our exact Riemann solver, on the same
+sub-samples per cell as our runs' own L1 errors, against each method's cell values) and
+the wall time is that of the time loop.  PyClaw: classic Clawpack solver (Lax–Wendroff with wave limiters, MC), Roe
 solver with entropy fix (Fortran), transmissive ends (the waves do not reach them by
 t = 0.2), CFL 0.9 (its default target).  Ours: the shipped `sod` scene (walls, CFL 0.5),
 and the same tube with the contact between two identical gases as an enriched interface
@@ -22,9 +22,10 @@ from pathlib import Path
 import numpy as np
 
 from ale_xfem.exact.riemann import GasState, RiemannSolution
+from ale_xfem.studies import fitted_rates, time_to_reach, work_precision_chart
 
 SIZES = (100, 200, 400, 800, 1600, 3200)
-GAMMA, T_END, SAMPLES = 1.4, 0.2, 8
+GAMMA, T_END = 1.4, 0.2
 LEFT, RIGHT = (1.0, 0.0, 1.0), (0.125, 0.0, 0.1)
 
 
@@ -38,11 +39,14 @@ def pyclaw_available() -> bool:
 
 
 def _l1_of_cells(edges, values, exact: RiemannSolution) -> float:
-    """∫|f_h − f| over the cells, f_h constant per cell, midpoint rule on SAMPLES points."""
-    s = (np.arange(SAMPLES) + 0.5) / SAMPLES
+    """∫|f_h − f| over the cells, f_h constant per cell: the midpoint rule on the same
+    sub-samples per cell as our own runs' L1 errors (:func:`ale_xfem.run.l1_errors`)."""
+    from ale_xfem.run import SUBSAMPLES_PER_CELL as samples
+
+    s = (np.arange(samples) + 0.5) / samples
     points = edges[:-1, None] + (edges[1:] - edges[:-1])[:, None] * s
     reference = exact.sample(points, T_END)["density"]
-    weights = (edges[1:] - edges[:-1])[:, None] / SAMPLES
+    weights = (edges[1:] - edges[:-1])[:, None] / samples
     return float(np.sum(np.abs(values[:, None] - reference) * weights))
 
 
@@ -106,17 +110,6 @@ def run_ours(cells: int, enriched: bool) -> dict:
             "L1_density": result.errors["L1_density"], "steps": result.steps}
 
 
-def time_at_error(rows, method, error) -> float:
-    """Wall time a method needs for a given L1(ρ), interpolated log-log between its runs."""
-    mine = sorted((r for r in rows if r["method"] == method), key=lambda r: r["cells"])
-    e = np.log([r["L1_density"] for r in mine])
-    t = np.log([max(r["wall_seconds"], 1e-6) for r in mine])
-    if not (e.min() <= math.log(error) <= e.max()):
-        return math.nan
-    order = np.argsort(e)
-    return float(np.exp(np.interp(math.log(error), e[order], t[order])))
-
-
 def run_peer_comparison(out: Path, sizes=SIZES, echo=print) -> list[dict]:
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
@@ -143,37 +136,18 @@ def run_peer_comparison(out: Path, sizes=SIZES, echo=print) -> list[dict]:
     for error in (3e-3, 1e-3, 5e-4):
         if not (min(all_errors) <= error <= max(all_errors)):
             continue
-        times = [time_at_error(rows, m, error) for m in methods]
+        times = []
+        for method in methods:
+            mine = [r for r in rows if r["method"] == method]
+            times.append(time_to_reach([r["L1_density"] for r in mine], [r["wall_seconds"] for r in mine], error))
         cells = []
         for t in times:
             cells.append("–" if math.isnan(t) or math.isnan(times[0]) else f"{t:.3g} s ({t / times[0]:.2f}×)")
         lines.append(f"| {error:.0e} | " + " | ".join(cells) + " |")
     (out / "peers.md").write_text("\n".join(lines) + "\n")
-    _chart(rows, methods, out / "peers.png")
+    work_precision_chart("Sod's tube, t = 0.2: PyClaw and ale_xfem",
+                         [{**r, "variant": r["method"], "status": "ok"} for r in rows],
+                         fitted_rates([{**r, "variant": r["method"], "status": "ok"} for r in rows]),
+                         out / "peers.png")
     echo("\n".join(lines))
     return rows
-
-
-def _chart(rows, methods, path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    figure, (by_cells, by_time) = plt.subplots(1, 2, figsize=(11, 4.2))
-    for method in methods:
-        mine = sorted((r for r in rows if r["method"] == method), key=lambda r: r["cells"])
-        by_cells.loglog([r["cells"] for r in mine], [r["L1_density"] for r in mine], "o-", label=method)
-        by_time.loglog([r["wall_seconds"] for r in mine], [r["L1_density"] for r in mine], "o-", label=method)
-    by_cells.set_xlabel("cells")
-    by_time.set_xlabel("wall time of the time loop (s)")
-    for axes in (by_cells, by_time):
-        axes.set_ylabel("L1 error of density")
-        axes.grid(True, which="both", alpha=0.3)
-        axes.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
-    by_cells.legend(fontsize=8)
-    by_cells.set_title("Sod's tube, t = 0.2")
-    by_time.set_title("work-precision (lower left is better)")
-    figure.tight_layout()
-    figure.savefig(path, dpi=110)
-    plt.close(figure)

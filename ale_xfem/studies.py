@@ -158,7 +158,7 @@ def run_accuracy_study(study: Study, out: Path, echo=print) -> list[dict]:
     write_csv(rows, out / "accuracy.csv")
     rates = fitted_rates(rows)
     (out / "accuracy.md").write_text(markdown_report(study, rows, rates))
-    work_precision_chart(study, rows, rates, out / "accuracy.png")
+    work_precision_chart(study.name, rows, rates, out / "accuracy.png")
     return rows
 
 
@@ -185,8 +185,19 @@ def fitted_rates(rows: list[dict]) -> dict[str, dict[str, float]]:
     for label in dict.fromkeys(r["variant"] for r in rows):
         mine = [r for r in rows if r["variant"] == label and r["status"] == "ok"]
         cells = [r["cells"] for r in mine]
-        rates[label] = {q: _fit(cells, [r[f"L1_{q}"] for r in mine]) for q in ("density", "velocity", "pressure")}
+        rates[label] = {q: _fit(cells, [r.get(f"L1_{q}", math.nan) for r in mine])
+                        for q in ("density", "velocity", "pressure")}
     return rates
+
+
+def time_to_reach(errors, seconds, target: float) -> float:
+    """Wall time for a given error, interpolated log-log between runs at several
+    resolutions (nan outside the errors they reached)."""
+    log_e, log_t = np.log(errors), np.log(np.maximum(seconds, 1e-9))
+    if not log_e.min() <= math.log(target) <= log_e.max():
+        return math.nan
+    order = np.argsort(log_e)
+    return float(np.exp(np.interp(math.log(target), log_e[order], log_t[order])))
 
 
 def cheapest_for(rows: list[dict]) -> tuple[float, list[tuple[str, float]]] | None:
@@ -197,15 +208,11 @@ def cheapest_for(rows: list[dict]) -> tuple[float, list[tuple[str, float]]] | No
         mine = sorted((r for r in rows if r["variant"] == label and r["status"] == "ok"
                        and np.isfinite(r["L1_density"])), key=lambda r: r["cells"])
         if len(mine) >= 2:
-            curves[label] = ([r["L1_density"] for r in mine], [max(r["wall_seconds"], 1e-9) for r in mine])
+            curves[label] = ([r["L1_density"] for r in mine], [r["wall_seconds"] for r in mine])
     if len(curves) < 2:
         return None
     target = max(min(errors) for errors, _ in curves.values())
-    costs = []
-    for label, (errors, seconds) in curves.items():
-        log_e, log_t = np.log(errors), np.log(seconds)
-        order = np.argsort(log_e)  # interpolate wall time as a function of error
-        costs.append((label, float(np.exp(np.interp(np.log(target), log_e[order], log_t[order])))))
+    costs = [(label, time_to_reach(errors, seconds, target)) for label, (errors, seconds) in curves.items()]
     return target, sorted(costs, key=lambda item: item[1])
 
 
@@ -233,7 +240,10 @@ def markdown_report(study: Study, rows: list[dict], rates: dict) -> str:
     return "\n".join(lines) + "\n"
 
 
-def work_precision_chart(study: Study, rows: list[dict], rates: dict, path: Path) -> None:
+def work_precision_chart(title: str, rows: list[dict], rates: dict, path: Path) -> None:
+    """Convergence (L1(ρ) against cells) and work-precision (L1(ρ) against wall time), a
+    line per variant; ``rows`` as written by a study (variant, status, cells, L1_density,
+    wall_seconds)."""
     import matplotlib
     import matplotlib.ticker
 
@@ -262,7 +272,7 @@ def work_precision_chart(study: Study, rows: list[dict], rates: dict, path: Path
         axes.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
         axes.yaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
     by_cells.legend(fontsize=7)
-    figure.suptitle(study.name)
+    figure.suptitle(title)
     figure.tight_layout()
     figure.savefig(path, dpi=110)
     plt.close(figure)
