@@ -81,8 +81,8 @@ def riemann_case(name, description, left, right, x0, t_end, extent=(0.0, 1.0), c
 def vacuum_forms(left, right, gammas, p_infs=(0.0, 0.0), margin: float = 0.95) -> bool:
     """Whether the exact solution of (ρ, u, p) | (ρ, u, p) holds (or nearly holds) a vacuum:
     u_R − u_L ≥ margin · (2 c_L/(γ_L − 1) + 2 c_R/(γ_R − 1))."""
-    c_left = math.sqrt(gammas[0] * (left[2] + p_infs[0]) / left[0])
-    c_right = math.sqrt(gammas[1] * (right[2] + p_infs[1]) / right[0])
+    c_left = GasState(*left, gammas[0], p_infs[0]).sound_speed
+    c_right = GasState(*right, gammas[1], p_infs[1]).sound_speed
     return right[1] - left[1] >= margin * (2 * c_left / (gammas[0] - 1) + 2 * c_right / (gammas[1] - 1))
 
 
