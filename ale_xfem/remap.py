@@ -472,6 +472,8 @@ class Remapper:
         self.right_node = np.where(swap, nodes[:, 0], nodes[:, 1])
         self.cell_order = np.argsort(0.5 * (x0[self.left_node] + x0[self.right_node]), kind="stable")
         self.node_order = np.argsort(x0, kind="stable")
+        self.rank_of_node = np.empty_like(self.node_order)  # inverse of node_order
+        self.rank_of_node[self.node_order] = np.arange(self.node_order.size)
         self.initial = x0.copy()
         self.motion, self.order = motion, order
         # the kinetic energy lost by the momentum remap goes to internal energy
@@ -525,13 +527,13 @@ class Remapper:
         near = np.flatnonzero((fraction < self.FOLLOW_BAND) | (fraction > 1 - self.FOLLOW_BAND))
         if near.size == 0:
             return state, layout, mixed, None, 0.0
-        target = x.copy()
+        # Only the few mixed cells whose interface nears a node this step are looked at:
+        # nothing here runs over the whole mesh unless a window is remapped.
+        moves = {}  # node → its target position
         windows = []
-        sorted_node = np.empty_like(self.node_order)
-        sorted_node[self.node_order] = np.arange(self.node_order.size)
-        for k in near:  # the few mixed cells whose interface nears a node this step
+        for k in near:
             interface = x[a[k]] + state.material_volume[0, cells[k]]
-            position = sorted_node[a[k]]
+            position = self.rank_of_node[a[k]]
             if fraction[k] < 0.5:  # move node a left, into the cell on its left
                 if position == 0:
                     continue
@@ -540,24 +542,26 @@ class Remapper:
                 # of its initial length (repeated moves would otherwise shrink it without
                 # end, and the time step with it)
                 limit = x[outer] + self.KEEP * (self.initial[a[k]] - self.initial[outer])
-                target[a[k]] = max(2.0 * interface - x[b[k]], limit)
-                if target[a[k]] >= x[a[k]]:
-                    target[a[k]] = x[a[k]]
+                moved = max(2.0 * interface - x[b[k]], limit)
+                if moved >= x[a[k]]:
                     continue
+                moves[a[k]] = moved
                 windows.append((position - 1, position + 1))
             else:  # move node b right
                 if position + 1 == self.node_order.size - 1:
                     continue
                 outer = self.node_order[position + 2]
                 limit = x[outer] - self.KEEP * (self.initial[outer] - self.initial[b[k]])
-                target[b[k]] = min(2.0 * interface - x[a[k]], limit)
-                if target[b[k]] <= x[b[k]]:
-                    target[b[k]] = x[b[k]]
+                moved = min(2.0 * interface - x[a[k]], limit)
+                if moved <= x[b[k]]:
                     continue
+                moves[b[k]] = moved
                 windows.append((position, position + 2))
         if not windows:
             return state, layout, mixed, None, 0.0
         self.windows_remapped += len(windows)
+        target = x.copy()
+        target[list(moves)] = list(moves.values())
         return self._remap_windows(state, layout, mixed, target, windows)
 
     def _remap_windows(self, state, layout, mixed, target, windows):
