@@ -306,10 +306,17 @@ class ExplicitWilkins:
         work *= scale
         return work
 
-    def step(self, state: State, dt: float, start: ForceEvaluation | None = None):
+    def step(self, state: State, dt: float, start: ForceEvaluation | None = None,
+             remapped_next: bool = False):
         """Advance by dt.  Returns (new state, evaluation of the new state, boundary work,
         boundary impulse).  Raises :class:`Breakdown` on an unphysical predicted or final
-        state; ``state`` itself is never modified."""
+        state; ``state`` itself is never modified.
+
+        ``remapped_next``: the whole state is remapped after this step (Eulerian or smoothed
+        mesh), which evaluates the remapped state's forces itself: the forces of the
+        Lagrangian state are not evaluated (the evaluation returned is None) and the new
+        state holds only what the remap reads — positions, velocities, masses, energies and
+        volumes; its densities, pressures and sound speeds are None."""
         if self.mixed is not None and self.mixed.relaxation:
             state, relaxed = self.relax_mixed_cells(state)
             if relaxed:
@@ -343,7 +350,7 @@ class ExplicitWilkins:
                              view.mass_right, view.energy_right, predicted_pressure)
         predicted = self.evaluate(x_pred, u_pred, mass, e_pred, view)
         if not predicted.volume.min() > 0.0:
-            self._check(predicted, x_pred, e_pred, "predicted ")
+            self.check(predicted, x_pred, e_pred, "predicted ")
 
         # Corrector with the time-centred forces F̄ = (F^n + F*)/2.
         mean_force = first.nodal_force + predicted.nodal_force
@@ -377,11 +384,14 @@ class ExplicitWilkins:
             boundary_work = float(0.5 * dt * np.sum(reaction * velocity_sum[:dim, held]))
             boundary_impulse[:dim] = dt * reaction.sum(axis=1)
 
+        if self.mixed is None and remapped_next:
+            return self._state_for_remap(state, None, x_new, u_new, e_new, dt), None, \
+                boundary_work, boundary_impulse
         if self.mixed is None:
             final = self.evaluate(x_new, u_new, mass, e_new)
             if not self._healthy(final, e_new):
-                self._check(predicted, x_pred, e_pred, "predicted ")  # report the first cause
-                self._check(final, x_new, e_new, "")
+                self.check(predicted, x_pred, e_pred, "predicted ")  # report the first cause
+                self.check(final, x_new, e_new, "")
             new_state = state.evolved(
                 time=state.time + dt, node_position=x_new, node_velocity=u_new,
                 material_energy=e_new, material_volume=final.volume[None, :],
@@ -392,10 +402,13 @@ class ExplicitWilkins:
             work = 0.5 * (first.stress[self.mixed.cells] + predicted.stress[self.mixed.cells])
             solution = self._equal_strain(state, first, self._mixed_volumes(x_new)
                                           / first.volume[self.mixed.cells], work)[1]
+        if remapped_next:
+            return self._state_for_remap(state, solution, x_new, u_new, e_new, dt), None, \
+                boundary_work, boundary_impulse
         new_state, final = self._finish_mixed(state, solution, x_new, u_new, e_new, dt)
         if not self._healthy(final, new_state.material_energy[:1]):
-            self._check(predicted, x_pred, e_pred, "predicted ")
-            self._check(final, x_new, new_state.material_energy[:1], "")
+            self.check(predicted, x_pred, e_pred, "predicted ")
+            self.check(final, x_new, new_state.material_energy[:1], "")
         return new_state, final, boundary_work, boundary_impulse
 
     # -- mixed cells ----------------------------------------------------------------------
@@ -533,13 +546,44 @@ class ExplicitWilkins:
             interface_velocity=(interface_after - interface_before) / dt)
         return new_state, final
 
+    def _state_for_remap(self, state, solution, x_new, u_new, e_new, dt):
+        """The new state as the remap reads it (no force evaluation): volumes from the
+        positions, the mixed cells' volumes and energies from the interface solve.  The
+        remap's own evaluation then checks what it derives (density, EOS, stress)."""
+        volume = self.mesh.cell_type.volume_and_gradient(self.corners.gather(x_new))[0]
+        interface = {}
+        if self.mixed is None:
+            volumes = volume[None, :]
+        else:
+            cells, a = self.mixed.cells, self.mixed.node_left
+            va, vb, details = solution
+            e_new[1].fill(0.0)
+            e_new[0, cells], e_new[1, cells] = details[0], details[1]
+            volumes = _two_slots(volume, cells, volume[cells] - va)
+            volumes[0, cells] = va
+            interface_before = state.node_position[0, a] + state.material_volume[0, cells]
+            interface = dict(interface_pressure=0.5 * (details[2] + details[3]),
+                             interface_velocity=(x_new[0, a] + va - interface_before) / dt)
+        occupied = volumes[:, self.mixed.cells] if self.mixed is not None else volume
+        if not (volume.min() > 0.0 and occupied.min() > 0.0 and np.isfinite(e_new.sum())):
+            for name, values, allowed, good in (("volume", volumes, "> 0", lambda v: v > 0.0),
+                                                ("specific internal energy", e_new, "finite", np.isfinite)):
+                bad = np.any(~good(values) & (state.material_mass > 0.0), axis=0)
+                if np.any(bad):
+                    cell = int(np.flatnonzero(bad)[0])
+                    raise Breakdown(name, cell, float(np.min(values[:, cell])),
+                                    self.mesh.cell_centroids(x_new)[cell], allowed)
+        return state.evolved(time=state.time + dt, node_position=x_new, node_velocity=u_new,
+                             material_energy=e_new, material_volume=volumes, material_density=None,
+                             material_pressure=None, material_sound_speed=None, **interface)
+
     @staticmethod
     def _healthy(evaluation: ForceEvaluation, energy) -> bool:
         """Cheap whole-array test: positive volumes, finite energies, sound speeds, stresses."""
         return bool(evaluation.volume.min() > 0.0 and np.isfinite(
             evaluation.sound_speed[0].sum() + energy.sum() + evaluation.stress.sum()))
 
-    def _check(self, evaluation: ForceEvaluation, position, energy, prefix: str) -> None:
+    def check(self, evaluation: ForceEvaluation, position, energy, prefix: str) -> None:
         """Raise :class:`Breakdown` naming the first offending cell and quantity, causes
         before consequences (a NaN sound speed makes NaN positions one stage later)."""
         if self._healthy(evaluation, energy):

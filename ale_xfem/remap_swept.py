@@ -67,15 +67,16 @@ def remap_1d_swept(order_of_cells, cell_left_node, cell_right_node, node_positio
     mass0, energy0 = by_cell(material_mass[0]), by_cell(material_energy[0])
     corner = by_cell(corner_mass)
     u = node_velocity[:, nodes]
-    kernel = _pure_kernel(x, X, mass0, energy0, corner, u, order)
-    if kernel is None:
-        return None
-    new_mass, new_energy, right_corner, node_mass, momentum, old_node_mass, kinetic, far_nodes = kernel
-
-    # -- windows around the interfaces ---------------------------------------------------
     rank = np.arange(n) if in_order else _rank(cells, cell_left_node.size)
     mixed_j = rank[mixed_cells]
-    special = np.union1d(mixed_j, np.flatnonzero(m0[:-1] != m0[1:]))
+    boundaries = np.flatnonzero(m0[:-1] != m0[1:])
+    # two slots when a window may put a second material in a cell
+    kernel = _pure_kernel(x, X, mass0, energy0, corner, u, order, 2 if mixed_j.size or boundaries.size else 1)
+    new_mass, new_energy, corner_new, node_mass, momentum, kinetic_before, kinetic, far_nodes = kernel
+    right_corner = corner_new[1]
+
+    # -- windows around the interfaces ---------------------------------------------------
+    special = np.union1d(mixed_j, boundaries)
     special = np.union1d(np.union1d(special, special + 1), np.union1d(far_nodes - 1, far_nodes))
     special = special[special < n]
     slots = 1
@@ -88,8 +89,9 @@ def remap_1d_swept(order_of_cells, cell_left_node, cell_right_node, node_positio
             mixed_data = (np.zeros(0), np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0), np.zeros(0))
         slot_material = np.full((2, n), -1, dtype=np.int64)
         slot_material[0] = m0
-        new_mass = np.vstack([new_mass, np.zeros(n)])
-        new_energy = np.vstack([new_energy, np.zeros(n)])
+        if new_mass.shape[0] == 1:  # far-moving nodes only: the kernel gave one slot
+            new_mass = np.vstack([new_mass, np.zeros(n)])
+            new_energy = np.vstack([new_energy, np.zeros(n)])
         new_volume = np.zeros((2, n))
         new_volume[0] = X[1:] - X[:-1]
         for taken, window in _windows(special, n):
@@ -128,21 +130,20 @@ def remap_1d_swept(order_of_cells, cell_left_node, cell_right_node, node_positio
     else:
         new_mixed_j = np.zeros(0, dtype=np.int64)
         slot_material = m0[None, :]
-        new_mass, new_energy = new_mass[None, :], new_energy[None, :]
         new_volume = (X[1:] - X[:-1])[None, :]
     if np.any(node_mass <= 0):
         return _too_far("a node lost all its mass")
-    left_corner = node_mass[:-1].copy()
+    left_corner = corner_new[0]
+    left_corner[...] = node_mass[:-1]
     left_corner[1:] -= right_corner[:-1]
     specific = new_energy / new_mass[:1] if slots == 1 else _specific(new_energy, new_mass, taken_cells)
     velocity = momentum / node_mass
     kinetic_new = _dot(momentum, velocity)
     kinetic_new *= 0.5
-    kinetic_change = float(np.sum(kinetic_new)) - 0.5 * float(_dot(u, u) @ old_node_mass)
+    kinetic_change = float(np.sum(kinetic_new)) - kinetic_before
     loss = kinetic - kinetic_new if heat else None
 
     # -- back to cell (node) order ------------------------------------------------------
-    corner_new = np.stack([left_corner, right_corner])
     if in_order:
         result = RemapResult(np.ascontiguousarray(slot_material), new_mass, specific, new_volume, corner_new,
                              node_mass, velocity, cells[new_mixed_j], kinetic_change, momentum)
@@ -217,12 +218,15 @@ def _windows(special, n):
         yield (int(first), int(last)), (max(int(first) - WINDOW_MARGIN, 0), min(int(last) + WINDOW_MARGIN, n))
 
 
-def _pure_kernel(x, X, mass, specific_energy, corner, u, order):
+def _pure_kernel(x, X, mass, specific_energy, corner, u, order, slots=1):
     """The swept-region remap of pure cells of one material, in flux form over the sorted
     cells (what the windows then redo near interfaces does not matter here).  Returns the
-    new cell masses and total energies, right corner masses, node masses and momenta, and
-    the old node masses, and the nodes that moved by more than half a neighbouring cell
-    (the kernel's results around them are to be redone).
+    new cell masses and total energies, the corner masses (2, n) with the right ones
+    filled, node masses and momenta, the kinetic energy before and each node's kinetic
+    energy balance (see :func:`deposit_kinetic_loss`), and the nodes that moved by more
+    than half a neighbouring cell (the kernel's results around them are to be redone).
+    The new masses and energies come as (slots, n) arrays with slot 0 filled and any
+    further slot zero (the windows put second materials there): no row is copied after.
 
     Node k (between cells k − 1 and k) moving by d = X_k − x_k sweeps [x_k, X_k] of its
     donor cell (k − 1 if d < 0, k if d > 0): the mass −d (ρ_D + σ_D (x_k + d/2 − c_D))
@@ -254,12 +258,15 @@ def _pure_kernel(x, X, mass, specific_energy, corner, u, order):
     flux_energy *= offset
     flux_energy += np.where(right_donor, eps[1:], eps[:-1])
     flux_energy *= -d
-    new_mass = mass.copy()
-    new_mass[1:] += flux_mass
-    new_mass[:-1] -= flux_mass
-    new_energy = energy.copy()
-    new_energy[1:] += flux_energy
-    new_energy[:-1] -= flux_energy
+    new_mass, new_energy = np.empty((slots, width.size)), np.empty((slots, width.size))
+    new_mass[1:].fill(0.0)
+    new_energy[1:].fill(0.0)
+    new_mass[0] = mass
+    new_mass[0, 1:] += flux_mass
+    new_mass[0, :-1] -= flux_mass
+    new_energy[0] = energy
+    new_energy[0, 1:] += flux_energy
+    new_energy[0, :-1] -= flux_energy
 
     # -- nodal momentum through the dual faces -------------------------------------------
     share_left, share_right = corner[0], corner[1]
@@ -282,8 +289,11 @@ def _pure_kernel(x, X, mass, specific_energy, corner, u, order):
     part_centre = width * width
     part_centre *= width
     part_centre *= srho
-    part_centre /= 96.0 * np.where(from_left, mass_left, mass_right)
-    part_centre += np.copysign(0.25 * width, delta)  # −w/4 for L_j (δ < 0), +w/4 for R_j
+    part_centre *= 1.0 / 96.0
+    part_centre /= np.where(from_left, mass_left, mass_right)
+    quarter = np.multiply(0.25, width)
+    np.copysign(quarter, delta, out=quarter)  # −w/4 for L_j (δ < 0), +w/4 for R_j
+    part_centre += quarter
     # signed first moment about the part centre: M (δ/2 − x̄) − σ δ³/12
     moment = 0.5 * delta
     moment -= part_centre
@@ -304,7 +314,9 @@ def _pure_kernel(x, X, mass, specific_energy, corner, u, order):
         moved_momentum *= moment
     else:
         moved_momentum = np.zeros_like(u[:, :-1])
-    moved_momentum += np.where(from_left, u[:, :-1], u[:, 1:]) * swept
+    part_velocity = np.where(from_left, u[:, :-1], u[:, 1:])
+    part_velocity *= swept
+    moved_momentum += part_velocity
     old_node_mass = np.zeros(x.size)
     old_node_mass[:-1] += share_left
     old_node_mass[1:] += share_right
@@ -317,15 +329,19 @@ def _pure_kernel(x, X, mass, specific_energy, corner, u, order):
     kinetic = _dot(u, u)  # ½M u², less what is handed over, plus what comes in
     kinetic *= old_node_mass
     kinetic *= 0.5
+    kinetic_before = float(kinetic.sum())
     kinetic_flux = _lump_kinetic(swept, moved_momentum)
     np.copysign(kinetic_flux, swept, out=kinetic_flux)  # signed like the mass: > 0 rightward
     kinetic[:-1] -= kinetic_flux
     kinetic[1:] += kinetic_flux
     # right corner of new cell j = [F_j, X_{j+1}] = R_j + what the face moved into it −
     # ∫ from x_{j+1} to X_{j+1} (the node's swept mass in the part beside the node)
-    right_corner = share_right + swept
-    right_corner[:-1] += flux_mass * np.where(right_donor, -scale_left[1:], -scale_right[:-1])
-    return new_mass, new_energy, right_corner, node_mass, momentum, old_node_mass, kinetic, far_nodes
+    corner_new = np.empty((2, width.size))  # row 1 (right corners) filled here, row 0 by the caller
+    right_corner = np.add(share_right, swept, out=corner_new[1])
+    donor_scale = np.where(right_donor, scale_left[1:], scale_right[:-1])
+    donor_scale *= flux_mass
+    right_corner[:-1] -= donor_scale
+    return new_mass, new_energy, corner_new, node_mass, momentum, kinetic_before, kinetic, far_nodes
 
 
 def _swept_sorted(x, X, m0, mass0, specific0, corner_sorted, u, mixed_j, volume0_mixed, m1, mass1,

@@ -98,6 +98,9 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
     evaluation = stepper.evaluate_state(state)
     dt_previous, dt_min, dt_max = np.inf, np.inf, 0.0
     steps, status, diagnostic = 0, "ok", ""
+    # A remap of the whole state after every step evaluates the remapped state's forces:
+    # the step then leaves out those of the Lagrangian state.
+    remap_all = remapper is not None and remapper.motion != "interface"
     clock = time.perf_counter()
     if problem.setup_failure:
         status, diagnostic = "failed", f"step 0, t = 0: {problem.setup_failure}"
@@ -117,7 +120,7 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
             diagnostic = f"step {steps + 1}, t = {state.time:.6g}: time step dt = {dt:.3g}, must be > 0"
             break
         try:
-            new_state, evaluation, work, impulse = stepper.step(state, dt, evaluation)
+            new_state, evaluation, work, impulse = stepper.step(state, dt, evaluation, remapped_next=remap_all)
             if remapper is not None:
                 remap_clock = time.perf_counter()
                 new_state, evaluation, impulse, kinetic_change = _remap(
@@ -190,7 +193,9 @@ def _remap(problem, stepper, remapper, state, evaluation, impulse):
     kinetic_change += 0.5 * float(np.sum(node_mass[held] * (after**2 - before**2)))
     if mixed is not None and mixed.relaxation:  # the remap leaves a pressure jump in mixed cells
         state, _ = stepper.relax_mixed_cells(state, in_place=True)
-    return state, stepper.evaluate_state(state, thermodynamics_known=True), impulse, kinetic_change
+    evaluation = stepper.evaluate_state(state, thermodynamics_known=True)
+    stepper.check(evaluation, state.node_position, state.material_energy, "remapped ")
+    return state, evaluation, impulse, kinetic_change
 
 
 def conservation(start, end, boundary_work, boundary_impulse, node_mass, state) -> dict:

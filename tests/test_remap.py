@@ -235,3 +235,29 @@ def test_swept_remap_redoes_nodes_that_moved_more_than_half_a_cell(scene):
                  "node_velocity"):
         a, b = getattr(general, name), getattr(swept, name)
         np.testing.assert_allclose(b, a, rtol=1e-11, atol=1e-13 * np.abs(a).max(), err_msg=name)
+
+
+@pytest.mark.parametrize("scene, model", [("sod-two-gamma-enriched", "enriched"),
+                                          ("sod-two-gamma-enriched", "single_velocity"), ("sod", None)])
+def test_leaving_out_the_lagrangian_forces_before_a_full_remap_changes_nothing(scene, model, monkeypatch):
+    """With an Eulerian mesh the step does not evaluate the forces of the Lagrangian state
+    (the remap evaluates the remapped one): the run must be bit-identical to one that does."""
+    from ale_xfem.lagrange import ExplicitWilkins
+
+    overrides = ["mesh.cells=120", "mesh.motion=eulerian", "t_end=0.1"]
+    if model:
+        overrides.append(f"interface.model={model}")
+    skipped = simulate(build_problem(load_scene(resolve_scene_path(scene), overrides)))
+    step = ExplicitWilkins.step
+    calls = []
+
+    def evaluating_step(self, state, dt, start=None, remapped_next=False):
+        calls.append(remapped_next)
+        return step(self, state, dt, start, remapped_next=False)
+
+    monkeypatch.setattr(ExplicitWilkins, "step", evaluating_step)
+    evaluated = simulate(build_problem(load_scene(resolve_scene_path(scene), overrides)))
+    assert skipped.status == evaluated.status == "ok" and all(calls) and len(calls) == evaluated.steps
+    for key in ("node_position", "node_velocity", "material_mass", "material_energy", "material_volume",
+                "material_pressure"):
+        np.testing.assert_array_equal(getattr(skipped.state, key), getattr(evaluated.state, key))
