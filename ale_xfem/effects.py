@@ -31,10 +31,17 @@ def scene_effects(scene, n_mixed_cells: int, pistons: list[str]) -> list[Effect]
     effects.append(Effect("piston", bool(pistons),
                           ", ".join(f"boundaries.{side} = {{velocity = ...}}" for side in pistons)
                           if pistons else "no boundary is {velocity = [...]}"))
-    transverse = max(len(r.velocity) for r in scene.regions) > 1
-    effects.append(Effect("transverse_velocity", transverse,
-                          "a region's velocity has two components (carried by the remap, no part in the dynamics)"
-                          if transverse else "every region's velocity = [u]: one component"))
+    if scene.dimension == 1:
+        transverse = max(len(r.velocity) for r in scene.regions) > 1
+        effects.append(Effect("transverse_velocity", transverse,
+                              "a region's velocity has two components (carried by the remap, no part in the "
+                              "dynamics)" if transverse else "every region's velocity = [u]: one component"))
+    else:
+        quadrilaterals = scene.mesh.cell_type == "quadrilateral"
+        effects.append(Effect("hourglass_control", quadrilaterals and numerics.hourglass > 0,
+                              f"mesh.cell_type = \"{scene.mesh.cell_type}\", numerics.hourglass = "
+                              f"{numerics.hourglass:g}" + ("" if quadrilaterals else
+                                                           " (triangles have no hourglass modes)")))
     mixed = n_mixed_cells > 0 and interface is not None
     if interface is None:
         why = "no [interface] table: materials never share a cell"

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ale_xfem.mesh import MeshArrays, constant_gradient, corner_dot
+from ale_xfem.mesh import MeshArrays, constant_gradient, corner_dot, hourglass_corner_forces
 from ale_xfem.mixed import MixedCellFailure, MixedCells, with_mixed_state
 from ale_xfem.state import MaterialLayout, State, thermodynamics
 
@@ -106,6 +106,8 @@ class ForceEvaluation:
     nodal_force: np.ndarray  # (dim, n_nodes)
     mixed_sound_speed: np.ndarray | None  # c of each mixed cell (the larger of its two)
     mixed_viscosity: np.ndarray | None = None  # q of the mixed cells (n_mixed,)
+    length: np.ndarray | None = None  # CFL length of each cell (1D: its volume)
+    hourglass_force: list | None = None  # [corner][component] (2D quadrilaterals)
 
 
 @dataclass
@@ -143,12 +145,15 @@ class ExplicitWilkins:
         self.node_mass = node_mass
         self.inverse_node_mass = 1.0 / node_mass
         self.constraints = [b for b in boundaries if b.kind != "free"]
-        self.constrained_nodes = (np.concatenate([b.nodes for b in self.constraints])
+        # a node on two sides (a corner of a 2D box) counts once in the reactions
+        self.constrained_nodes = (np.unique(np.concatenate([b.nodes for b in self.constraints]))
                                   if self.constraints else np.zeros(0, dtype=np.int64))
         self.free_nodes = np.ones(mesh.n_nodes)
         self.free_nodes[self.constrained_nodes] = 0.0
         self.numerics = numerics
         self.artificial_viscosity = artificial_viscosity
+        # viscous hourglass control: quadrilaterals only (triangles have no hourglass modes)
+        self.hourglass = numerics.hourglass if mesh.cell_type.name == "quadrilateral" else 0.0
         self.mixed_seconds, self.mixed_calls = 0.0, 0  # time in the implicit interface solve
         self.assembled_predictor = None  # set by use_assembled_predictor()
 
@@ -174,7 +179,8 @@ class ExplicitWilkins:
         them as they are instead of copying rows.  ``known``: the (density, pressure, sound
         speed) of a state at these positions, taken instead of evaluated again."""
         cell_type, corners = self.mesh.cell_type, self.corners
-        volume, gradient = cell_type.volume_and_gradient(corners.gather(node_position))
+        positions = corners.gather(node_position)
+        volume, gradient = cell_type.volume_and_gradient(positions)
         mass0, energy0 = material_mass[:1], material_energy[:1]
         if mixed_view is not None:
             cells = self.mixed.cells
@@ -189,7 +195,8 @@ class ExplicitWilkins:
                 density[0, cells] = mass0[0, cells] / mixed_view.volume_left
             thermodynamics(self.materials, self.pure_layout, density[:1], energy0,
                            out=(pressure[:1], sound_speed[:1]))
-        volume_rate = corner_dot(gradient, corners.gather(node_velocity))  # dV/dt = Σ ∂V/∂x_i·u_i
+        velocities = corners.gather(node_velocity)
+        volume_rate = corner_dot(gradient, velocities)  # dV/dt = Σ ∂V/∂x_i·u_i
         velocity_jump = cell_type.velocity_jump(volume_rate, volume)
         mixed_viscosity = mixed_sound_speed = None
         if mixed_view is not None:
@@ -227,8 +234,16 @@ class ExplicitWilkins:
         nodal_force = np.empty((cell_type.dimension, corners.n_nodes))
         for d in range(cell_type.dimension):
             corners.scatter_scaled([g_corner[d] for g_corner in gradient], stress, out=nodal_force[d])
+        hourglass = None
+        if self.hourglass > 0.0:
+            hourglass = hourglass_corner_forces(positions, velocities, gradient, volume, density[0],
+                                                sound_speed[0], self.hourglass)
+            for d in range(cell_type.dimension):
+                nodal_force[d] += corners.scatter([f[d] for f in hourglass])
+        length = volume if cell_type.dimension == 1 else cell_type.length_scale(volume, positions)
         return ForceEvaluation(volume, gradient, density, pressure, sound_speed, viscosity,
-                               velocity_jump, stress, nodal_force, mixed_sound_speed, mixed_viscosity)
+                               velocity_jump, stress, nodal_force, mixed_sound_speed, mixed_viscosity,
+                               length, hourglass)
 
     def evaluate_state(self, state: State, thermodynamics_known: bool = False) -> ForceEvaluation:
         """Forces of a state; ``thermodynamics_known``: its densities, pressures and sound
@@ -246,8 +261,7 @@ class ExplicitWilkins:
         """CFL limit with the viscous signal speed: dt_K = L / max(Q + √(Q² + c²), |Δu|),
         Q = c1 c + 2 c2 |Δu| in compression (the form of Benson, CMAME 99, 1992).  A mixed
         cell counts with its whole length and the larger sound speed of its materials."""
-        dt = self._cfl_limit(evaluation.sound_speed[0], evaluation.velocity_jump,
-                             self.mesh.cell_type.length_scale(evaluation.volume))
+        dt = self._cfl_limit(evaluation.sound_speed[0], evaluation.velocity_jump, evaluation.length)
         if evaluation.mixed_sound_speed is not None:
             cells = self.mixed.cells
             dt = min(dt, self._cfl_limit(evaluation.mixed_sound_speed, evaluation.velocity_jump[cells],
@@ -302,6 +316,8 @@ class ExplicitWilkins:
             for evaluation in evaluations:
                 term = corner_dot(evaluation.volume_gradient, gather)
                 term *= evaluation.stress
+                if evaluation.hourglass_force is not None:  # its work heats the cell too
+                    term += corner_dot(evaluation.hourglass_force, gather)
                 work = term if work is None else np.add(work, term, out=work)
         work *= scale
         return work

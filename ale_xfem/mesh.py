@@ -140,17 +140,66 @@ class CellType:
 
     def velocity_jump(self, volume_rate, volume):
         """Δu = L ∇·u = L (dV/dt)/V: the velocity jump across the cell that the artificial
-        viscosity sees (1D: u_right − u_left exactly)."""
+        viscosity sees (1D: u_right − u_left exactly; 2D: L = √A).
+
+        2D choice, measured (2026-11-22, quadrilaterals): a directional length — the cell's
+        width along the direction of greatest compression, the eigenvector of the least
+        eigenvalue of the symmetric velocity gradient — let the cells along Noh's symmetry
+        axes collapse (negative energy at t ≈ 0.45 on 100 × 100) and left Saltzman's plateau
+        between 3.86 and 4.30 in the mid-height cells; with L = √A Noh runs to t = 0.6 and
+        Saltzman's plateau stays within 3.99–4.03 (``demos/scenes/saltzman.toml``)."""
         if self.dimension == 1:
             return volume_rate
         return volume_rate / np.sqrt(volume)
 
-    def length_scale(self, volume):
-        """The length over which a cell's velocity jump Δu = L ∇·u is measured, and the
-        sound-crossing length of the CFL condition (1D: the cell length)."""
+    def length_scale(self, volume, positions=None):
+        """The sound-crossing length of the CFL condition (1D: the cell length; triangles:
+        the least altitude 2A / longest edge; quadrilaterals: A over the longer of the two
+        lines joining the midpoints of opposite edges — the smaller side of a rectangle)."""
         if self.dimension == 1:
             return volume
-        return np.sqrt(volume)
+        if self.nodes_per_cell == 3:
+            longest = None
+            for i in range(3):
+                j = (i + 1) % 3
+                edge = np.hypot(positions[j][0] - positions[i][0], positions[j][1] - positions[i][1])
+                longest = edge if longest is None else np.maximum(longest, edge)
+            return 2.0 * volume / longest
+        # quadrilateral: medians from mid(0,1) to mid(2,3) and from mid(1,2) to mid(3,0)
+        first = np.hypot(positions[2][0] + positions[3][0] - positions[0][0] - positions[1][0],
+                         positions[2][1] + positions[3][1] - positions[0][1] - positions[1][1])
+        second = np.hypot(positions[3][0] + positions[0][0] - positions[1][0] - positions[2][0],
+                          positions[3][1] + positions[0][1] - positions[1][1] - positions[2][1])
+        return volume / (0.5 * np.maximum(first, second))
+
+
+HOURGLASS_BASE = (1.0, -1.0, 1.0, -1.0)  # the quadrilateral's hourglass mode, corners going round
+
+
+def hourglass_corner_forces(positions, velocities, gradient, volume, density, sound_speed, coefficient):
+    """Viscous hourglass control of quadrilaterals (Flanagan & Belytschko, IJNME 17, 1981):
+    with γ_i = h_i − (Σ_j h_j x_j)·(∂A/∂x_i)/A, orthogonal to every linear field, the
+    hourglass velocity q = Σ_i γ_i u_i is resisted by f_i = −(κ/4) ρ c √A q γ_i.  Returns the
+    corner forces [corner][component]; their work goes to the internal energy with the
+    pressure forces' (compatible energy)."""
+    h = HOURGLASS_BASE
+    hx = sum(h[i] * positions[i][0] for i in range(4))
+    hy = sum(h[i] * positions[i][1] for i in range(4))
+    inverse_area = 1.0 / volume
+    gamma = [h[i] - (hx * gradient[i][0] + hy * gradient[i][1]) * inverse_area for i in range(4)]
+    scale = np.sqrt(volume)
+    scale *= density
+    scale *= sound_speed
+    scale *= -0.25 * coefficient
+    forces = [[None, None] for _ in range(4)]
+    for d in range(2):
+        q = gamma[0] * velocities[0][d]
+        for i in range(1, 4):
+            q += gamma[i] * velocities[i][d]
+        q *= scale
+        for i in range(4):
+            forces[i][d] = gamma[i] * q
+    return forces
 
 
 CELL_TYPES = {
@@ -238,11 +287,42 @@ def interval_mesh(extent, cells: int) -> MeshArrays:
     return from_dolfinx(mesh)
 
 
-def rectangle_mesh(extent, cells, cell_type: str = "quadrilateral") -> MeshArrays:
+def _rectangle(extent, cells, cell_type):
+    """The DOLFINx rectangle mesh.  Triangles: each rectangle cut along both diagonals into
+    four ("crossed").  With one diagonal per rectangle, constant-pressure triangles lock (too
+    few velocity degrees of freedom for their volume constraints): Noh on 50 × 50 broke down
+    at t = 0.48 with "right" diagonals, and the Saltzman plateau ranged 3.4–5.0."""
     dolfinx, MPI = _dolfinx()
-    kinds = {"quadrilateral": dolfinx.mesh.CellType.quadrilateral,
-             "triangle": dolfinx.mesh.CellType.triangle}
     (x0, x1), (y0, y1) = extent
-    mesh = dolfinx.mesh.create_rectangle(MPI.COMM_SELF, [[x0, y0], [x1, y1]], list(cells),
-                                         kinds[cell_type])
+    if cell_type == "triangle":
+        return dolfinx.mesh.create_rectangle(MPI.COMM_SELF, [[x0, y0], [x1, y1]], list(cells),
+                                             dolfinx.mesh.CellType.triangle,
+                                             diagonal=dolfinx.mesh.DiagonalType.crossed)
+    return dolfinx.mesh.create_rectangle(MPI.COMM_SELF, [[x0, y0], [x1, y1]], list(cells),
+                                         dolfinx.mesh.CellType.quadrilateral)
+
+
+def rectangle_mesh(extent, cells, cell_type: str = "quadrilateral") -> MeshArrays:
+    return from_dolfinx(_rectangle(extent, cells, cell_type))
+
+
+def saltzman_mesh(extent, cells, cell_type: str = "quadrilateral") -> MeshArrays:
+    """Saltzman's skewed mesh: the rectangle's nodes moved along x by
+    (y1 − y) sin(π (x − x0)/(x1 − x0)) (on [0, 1] × [0, 0.1] with 100 × 10 cells, the classic
+    x = ξ + (0.1 − η) sin πξ).  The left and right sides stay straight."""
+    (x0, x1), (y0, y1) = extent
+    mesh = _rectangle(extent, cells, cell_type)
+    x = mesh.geometry.x
+    x[:, 0] += (y1 - x[:, 1]) * np.sin(np.pi * (x[:, 0] - x0) / (x1 - x0))
+    return from_dolfinx(mesh)
+
+
+def file_mesh(path) -> MeshArrays:
+    """A 2D mesh of triangles or quadrilaterals from an XDMF file (its mesh named "mesh",
+    as DOLFINx writes it)."""
+    dolfinx, MPI = _dolfinx()
+    import dolfinx.io
+
+    with dolfinx.io.XDMFFile(MPI.COMM_SELF, str(path), "r") as handle:
+        mesh = handle.read_mesh(name="mesh")
     return from_dolfinx(mesh)

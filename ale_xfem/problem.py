@@ -4,15 +4,16 @@ conditions, the exact solution when the scene has one, and the list of active ef
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
 from ale_xfem import exact
 from ale_xfem.effects import Effect, active, scene_effects
 from ale_xfem.lagrange import Boundary
-from ale_xfem.mesh import MeshArrays, interval_mesh
+from ale_xfem.mesh import MeshArrays, file_mesh, interval_mesh, rectangle_mesh, saltzman_mesh
 from ale_xfem.mixed import MixedCellFailure, MixedCells, with_mixed_state
-from ale_xfem.scene import Scene
+from ale_xfem.scene import Scene, SceneError
 from ale_xfem.state import Material, MaterialLayout, State, density_of, thermodynamics
 
 
@@ -44,6 +45,8 @@ class Problem:
 
 
 def build_problem(scene: Scene) -> Problem:
+    if scene.dimension == 2:
+        return _build_problem_2d(scene)
     mesh = interval_mesh(scene.mesh.extent, scene.mesh.cells)
     names = list(scene.materials)
     materials = [Material(n, scene.materials[n].eos, scene.materials[n].make_eos()) for n in names]
@@ -157,6 +160,100 @@ def build_problem(scene: Scene) -> Problem:
             interface_velocity=np.zeros(cells.size))
     return Problem(scene, mesh, materials, layout, node_mass, state, boundaries,
                    exact_reference(scene), effects, mixed, corner_by_position, setup_failure, effect_table)
+
+
+def mesh_2d(scene: Scene) -> MeshArrays:
+    spec = scene.mesh
+    if spec.kind == "saltzman":
+        return saltzman_mesh(spec.extent, spec.cells, spec.cell_type)
+    if spec.kind == "file":
+        path = Path(spec.file)
+        if not path.is_absolute() and scene.source:
+            path = Path(scene.source).parent / path
+        if not path.exists():
+            raise SceneError("mesh.file", spec.file, f"an existing XDMF file (looked for {path})")
+        try:
+            return file_mesh(path)
+        except (RuntimeError, ValueError) as error:
+            raise SceneError("mesh.file", spec.file, f"an XDMF mesh of triangles or quadrilaterals ({error})") from None
+    return rectangle_mesh(spec.extent, spec.cells, spec.cell_type)
+
+
+def region_fractions_2d(scene: Scene, mesh: MeshArrays) -> np.ndarray:
+    """(n_regions, n_cells): the share of each cell's area each region owns, from the exact
+    areas of shape ∩ cell.  Later regions overwrite earlier ones: a region taking a share a
+    of a cell scales what the earlier regions hold there by (1 − a) — exact when the earlier
+    content of the cell is one region or the later shapes do not overlap inside the cell
+    (a background and shapes that do not cross each other inside one cell)."""
+    vertices = mesh.cell_vertex_positions()
+    area = mesh.cell_volumes()
+    fractions = np.zeros((len(scene.regions), mesh.n_cells))
+    for r, region in enumerate(scene.regions):
+        share = np.clip(region.shape.area_in(vertices) / area, 0.0, 1.0)
+        share[share < 1e-12] = 0.0
+        share[share > 1.0 - 1e-12] = 1.0
+        fractions[:r] *= 1.0 - share
+        fractions[r] = share
+    return fractions
+
+
+def _build_problem_2d(scene: Scene) -> Problem:
+    """2D: materials meet on mesh lines (every cell pure); node velocities sampled from the
+    region velocity fields at the nodes, with the corner momenta of each cell's regions."""
+    mesh = mesh_2d(scene)
+    names = list(scene.materials)
+    materials = [Material(n, scene.materials[n].eos, scene.materials[n].make_eos()) for n in names]
+    fractions = region_fractions_2d(scene, mesh)
+    centroids = mesh.cell_centroids()
+    covered = fractions.sum(axis=0)
+    if np.any(covered < 1.0 - 1e-9):
+        c = int(np.argmin(covered))
+        raise SceneError("regions", f"cell {c} at ({centroids[c, 0]:.4g}, {centroids[c, 1]:.4g}) covered "
+                         f"{covered[c]:.3g}", "regions whose shapes cover the whole domain")
+    area = mesh.cell_volumes()
+    n_materials, n_cells = len(materials), mesh.n_cells
+    material_share = np.zeros((n_materials, n_cells))
+    for r, region in enumerate(scene.regions):
+        material_share[names.index(region.material)] += fractions[r]
+    present = material_share > 1e-9
+    if np.any(present.sum(axis=0) > 1):
+        c = int(np.flatnonzero(present.sum(axis=0) > 1)[0])
+        both = [names[m] for m in np.flatnonzero(present[:, c])]
+        owner = max(r for r in range(len(scene.regions)) if fractions[r, c] > 1e-9)
+        raise SceneError(f"regions[{owner}]", scene.regions[owner].material,
+                         f"a shape whose boundary between '{both[0]}' and '{both[1]}' follows mesh lines: "
+                         f"cell {c} at ({centroids[c, 0]:.4g}, {centroids[c, 1]:.4g}) holds both, and 2D "
+                         "mixed cells are not available in this version")
+    corners = mesh.cell_type.nodes_per_cell
+    mass = np.zeros(n_cells)
+    energy = np.zeros(n_cells)
+    corner_momentum = np.zeros((2, corners, n_cells))
+    node_x = mesh.cell_vertex_positions()  # (n_cells, corners, 2)
+    for r, region in enumerate(scene.regions):
+        if not np.any(fractions[r] > 0):
+            continue
+        eos = scene.materials[region.material].make_eos()
+        region_mass = region.density * fractions[r] * area
+        mass += region_mass
+        energy += region_mass * float(eos.energy(region.density, region.pressure))
+        velocity = np.broadcast_to(np.array(region.velocity, dtype=float)[:, None, None], (2, corners, n_cells)).copy()
+        if region.radial_velocity is not None:
+            cx, cy, speed = region.radial_velocity
+            offset = node_x - np.array([cx, cy])
+            distance = np.linalg.norm(offset, axis=-1)
+            unit = np.divide(offset, distance[..., None], out=np.zeros_like(offset), where=distance[..., None] > 0)
+            velocity += speed * np.moveaxis(unit, -1, 0).transpose(0, 2, 1)
+        corner_momentum += velocity * (region_mass / corners)
+    cell_material = np.argmax(material_share, axis=0)[None, :].astype(np.int64)
+    layout = MaterialLayout(cell_material, n_materials)
+    state, node_mass = state_from_cells(mesh, materials, layout, mass[None, :], (energy / mass)[None, :],
+                                        corner_momentum=corner_momentum)
+    boundaries = side_boundaries(mesh, scene.mesh.extent, scene.boundaries)
+    for boundary in boundaries:
+        boundary.apply(state.node_velocity)
+    effect_table = scene_effects(scene, 0, [b.side for b in boundaries if b.kind == "velocity"])
+    return Problem(scene, mesh, materials, layout, node_mass, state, boundaries, exact_reference_2d(scene),
+                   active(effect_table), None, None, "", effect_table)
 
 
 def _left_material_first(scene, names, left, right, first, second):
@@ -279,6 +376,47 @@ def exact_reference(scene: Scene) -> ExactReference | None:
     times = [(x0 - a) / (end_left - slow) if end_left > slow else np.inf,
              (b - x0) / (fast - end_right) if fast > end_right else np.inf]
     return ExactReference(kind, solution, float(min(times)))
+
+
+def exact_reference_2d(scene: Scene) -> ExactReference | None:
+    """Noh (one ideal gas at ~zero pressure flowing radially inwards, walls or free sides)
+    and a piston into an ideal gas at rest (one side {velocity} along its inward normal,
+    walls elsewhere: Saltzman's problem).  Anything else: None."""
+    from ale_xfem.exact.planar_2d import NohSolution, PistonSolution
+
+    states = {(r.material, r.density, r.pressure, r.velocity, r.radial_velocity) for r in scene.regions}
+    if len(states) != 1:
+        return None
+    material, density, pressure, velocity, radial = states.pop()
+    spec = scene.materials[material]
+    if spec.eos != "ideal_gas":
+        return None
+    gamma = spec.parameters["gamma"]
+    (x0, x1), (y0, y1) = scene.mesh.extent
+    if radial is not None and radial[2] < 0 and velocity == (0.0, 0.0):
+        speed = -radial[2]
+        if pressure > 1e-6 * density * speed**2:
+            return None
+        solution = NohSolution((radial[0], radial[1]), density, speed, gamma)
+        # the shock meets the nearest side that is not on the centre (those move in at V)
+        far = [abs(v - c) for v, c in ((x0, radial[0]), (x1, radial[0]), (y0, radial[1]), (y1, radial[1]))
+               if abs(v - c) > 1e-12]
+        valid = min(far) / (solution.shock_speed + speed) if far else np.inf
+        return ExactReference("noh", solution, float(valid))
+    pistons = [side for side, b in scene.boundaries.items() if b.kind == "velocity"]
+    if radial is None and velocity == (0.0, 0.0) and len(pistons) == 1 and all(
+            b.kind == "wall" for side, b in scene.boundaries.items() if side != pistons[0]):
+        side = pistons[0]
+        inward = {"left": (1.0, 0.0), "right": (-1.0, 0.0), "bottom": (0.0, 1.0), "top": (0.0, -1.0)}[side]
+        piston = np.array(scene.boundaries[side].velocity)
+        speed = float(piston @ np.array(inward))
+        if speed <= 0 or abs(float(piston @ np.array(inward[::-1]))) > 0:
+            return None
+        origin = {"left": (x0, y0), "right": (x1, y0), "bottom": (x0, y0), "top": (x0, y1)}[side]
+        solution = PistonSolution(origin, inward, speed, density, pressure, gamma)
+        length = (x1 - x0) if side in ("left", "right") else (y1 - y0)
+        return ExactReference("piston", solution, float(length / solution.shock_speed))
+    return None
 
 
 def _merge_identical_states(scene: Scene, pieces):

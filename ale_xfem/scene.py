@@ -16,11 +16,18 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from ale_xfem import eos as eos_models
+from ale_xfem import shapes
 
 BOUNDARY_SIDES_1D = ("left", "right")
+BOUNDARY_SIDES_2D = ("left", "right", "bottom", "top")
 MOTIONS_AVAILABLE = ("lagrangian", "eulerian", "smoothed", "interface")
 MOTIONS_PLANNED = ()
+MOTIONS_2D = ("lagrangian",)  # the 2D remap is not built yet
+CELL_TYPES_2D = ("quadrilateral", "triangle")
+MESH_KINDS_2D = ("rectangle", "saltzman", "file")
 
 NUMERICS_DEFAULTS = {
     "cfl": 0.5,  # fraction of the sound-crossing time of the smallest cell
@@ -34,6 +41,8 @@ NUMERICS_DEFAULTS = {
     # total: the kinetic energy the momentum remap loses goes into the internal energy of
     # the cells around each node (total energy conserved); internal: it is lost (reported)
     "remap_energy": "total",
+    # 2D quadrilaterals: viscous hourglass control, f_i = −κ ρ c L (Σ_j γ_j u_j) γ_i
+    "hourglass": 0.1,
 }
 
 INTERFACE_DEFAULTS = {
@@ -69,9 +78,12 @@ _MISSING = object()
 
 @dataclass(frozen=True)
 class MeshSpec:
-    extent: tuple[float, float]
-    cells: int
+    extent: tuple  # 1D (x0, x1); 2D ((x0, x1), (y0, y1))
+    cells: int | tuple[int, int]  # 1D n; 2D (nx, ny)
     motion: str
+    cell_type: str = "interval"  # 2D: quadrilateral | triangle
+    kind: str = "interval"  # 2D: rectangle | saltzman | file
+    file: str = ""  # kind = "file": an XDMF mesh
 
 
 @dataclass(frozen=True)
@@ -88,10 +100,12 @@ class MaterialSpec:
 class RegionSpec:
     index: int
     material: str
-    interval: tuple[float, float]
+    interval: tuple[float, float] | None  # 1D
     density: float
     pressure: float
     velocity: tuple[float, ...]
+    shape: object = None  # 2D: a shape of ale_xfem.shapes
+    radial_velocity: tuple[float, float, float] | None = None  # 2D: (cx, cy, speed), u = speed r̂
 
 
 @dataclass(frozen=True)
@@ -111,6 +125,7 @@ class Numerics:
     interface_max_iterations: int = 50
     remap_order: int = 2
     remap_energy: str = "total"
+    hourglass: float = 0.1
 
 
 @dataclass(frozen=True)
@@ -256,30 +271,74 @@ def validate(data: dict, source: str = "") -> Scene:
     description = data.setdefault("description", "")
     if not isinstance(description, str):
         raise SceneError("description", description, "a string")
-    if data["dimension"] != 1 or isinstance(data["dimension"], bool):
-        raise SceneError("dimension", data["dimension"], "1 (2D scenes arrive with the 2D solver)")
+    dimension = data["dimension"]
+    if isinstance(dimension, bool) or dimension not in (1, 2):
+        raise SceneError("dimension", dimension, "1 or 2")
     t_end = _real(data["t_end"], "t_end", lambda v: v > 0, "a real number > 0")
 
-    mesh_table = _keys(data["mesh"], "mesh", ("extent", "cells"), ("motion",))
+    mesh = _validate_mesh(data["mesh"]) if dimension == 1 else _validate_mesh_2d(data["mesh"])
+    materials = _validate_materials(data["materials"])
+    regions = _validate_regions(data["regions"], materials, mesh, dimension)
+    boundaries = _validate_boundaries(data.setdefault("boundaries", {}), dimension)
+    numerics = _validate_numerics(data.setdefault("numerics", {}))
+    interface = _validate_interface(data["interface"]) if "interface" in data else None
+    if dimension == 2 and interface is not None:
+        raise SceneError("interface", data["interface"], "not available in 2D in this version: 2D "
+                         "materials meet on mesh lines (mixed cells arrive with the 2D remap)")
+
+    scene = Scene(name, description, dimension, t_end, mesh, materials, regions, boundaries, numerics,
+                  interface, resolved=data, source=source)
+    if dimension == 1:
+        _check_coverage(scene)
+    _check_motion(scene)
+    return scene
+
+
+def _validate_mesh(table: Any) -> MeshSpec:
+    mesh_table = _keys(table, "mesh", ("extent", "cells"), ("motion",))
     extent = _reals(mesh_table["extent"], "mesh.extent", 2)
     if not extent[0] < extent[1]:
         raise SceneError("mesh.extent", mesh_table["extent"], "[x0, x1] with x0 < x1")
     cells = _integer(mesh_table["cells"], "mesh.cells")
     motion = _choice(mesh_table.setdefault("motion", "lagrangian"), "mesh.motion",
                      MOTIONS_AVAILABLE, MOTIONS_PLANNED)
-    mesh = MeshSpec(extent, cells, motion)
+    return MeshSpec(extent, cells, motion)
 
-    materials = _validate_materials(data["materials"])
-    regions = _validate_regions(data["regions"], materials, mesh)
-    boundaries = _validate_boundaries(data.setdefault("boundaries", {}))
-    numerics = _validate_numerics(data.setdefault("numerics", {}))
-    interface = _validate_interface(data["interface"]) if "interface" in data else None
 
-    scene = Scene(name, description, 1, t_end, mesh, materials, regions, boundaries, numerics,
-                  interface, resolved=data, source=source)
-    _check_coverage(scene)
-    _check_motion(scene)
-    return scene
+def _validate_mesh_2d(table: Any) -> MeshSpec:
+    """2D: extent [[x0, x1], [y0, y1]]; cells [nx, ny] (or n: n along x and the same
+    spacing along y); kind rectangle | saltzman (the rectangle's nodes shifted by
+    (y1 − y) sin(π (x − x0)/(x1 − x0)) along x: Saltzman's skewed mesh) | file (an XDMF
+    mesh; extent then gives the box whose sides carry the boundary conditions)."""
+    mesh_table = _keys(table, "mesh", ("extent", "cells"), ("motion", "cell_type", "kind", "file"))
+    raw = mesh_table["extent"]
+    if not isinstance(raw, list) or len(raw) != 2 or not all(isinstance(r, list) for r in raw):
+        raise SceneError("mesh.extent", raw, "[[x0, x1], [y0, y1]] in 2D")
+    extent = tuple(_reals(r, f"mesh.extent[{i}]", 2) for i, r in enumerate(raw))
+    for i, (lo, hi) in enumerate(extent):
+        if not lo < hi:
+            raise SceneError(f"mesh.extent[{i}]", list(raw[i]), "[lo, hi] with lo < hi")
+    cells_raw = mesh_table["cells"]
+    if isinstance(cells_raw, list):
+        if len(cells_raw) != 2:
+            raise SceneError("mesh.cells", cells_raw, "[nx, ny] (two integers >= 1) or n in 2D")
+        cells = tuple(_integer(v, f"mesh.cells[{i}]") for i, v in enumerate(cells_raw))
+    else:
+        nx = _integer(cells_raw, "mesh.cells")
+        (x0, x1), (y0, y1) = extent
+        cells = (nx, max(1, round(nx * (y1 - y0) / (x1 - x0))))
+    motion = _choice(mesh_table.setdefault("motion", "lagrangian"), "mesh.motion", MOTIONS_2D,
+                     tuple(m for m in MOTIONS_AVAILABLE if m not in MOTIONS_2D))
+    cell_type = _choice(mesh_table.setdefault("cell_type", "quadrilateral"), "mesh.cell_type", CELL_TYPES_2D)
+    kind = _choice(mesh_table.setdefault("kind", "rectangle"), "mesh.kind", MESH_KINDS_2D)
+    file = mesh_table.get("file", "")
+    if kind == "file":
+        if not isinstance(file, str) or not file.endswith(".xdmf"):
+            raise SceneError("mesh.file", file if file else _MISSING, "the path of an XDMF mesh (.xdmf) "
+                             "with mesh.kind = 'file'")
+    elif "file" in mesh_table:
+        raise SceneError("mesh.file", file, "only with mesh.kind = 'file'")
+    return MeshSpec(extent, cells, motion, cell_type, kind, file)
 
 
 def _validate_materials(table: Any) -> dict[str, MaterialSpec]:
@@ -305,31 +364,46 @@ def _validate_materials(table: Any) -> dict[str, MaterialSpec]:
     return materials
 
 
-def _validate_regions(regions: Any, materials: dict[str, MaterialSpec], mesh: MeshSpec):
+def _validate_regions(regions: Any, materials: dict[str, MaterialSpec], mesh: MeshSpec, dimension: int = 1):
     if not isinstance(regions, list) or not regions:
         raise SceneError("regions", regions, "at least one [[regions]] table")
     specs = []
     for index, table in enumerate(regions):
         where = f"regions[{index}]"
-        _keys(table, where, ("material", "interval", "density", "pressure"), ("velocity",))
+        interval = shape = radial = None
+        if dimension == 1:
+            _keys(table, where, ("material", "interval", "density", "pressure"), ("velocity",))
+        else:
+            _keys(table, where, ("material", "density", "pressure"),
+                  ("velocity", "radial_velocity") + shapes.SHAPES)
         material = table["material"]
         if material not in materials:
             raise SceneError(f"{where}.material", material,
                              f"one of the materials defined: {', '.join(materials)}")
-        interval = _reals(table["interval"], f"{where}.interval", 2)
-        if not interval[0] < interval[1]:
-            raise SceneError(f"{where}.interval", table["interval"], "[x0, x1] with x0 < x1")
-        lo, hi = max(interval[0], mesh.extent[0]), min(interval[1], mesh.extent[1])
-        if not hi > lo:
-            raise SceneError(f"{where}.interval", table["interval"],
-                             f"an interval that meets the domain {list(mesh.extent)}")
+        if dimension == 1:
+            interval = _reals(table["interval"], f"{where}.interval", 2)
+            if not interval[0] < interval[1]:
+                raise SceneError(f"{where}.interval", table["interval"], "[x0, x1] with x0 < x1")
+            lo, hi = max(interval[0], mesh.extent[0]), min(interval[1], mesh.extent[1])
+            if not hi > lo:
+                raise SceneError(f"{where}.interval", table["interval"],
+                                 f"an interval that meets the domain {list(mesh.extent)}")
+        else:
+            shape = _validate_shape(table, where)
         density = _real(table["density"], f"{where}.density")
         pressure = _real(table["pressure"], f"{where}.pressure")
-        raw_velocity = table.setdefault("velocity", [0.0])
-        if not isinstance(raw_velocity, list) or len(raw_velocity) not in (1, 2):
+        raw_velocity = table.setdefault("velocity", [0.0] * dimension)
+        if dimension == 1 and (not isinstance(raw_velocity, list) or len(raw_velocity) not in (1, 2)):
             raise SceneError(f"{where}.velocity", raw_velocity,
                              "[u] or [u, v] (v: a transverse component, carried by the remap)")
+        if dimension == 2 and (not isinstance(raw_velocity, list) or len(raw_velocity) != 2):
+            raise SceneError(f"{where}.velocity", raw_velocity, "[vx, vy] in 2D")
         velocity = _reals(raw_velocity, f"{where}.velocity", len(raw_velocity))
+        if "radial_velocity" in table:
+            key = f"{where}.radial_velocity"
+            spec = _keys(table["radial_velocity"], key, ("center", "speed"))
+            center = _reals(spec["center"], f"{key}.center", 2)
+            radial = (*center, _real(spec["speed"], f"{key}.speed"))
         eos = materials[material].make_eos()
         if not density > 0.0:
             raise SceneError(f"{where}.density", density, "a real number > 0")
@@ -339,23 +413,61 @@ def _validate_regions(regions: Any, materials: dict[str, MaterialSpec], mesh: Me
             value = density if key == "density" else pressure
             raise SceneError(f"{where}.{key}", value,
                              f"{reason} for {materials[material].eos} material '{material}'")
-        specs.append(RegionSpec(index, material, interval, density, pressure, velocity))
+        specs.append(RegionSpec(index, material, interval, density, pressure, velocity, shape, radial))
     return tuple(specs)
 
 
-def _validate_boundaries(table: Any) -> dict[str, BoundarySpec]:
-    _keys(table, "boundaries", (), BOUNDARY_SIDES_1D)
+def _validate_shape(table: dict, where: str):
+    """Exactly one of box, half_plane, disk, polygon (see ale_xfem.shapes)."""
+    given = [k for k in shapes.SHAPES if k in table]
+    if len(given) != 1:
+        raise SceneError(where, ", ".join(given) if given else _MISSING,
+                         f"exactly one shape among {', '.join(shapes.SHAPES)}")
+    kind = given[0]
+    key = f"{where}.{kind}"
+    value = table[kind]
+    if kind == "box":
+        if not isinstance(value, list) or len(value) != 2:
+            raise SceneError(key, value, "[[x0, x1], [y0, y1]]")
+        (x0, x1), (y0, y1) = (_reals(v, f"{key}[{i}]", 2) for i, v in enumerate(value))
+        if not (x0 < x1 and y0 < y1):
+            raise SceneError(key, value, "[[x0, x1], [y0, y1]] with x0 < x1 and y0 < y1")
+        return shapes.Box((x0, y0), (x1, y1))
+    if kind == "half_plane":
+        spec = _keys(value, key, ("point", "normal"))
+        point = _reals(spec["point"], f"{key}.point", 2)
+        normal = _reals(spec["normal"], f"{key}.normal", 2)
+        if normal[0] == 0.0 and normal[1] == 0.0:
+            raise SceneError(f"{key}.normal", list(normal), "a non-zero vector (pointing out of the region)")
+        return shapes.HalfPlane(point, normal)
+    if kind == "disk":
+        spec = _keys(value, key, ("center", "radius"))
+        center = _reals(spec["center"], f"{key}.center", 2)
+        radius = _real(spec["radius"], f"{key}.radius", lambda v: v > 0, "a real number > 0")
+        return shapes.Disk(center, radius)
+    if not isinstance(value, list) or len(value) < 3:
+        raise SceneError(key, value, "a list of at least 3 vertices [[x, y], ...]")
+    vertices = tuple(_reals(v, f"{key}[{i}]", 2) for i, v in enumerate(value))
+    if abs(float(shapes.polygon_area(np.array(vertices)[None])[0])) <= 0.0:
+        raise SceneError(key, value, "a polygon of non-zero area")
+    return shapes.Polygon(vertices)
+
+
+def _validate_boundaries(table: Any, dimension: int = 1) -> dict[str, BoundarySpec]:
+    sides = BOUNDARY_SIDES_1D if dimension == 1 else BOUNDARY_SIDES_2D
+    _keys(table, "boundaries", (), sides)
     boundaries = {}
-    for side in BOUNDARY_SIDES_1D:
+    for side in sides:
         value = table.setdefault(side, "wall")
         key = f"boundaries.{side}"
         if isinstance(value, dict):
             _keys(value, key, ("velocity",))
-            boundaries[side] = BoundarySpec("velocity", _reals(value["velocity"], f"{key}.velocity", 1))
+            boundaries[side] = BoundarySpec("velocity", _reals(value["velocity"], f"{key}.velocity", dimension))
         elif value in ("wall", "free"):
             boundaries[side] = BoundarySpec(value)
         else:
-            raise SceneError(key, value, "'wall', 'free' or {velocity = [u]}")
+            allowed = "{velocity = [u]}" if dimension == 1 else "{velocity = [vx, vy]}"
+            raise SceneError(key, value, f"'wall', 'free' or {allowed}")
     return boundaries
 
 
@@ -375,6 +487,7 @@ def _validate_numerics(table: Any) -> Numerics:
                                           "numerics.interface_max_iterations"),
         remap_order=_choice_int(table["remap_order"], "numerics.remap_order", (1, 2)),
         remap_energy=_choice(table["remap_energy"], "numerics.remap_energy", ("total", "internal")),
+        hourglass=_real(table["hourglass"], "numerics.hourglass", lambda v: 0 <= v <= 1, "a real number in [0, 1]"),
     )
 
 

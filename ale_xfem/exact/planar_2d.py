@@ -1,0 +1,81 @@
+"""Exact 2D references: Noh's implosion (cylindrical) and a piston driving a planar shock
+into gas at rest (Saltzman's problem).  ``sample(points, t)`` takes points (..., 2) and
+returns density, velocity (..., 2) and pressure."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class NohSolution:
+    """Ideal gas (γ) of density ρ0 at zero pressure flowing to ``center`` at speed V:
+    a cylindrical shock leaves the centre at D = (γ − 1)V/2; behind it the gas is at rest
+    with ρ = ρ0 ((γ + 1)/(γ − 1))², p = (γ − 1) ρ V²/2; ahead of it ρ = ρ0 (1 + V t/r).
+    (W. F. Noh, JCP 72, 1987.)"""
+
+    center: tuple[float, float]
+    density: float
+    speed: float  # V > 0: inflow speed
+    gamma: float
+
+    @property
+    def shock_speed(self) -> float:
+        return 0.5 * (self.gamma - 1.0) * self.speed
+
+    @property
+    def shocked_density(self) -> float:
+        return self.density * ((self.gamma + 1.0) / (self.gamma - 1.0)) ** 2
+
+    def sample(self, points, t: float) -> dict[str, np.ndarray]:
+        offset = np.asarray(points, dtype=float) - np.asarray(self.center)
+        r = np.linalg.norm(offset, axis=-1)
+        shocked = r < self.shock_speed * t
+        unit = np.divide(offset, r[..., None], out=np.zeros_like(offset), where=r[..., None] > 0)
+        with np.errstate(divide="ignore"):
+            ahead = self.density * (1.0 + self.speed * t / r)
+        density = np.where(shocked, self.shocked_density, ahead)
+        velocity = np.where(shocked[..., None], 0.0, -self.speed * unit)
+        pressure = np.where(shocked, 0.5 * (self.gamma - 1.0) * self.shocked_density * self.speed**2, 0.0)
+        return {"density": density, "velocity": velocity, "pressure": pressure}
+
+
+@dataclass(frozen=True)
+class PistonSolution:
+    """A piston on a plane wall (unit normal ``direction`` into the gas, through ``origin``)
+    moving at speed u_p into an ideal gas (γ, ρ0, p0) at rest: a shock runs ahead of it at
+    D = a + √(a² + c0²), a = (γ + 1) u_p/4, with ρ1 = ρ0 D/(D − u_p), p1 = p0 + ρ0 D u_p,
+    and the gas between piston and shock moves with the piston."""
+
+    origin: tuple[float, float]
+    direction: tuple[float, float]
+    piston_speed: float
+    density: float
+    pressure: float
+    gamma: float
+
+    @property
+    def shock_speed(self) -> float:
+        a = 0.25 * (self.gamma + 1.0) * self.piston_speed
+        c2 = self.gamma * self.pressure / self.density
+        return a + np.sqrt(a * a + c2)
+
+    @property
+    def shocked_density(self) -> float:
+        d = self.shock_speed
+        return self.density * d / (d - self.piston_speed)
+
+    @property
+    def shocked_pressure(self) -> float:
+        return self.pressure + self.density * self.shock_speed * self.piston_speed
+
+    def sample(self, points, t: float) -> dict[str, np.ndarray]:
+        n = np.asarray(self.direction, dtype=float)
+        s = (np.asarray(points, dtype=float) - np.asarray(self.origin)) @ n
+        shocked = s < self.shock_speed * t
+        density = np.where(shocked, self.shocked_density, self.density)
+        pressure = np.where(shocked, self.shocked_pressure, self.pressure)
+        velocity = np.where(shocked[..., None], self.piston_speed * n, 0.0)
+        return {"density": density, "velocity": velocity, "pressure": pressure}

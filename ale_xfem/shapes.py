@@ -1,0 +1,226 @@
+"""2D region shapes and exact polygon geometry, vectorised over cells.
+
+A scene's 2D regions are shapes; each cell of the initial mesh takes from a shape the exact
+area of their intersection:
+
+- ``box`` [[x0, x1], [y0, y1]] and ``polygon`` [[x, y], ...] (simple, either orientation,
+  not necessarily convex): the shape clipped by the cell's edges (Sutherland–Hodgman, exact
+  for a convex cell whatever the shape);
+- ``half_plane`` {point, normal}: the points x with (x − point)·normal ≤ 0 (the normal points
+  out of the region): the cell clipped by one line;
+- ``disk`` {center, radius}: the area of a circle and a convex polygon in closed form, edge
+  by edge (triangle where the edge is inside the circle, circular sector where outside).
+
+Polygons in batches are (n, m, 2) arrays of vertices in order, padded by repeating the last
+vertex (a zero-length edge changes no area); every loop here runs over the few vertices of
+a polygon, never over cells.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+def polygon_area(vertices: np.ndarray) -> np.ndarray:
+    """Signed (shoelace) areas of polygons (n, m, 2): > 0 counter-clockwise."""
+    x, y = vertices[..., 0], vertices[..., 1]
+    return 0.5 * np.sum(x * np.roll(y, -1, axis=-1) - np.roll(x, -1, axis=-1) * y, axis=-1)
+
+
+def polygon_centroid(vertices: np.ndarray) -> np.ndarray:
+    """Centroids (n, 2) of polygons (n, m, 2); that of the vertices where the area is 0."""
+    x, y = vertices[..., 0], vertices[..., 1]
+    xn, yn = np.roll(x, -1, axis=-1), np.roll(y, -1, axis=-1)
+    cross = x * yn - xn * y
+    area = 0.5 * cross.sum(axis=-1)
+    safe = np.where(np.abs(area) > 0, area, 1.0)
+    cx = ((x + xn) * cross).sum(axis=-1) / (6.0 * safe)
+    cy = ((y + yn) * cross).sum(axis=-1) / (6.0 * safe)
+    centre = np.stack([cx, cy], axis=-1)
+    empty = np.abs(area) <= 0
+    if np.any(empty):
+        centre[empty] = vertices[empty].mean(axis=-2)
+    return centre
+
+
+def clip_half_plane(vertices: np.ndarray, normal: np.ndarray, offset: np.ndarray) -> np.ndarray:
+    """The part of each polygon (n, m, 2) where x·normal ≤ offset (normal (n, 2) or (2,),
+    offset (n,) or scalar): one Sutherland–Hodgman pass.  Returns (n, m', 2), padded; an
+    empty result is m' copies of one point (zero area)."""
+    n, m, _ = vertices.shape
+    normal = np.broadcast_to(np.asarray(normal, dtype=float), (n, 2))
+    offset = np.broadcast_to(np.asarray(offset, dtype=float), (n,))
+    distance = np.einsum("nmd,nd->nm", vertices, normal) - offset[:, None]
+    inside = distance <= 0.0
+    following = np.roll(np.arange(m), -1)
+    d0, d1 = distance, distance[:, following]
+    crossing = inside != inside[:, following]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        t = np.where(crossing, d0 / (d0 - d1), 0.0)
+    cut = vertices + t[..., None] * (vertices[:, following] - vertices)
+    # each edge emits its start if inside, then the crossing point if it crosses
+    points = np.stack([vertices, cut], axis=2).reshape(n, 2 * m, 2)
+    emitted = np.stack([inside, crossing], axis=2).reshape(n, 2 * m)
+    count = emitted.sum(axis=1)
+    width = max(int(count.max(initial=0)), 1)
+    order = np.argsort(~emitted, axis=1, kind="stable")[:, :width]
+    result = np.take_along_axis(points, order[..., None], axis=1)
+    # pad each polygon with its last emitted point
+    last = np.take_along_axis(result, np.maximum(count - 1, 0)[:, None, None], axis=1)
+    pad = np.arange(width)[None, :] >= count[:, None]
+    result = np.where(pad[..., None], last, result)
+    result[count == 0] = 0.0
+    return result
+
+
+def clip_convex(subject: np.ndarray, clip: np.ndarray) -> np.ndarray:
+    """subject (n, m, 2) polygons (any shape) clipped by convex counter-clockwise polygons
+    clip (n, k, 2): their intersection, exact."""
+    result = subject
+    k = clip.shape[1]
+    for i in range(k):  # one pass per edge of the clipping polygon
+        a, b = clip[:, i], clip[:, (i + 1) % k]
+        edge = b - a
+        outward = np.stack([edge[:, 1], -edge[:, 0]], axis=1)  # right of a ccw edge
+        length = np.linalg.norm(outward, axis=1)
+        degenerate = length == 0.0
+        outward = outward / np.where(degenerate, 1.0, length)[:, None]
+        offset = np.einsum("nd,nd->n", outward, a)
+        offset = np.where(degenerate, np.inf, offset)  # a zero-length edge clips nothing
+        result = clip_half_plane(result, outward, offset)
+    return result
+
+
+def _sector(u, v, radius):
+    """Signed area of the circular sector from direction u to direction v."""
+    cross = u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0]
+    dot = np.einsum("...d,...d->...", u, v)
+    return 0.5 * radius**2 * np.arctan2(cross, dot)
+
+
+def _triangle(u, v):
+    return 0.5 * (u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0])
+
+
+def disk_polygon_area(vertices: np.ndarray, center, radius: float) -> np.ndarray:
+    """Area of the intersection of the disk and each polygon (n, m, 2), counter-clockwise
+    (signed: clockwise polygons give minus the area), edge by edge: the signed area of the
+    disk ∩ triangle (centre, edge).  Each edge is cut where it crosses the circle: its
+    parts inside count as triangles, its parts outside as sectors."""
+    a = vertices - np.asarray(center, dtype=float)
+    b = np.roll(a, -1, axis=1)
+    d = b - a
+    A = np.einsum("...d,...d->...", d, d)
+    B = 2.0 * np.einsum("...d,...d->...", a, d)
+    C = np.einsum("...d,...d->...", a, a) - radius**2
+    discriminant = B * B - 4.0 * A * C
+    meets = (discriminant > 0.0) & (A > 0.0)
+    root = np.sqrt(np.where(meets, discriminant, 0.0))
+    safe = np.where(A > 0.0, 2.0 * A, 1.0)
+    s1 = np.where(meets, np.clip((-B - root) / safe, 0.0, 1.0), 1.0)
+    s2 = np.where(meets, np.clip((-B + root) / safe, 0.0, 1.0), 1.0)
+    p1 = a + s1[..., None] * d
+    p2 = a + s2[..., None] * d
+    area = _sector(a, p1, radius) + _triangle(p1, p2) + _sector(p2, b, radius)
+    area = np.where(A > 0.0, area, 0.0)
+    return area.sum(axis=-1)
+
+
+# ----------------------------------------------------------------------------- shapes
+
+
+@dataclass(frozen=True)
+class Box:
+    lower: tuple[float, float]
+    upper: tuple[float, float]
+
+    def polygon(self) -> np.ndarray:
+        (x0, y0), (x1, y1) = self.lower, self.upper
+        return np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]], dtype=float)
+
+    def bounds(self):
+        return np.array(self.lower), np.array(self.upper)
+
+    def area_in(self, cells: np.ndarray) -> np.ndarray:
+        return _polygon_area_in(self.polygon(), self.bounds(), cells)
+
+    def contains(self, points: np.ndarray) -> np.ndarray:
+        (x0, y0), (x1, y1) = self.lower, self.upper
+        return (points[..., 0] >= x0) & (points[..., 0] <= x1) & (points[..., 1] >= y0) & (points[..., 1] <= y1)
+
+
+@dataclass(frozen=True)
+class HalfPlane:
+    point: tuple[float, float]
+    normal: tuple[float, float]  # points out of the region
+
+    def area_in(self, cells: np.ndarray) -> np.ndarray:
+        normal = np.asarray(self.normal, dtype=float)
+        normal = normal / np.linalg.norm(normal)
+        kept = clip_half_plane(cells, normal, float(normal @ np.asarray(self.point, dtype=float)))
+        return polygon_area(kept)
+
+    def contains(self, points: np.ndarray) -> np.ndarray:
+        return (points - np.asarray(self.point)) @ np.asarray(self.normal, dtype=float) <= 0.0
+
+
+@dataclass(frozen=True)
+class Disk:
+    center: tuple[float, float]
+    radius: float
+
+    def area_in(self, cells: np.ndarray) -> np.ndarray:
+        area = np.zeros(cells.shape[0])
+        near = _near(cells, np.asarray(self.center) - self.radius, np.asarray(self.center) + self.radius)
+        area[near] = disk_polygon_area(cells[near], self.center, self.radius)
+        return area
+
+    def contains(self, points: np.ndarray) -> np.ndarray:
+        return np.linalg.norm(points - np.asarray(self.center), axis=-1) <= self.radius
+
+
+@dataclass(frozen=True)
+class Polygon:
+    vertices: tuple[tuple[float, float], ...]
+
+    def polygon(self) -> np.ndarray:
+        vertices = np.array(self.vertices, dtype=float)
+        return vertices if polygon_area(vertices[None])[0] > 0 else vertices[::-1].copy()
+
+    def bounds(self):
+        vertices = np.array(self.vertices, dtype=float)
+        return vertices.min(axis=0), vertices.max(axis=0)
+
+    def area_in(self, cells: np.ndarray) -> np.ndarray:
+        return _polygon_area_in(self.polygon(), self.bounds(), cells)
+
+    def contains(self, points: np.ndarray) -> np.ndarray:
+        """Even–odd rule."""
+        vertices = np.array(self.vertices, dtype=float)
+        x, y = points[..., 0], points[..., 1]
+        inside = np.zeros(x.shape, dtype=bool)
+        for (xa, ya), (xb, yb) in zip(vertices, np.roll(vertices, -1, axis=0)):
+            crosses = (ya > y) != (yb > y)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                x_cross = xa + (y - ya) * (xb - xa) / (yb - ya)
+            inside ^= crosses & (x < x_cross)
+        return inside
+
+
+def _near(cells, lower, upper):
+    """Cells whose bounding box meets [lower, upper]."""
+    return np.all(cells.max(axis=1) >= lower, axis=1) & np.all(cells.min(axis=1) <= upper, axis=1)
+
+
+def _polygon_area_in(polygon, bounds, cells):
+    area = np.zeros(cells.shape[0])
+    near = _near(cells, *bounds)
+    if np.any(near):
+        subject = np.broadcast_to(polygon, (int(near.sum()),) + polygon.shape)
+        area[near] = polygon_area(clip_convex(np.ascontiguousarray(subject), cells[near]))
+    return area
+
+
+SHAPES = ("box", "half_plane", "disk", "polygon")
