@@ -29,6 +29,9 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--quiet", action="store_true", help="no progress bar, no summary line")
     run.add_argument("--xt", action="store_true",
                      help="also write <name>-xt.png, the x–t diagram of density (1D)")
+    run.add_argument("--frames", type=int, default=20,
+                     help="2D: states written to the VTX series <name>.bp for ParaView, evenly "
+                          "spaced in time (default 20; 0: none)")
     run.add_argument("--explain", action="store_true",
                      help="print which effects the scene switches on and why (which key), and exit "
                           "without running")
@@ -211,7 +214,17 @@ def _run(args) -> int:
     from ale_xfem.run import Progress, simulate
 
     out = args.out if args.out is not None else Path("out") / scene.name
-    problem = build_problem(scene)
+    if args.xt and scene.dimension != 1:
+        print("error: --xt: the x–t diagram is for 1D scenes", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    if args.frames < 0:
+        print(f"error: --frames = {args.frames}: an integer >= 0", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    try:
+        problem = build_problem(scene)  # 2D: region coverage is checked on the mesh
+    except SceneError as error:
+        print(f"error: {error}", file=sys.stderr)
+        return EXIT_BAD_INPUT
     if args.explain:
         from ale_xfem.effects import explain
 
@@ -224,7 +237,17 @@ def _run(args) -> int:
         from ale_xfem.plot import XTHistory
 
         history = XTHistory()
-    result = simulate(problem, progress, observe=history.observe if history else None)
+    series = None
+    if scene.dimension == 2 and args.frames > 0:
+        from ale_xfem.io2d import VTXSeries
+
+        series = VTXSeries(problem, out, args.frames)
+    observe = history.observe if history else series.observe if series else None
+    result = simulate(problem, progress, observe=observe)
+    if series is not None:
+        if series.written == 0 or series.times[min(series.next, series.times.size - 1)] > result.state.time:
+            series.write(result.state, problem)  # the last state (a failed run's last good one)
+        series.close()
     write_outputs(problem, result, out, plot=not args.no_plot)
     if history is not None:
         from ale_xfem.plot import plot_xt

@@ -1,4 +1,5 @@
-"""Run outputs: summary.json, profile.csv (1D), the resolved scene, and the PNG plot."""
+"""Run outputs: summary.json, profile.csv (1D) or cells.csv (2D, see ale_xfem.io2d), the
+resolved scene, and the PNG plot."""
 
 from __future__ import annotations
 
@@ -120,8 +121,15 @@ def write_outputs(problem: Problem, result: RunResult, folder: Path, plot: bool 
     written = {
         "scene": write_resolved_scene(problem, folder),
         "summary": write_summary(problem, result, folder),
-        "profile": write_profile(problem, result.state, folder),
     }
+    if problem.mesh.dimension == 2:
+        from ale_xfem.io2d import plot_density_2d, write_cells
+
+        written["cells"] = write_cells(problem, result.state, folder)
+        if plot:
+            written["plot"] = plot_density_2d(problem, result, folder / f"{problem.scene.name}.png")
+        return written
+    written["profile"] = write_profile(problem, result.state, folder)
     if plot:
         from ale_xfem.plot import plot_profile
 

@@ -332,6 +332,10 @@ def _validate_mesh_2d(table: Any) -> MeshSpec:
     cell_type = _choice(mesh_table.setdefault("cell_type", "quadrilateral"), "mesh.cell_type", CELL_TYPES_2D)
     kind = _choice(mesh_table.setdefault("kind", "rectangle"), "mesh.kind", MESH_KINDS_2D)
     file = mesh_table.get("file", "")
+    (x0, x1), (y0, y1) = extent
+    if kind == "saltzman" and not (y1 - y0) < (x1 - x0) / math.pi:
+        raise SceneError("mesh.extent", raw, "with mesh.kind = 'saltzman', a height below the width / π "
+                         "(the skew (y1 − y) sin(π x) folds the mesh beyond that)")
     if kind == "file":
         if not isinstance(file, str) or not file.endswith(".xdmf"):
             raise SceneError("mesh.file", file if file else _MISSING, "the path of an XDMF mesh (.xdmf) "
