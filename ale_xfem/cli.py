@@ -64,6 +64,9 @@ def _parser() -> argparse.ArgumentParser:
     bench = commands.add_parser("bench", help="zone-cycles per second of the explicit loop")
     bench.add_argument("--cells", default="1000,10000,100000,1000000",
                        help="comma-separated mesh sizes (default: 1000,...,1000000)")
+    bench.add_argument("--dimension", type=int, choices=(1, 2), default=1,
+                       help="2: the 2D loop on √n × √n quadrilaterals (scene sod-2d), n = 10^4 ... 10^6 "
+                            "by default")
     bench.add_argument("--phases", action="store_true",
                        help="time per step by phase (explicit, mixed-cell solve, remap) with and "
                             "without an enriched interface, at 1000 and 100000 cells (or --cells)")
@@ -178,6 +181,8 @@ def _bench(args) -> int:
         return EXIT_BAD_INPUT
     if args.phases:
         run_phase_bench(sizes if args.cells != "1000,10000,100000,1000000" else (1_000, 100_000))
+    elif args.dimension == 2:
+        run_bench(sizes if args.cells != "1000,10000,100000,1000000" else (10_000, 100_000, 1_000_000), "sod-2d")
     else:
         run_bench(sizes)
     return EXIT_OK

@@ -172,12 +172,14 @@ class ExplicitWilkins:
     # -- forces -------------------------------------------------------------------------
 
     def evaluate(self, node_position, node_velocity, material_mass, material_energy,
-                 mixed_view: MixedView | None = None, slots: int = 1, known=None) -> ForceEvaluation:
+                 mixed_view: MixedView | None = None, slots: int = 1, known=None,
+                 with_length: bool = True) -> ForceEvaluation:
         """Forces of a state.  Density, pressure and sound speed come out as (slots,
         n_cells) arrays with slot 0 filled (slots = 2: the caller fills slot 1 of the
         mixed cells, every other entry of slot 1 is 0), so that the mixed-cell step takes
         them as they are instead of copying rows.  ``known``: the (density, pressure, sound
-        speed) of a state at these positions, taken instead of evaluated again."""
+        speed) of a state at these positions, taken instead of evaluated again.
+        ``with_length``: also the cells' CFL lengths (not needed of the predicted state)."""
         cell_type, corners = self.mesh.cell_type, self.corners
         positions = corners.gather(node_position)
         volume, gradient = cell_type.volume_and_gradient(positions)
@@ -232,15 +234,23 @@ class ExplicitWilkins:
             mixed_viscosity = viscosity[cells]
             stress[cells] = mixed_view.interface_pressure + mixed_viscosity
         nodal_force = np.empty((cell_type.dimension, corners.n_nodes))
-        for d in range(cell_type.dimension):
-            corners.scatter_scaled([g_corner[d] for g_corner in gradient], stress, out=nodal_force[d])
         hourglass = None
         if self.hourglass > 0.0:
             hourglass = hourglass_corner_forces(positions, velocities, gradient, volume, density[0],
                                                 sound_speed[0], self.hourglass)
+            for d in range(cell_type.dimension):  # F_Ki = P ∂V/∂x_i + f_Ki, one scatter
+                corner_force = [np.multiply(g_corner[d], stress) for g_corner in gradient]
+                for force, f in zip(corner_force, hourglass):
+                    force += f[d]
+                corners.scatter_scaled(corner_force, None, out=nodal_force[d])
+        else:
             for d in range(cell_type.dimension):
-                nodal_force[d] += corners.scatter([f[d] for f in hourglass])
-        length = volume if cell_type.dimension == 1 else cell_type.length_scale(volume, positions)
+                corners.scatter_scaled([g_corner[d] for g_corner in gradient], stress, out=nodal_force[d])
+        length = None  # the CFL length, from the evaluations that start a step
+        if cell_type.dimension == 1:
+            length = volume
+        elif with_length:
+            length = cell_type.length_scale(volume, positions)
         return ForceEvaluation(volume, gradient, density, pressure, sound_speed, viscosity,
                                velocity_jump, stress, nodal_force, mixed_sound_speed, mixed_viscosity,
                                length, hourglass)
@@ -364,7 +374,7 @@ class ExplicitWilkins:
                 predicted_pressure = self._equal_strain(state, first, strain)[0]
             view = MixedView(view.volume_left * strain, view.volume_right * strain,
                              view.mass_right, view.energy_right, predicted_pressure)
-        predicted = self.evaluate(x_pred, u_pred, mass, e_pred, view)
+        predicted = self.evaluate(x_pred, u_pred, mass, e_pred, view, with_length=False)
         if not predicted.volume.min() > 0.0:
             self.check(predicted, x_pred, e_pred, "predicted ")
 

@@ -43,12 +43,12 @@ class Corners:
 
     def scatter(self, corner_values) -> np.ndarray:
         """Sum per-corner values (a sequence over corners of (n_cells,) arrays) onto nodes."""
-        return self.scatter_scaled(list(corner_values), 1.0)
+        return self.scatter_scaled(list(corner_values), None)
 
     def scatter_scaled(self, coefficients, common, out=None) -> np.ndarray:
         """Σ over corners of coefficients[i] * common onto nodes (into ``out`` if given,
         overwritten); a coefficient may be a scalar (±1 for intervals, where it costs no
-        multiplication) or an array."""
+        multiplication) or an array; ``common`` None: the coefficients are the values."""
         if out is None:
             out = np.empty(self.n_nodes)
         first = self.index[0]
@@ -66,7 +66,7 @@ class Corners:
                 segment = out[index]
                 (np.add if coefficient > 0 else np.subtract)(segment, common, out=segment)
                 continue
-            values = coefficient * common
+            values = coefficient if common is None else coefficient * common
             if isinstance(index, slice):
                 segment = out[index]
                 np.add(segment, values, out=segment)
@@ -76,7 +76,9 @@ class Corners:
 
 
 def _scaled(coefficient, values, out):
-    if isinstance(coefficient, float) and coefficient == 1.0:
+    if values is None:
+        np.copyto(out, coefficient)
+    elif isinstance(coefficient, float) and coefficient == 1.0:
         np.copyto(out, values)
     elif isinstance(coefficient, float) and coefficient == -1.0:
         np.negative(values, out=out)
