@@ -1,6 +1,6 @@
 """Hard cases stay stable (`ale-xfem study stability`).
 
-A suite of 1D cases, each run with an enriched interface inside a cell (unless the case is
+A suite of 1D cases (and 2D ones: Noh on quadrilaterals and triangles, Saltzman), each run with an enriched interface inside a cell (unless the case is
 about something else), checked for: finished, positive densities, volumes and (ideal-gas)
 energies, admissible states (real sound speeds), volume fractions in [0, 1], mass and
 momentum conserved to round-off, and — where an exact solution exists — the L1 error of
@@ -35,6 +35,7 @@ class Case:
     cells: int = 200  # resolution of the suite's run (the test suite halves it)
     max_steps: int | None = None  # stop after this many steps (the long run)
     exact: bool = True  # has an exact solution: check that L1(ρ) falls from n to 4n cells
+    refinement: int = REFINEMENT  # 2D: cells along x doubled (4× the zones)
 
     def scene(self, cells: int, t_end: float | None = None) -> Scene:
         data = {**self.data, "mesh": {**self.data["mesh"], "cells": cells}}
@@ -149,7 +150,36 @@ def suite(cells: int = 200) -> list[Case]:
                             0.5, 1e9, cells=40, pistons=False)
     long_run.max_steps, long_run.exact, long_run.cells = 100_000, False, 40
     cases.append(long_run)
+    cases += cases_2d(cells)
     return cases
+
+
+def cases_2d(cells: int = 200) -> list[Case]:
+    """2D cases, their resolution tied to the suite's (``cells`` / 4 along x for Noh,
+    ``cells`` / 2 for Saltzman: 50 × 50 and 100 × 10 at the default 200), refined by 2 along
+    each side for the convergence check."""
+    gas = {"gas": {"eos": "ideal_gas", "gamma": 5.0 / 3.0}}
+    noh = {
+        "name": "noh-2d", "description": "Noh's cylindrical implosion on a quarter domain (quadrilaterals)",
+        "dimension": 2, "t_end": 0.6,
+        "mesh": {"extent": [[0.0, 1.0], [0.0, 1.0]], "cells": max(8, cells // 4)},
+        "materials": gas,
+        "regions": [{"material": "gas", "box": [[0.0, 1.0], [0.0, 1.0]], "density": 1.0, "pressure": 1e-6,
+                     "radial_velocity": {"center": [0.0, 0.0], "speed": -1.0}}],
+        "boundaries": {"left": "wall", "bottom": "wall", "right": "free", "top": "free"},
+    }
+    noh_triangles = {**noh, "name": "noh-2d-triangles", "description": "Noh on crossed triangles",
+                     "mesh": {**noh["mesh"], "cell_type": "triangle", "cells": max(4, cells // 8)}}
+    saltzman = {
+        "name": "saltzman-2d", "description": "Saltzman's piston: a planar shock through a skewed mesh",
+        "dimension": 2, "t_end": 0.6,
+        "mesh": {"extent": [[0.0, 1.0], [0.0, 0.1]], "cells": max(20, cells // 2), "kind": "saltzman"},
+        "materials": gas,
+        "regions": [{"material": "gas", "box": [[0.0, 1.0], [0.0, 0.1]], "density": 1.0, "pressure": 1e-6}],
+        "boundaries": {"left": {"velocity": [1.0, 0.0]}, "right": "wall", "bottom": "wall", "top": "wall"},
+    }
+    return [Case(d["name"], d["description"], d, d["mesh"]["cells"], refinement=2)
+            for d in (noh, noh_triangles, saltzman)]
 
 
 def _contact_speed(left, right, gammas) -> float:
@@ -195,6 +225,7 @@ class Extremes:
     inadmissible: int = 0  # steps with a non-real or zero sound speed in an occupied slot
     reference_volume: float = 0.0
     peak_momentum: float = 0.0  # largest Σ M|u| of the run (at least M c at t = 0): momentum scale
+    min_corner: float = math.inf  # 2D: least corner cross product over the cell's area (≤ 0: inverted)
     ideal: list = field(default_factory=list)
 
     def observe(self, state, problem) -> None:
@@ -222,6 +253,18 @@ class Extremes:
         sound = state.material_sound_speed[occupied]
         if not np.all(np.isfinite(sound) & (sound > 0)):
             self.inadmissible += 1
+        if problem.mesh.dimension == 2:
+            self.min_corner = min(self.min_corner, least_corner(problem.mesh, state.node_position))
+
+
+def least_corner(mesh, node_position) -> float:
+    """The least over cells and corners of (x_{i+1} − x_i) × (x_{i−1} − x_i) / A: positive
+    while every cell is convex-oriented at every corner; ≤ 0 for an inverted (or folded)
+    cell even when its area is still positive."""
+    x = mesh.cell_vertex_positions(node_position)
+    after, before = np.roll(x, -1, axis=1) - x, np.roll(x, 1, axis=1) - x
+    cross = after[..., 0] * before[..., 1] - after[..., 1] * before[..., 0]
+    return float((cross.min(axis=1) / mesh.cell_volumes(node_position)).min())
 
 
 def run_case(case: Case, cells: int | None = None, check_convergence: bool = True) -> dict:
@@ -230,6 +273,8 @@ def run_case(case: Case, cells: int | None = None, check_convergence: bool = Tru
     from ale_xfem.run import simulate
 
     cells = cells or case.cells
+    if case.data["dimension"] == 2:  # the case fixed its own resolution from the suite's
+        cells = case.cells
     clock = time.perf_counter()
     problem = build_problem(case.scene(cells))
     if problem.exact is not None and case.exact and problem.scene.t_end > problem.exact.valid_until:
@@ -239,6 +284,7 @@ def run_case(case: Case, cells: int | None = None, check_convergence: bool = Tru
     row = {"case": case.name, "description": case.description, "cells": cells, "status": result.status,
            "diagnostic": result.diagnostic, "steps": result.steps, "t_reached": result.state.time,
            "min_density": extremes.min_density, "min_volume": extremes.min_volume,
+           "min_corner": extremes.min_corner,
            "min_ideal_energy": extremes.min_ideal_energy, "inadmissible_steps": extremes.inadmissible,
            "fraction_min": extremes.min_fraction, "fraction_max": extremes.max_fraction,
            "mass_drift": abs(result.conservation.get("mass", math.nan)),
@@ -257,11 +303,11 @@ def run_case(case: Case, cells: int | None = None, check_convergence: bool = Tru
     if problem.exact is not None and case.exact and result.status == "ok":
         row["L1_density"] = result.errors["L1_density"]
         row["overshoot"] = density_overshoot(problem, result.state)
-        x = result.state.node_position[0]
-        row["L1_negligible"] = 1e-10 * float(np.max(problem.exact.sample(x, result.state.time)["density"])
-                                             * (x.max() - x.min()))
+        points, size = _sample_points(problem, result.state)
+        row["L1_negligible"] = 1e-10 * float(np.max(problem.exact.sample(points, result.state.time)["density"])
+                                             * size)
         if check_convergence:
-            fine = build_problem(case.scene(REFINEMENT * cells, t_end=problem.scene.t_end))
+            fine = build_problem(case.scene(case.refinement * cells, t_end=problem.scene.t_end))
             fine_result = simulate(fine, stop_after_steps=case.max_steps)
             row["L1_density_fine"] = (fine_result.errors or {}).get("L1_density", math.nan) \
                 if fine_result.status == "ok" else math.nan
@@ -273,13 +319,23 @@ def run_case(case: Case, cells: int | None = None, check_convergence: bool = Tru
 def density_overshoot(problem, state) -> float:
     """New extrema of density against the exact solution, relative to its range:
     max(0, max ρ_h − max ρ_exact, min ρ_exact − min ρ_h) / (max ρ_exact − min ρ_exact)."""
-    x = state.node_position[0]
-    points = np.linspace(x.min(), x.max(), 20_000)
+    points, _ = _sample_points(problem, state)
     exact = problem.exact.sample(points, state.time)["density"]
     occupied = state.material_volume > 0
     numerical = state.material_density[occupied]
     spread = max(float(exact.max() - exact.min()), 1e-300)
     return max(0.0, float(numerical.max() - exact.max()), float(exact.min() - numerical.min())) / spread
+
+
+def _sample_points(problem, state):
+    """Points covering the domain where the exact solution is compared (1D: 20 000 along
+    it; 2D: the cell centroids and corners), and the domain's length or area."""
+    if problem.mesh.dimension == 1:
+        x = state.node_position[0]
+        return np.linspace(x.min(), x.max(), 20_000), float(x.max() - x.min())
+    vertices = problem.mesh.cell_vertex_positions(state.node_position)
+    points = np.concatenate([vertices.mean(axis=1), vertices.reshape(-1, 2)])
+    return points, float(problem.mesh.cell_volumes(state.node_position).sum())
 
 
 def verdict(row: dict, case: Case) -> str:
@@ -291,6 +347,8 @@ def verdict(row: dict, case: Case) -> str:
         problems.append("density ≤ 0")
     if not row["min_volume"] > 0:
         problems.append("volume ≤ 0")
+    if not row.get("min_corner", math.inf) > 0:
+        problems.append("inverted cell")
     if row["min_ideal_energy"] <= 0:
         problems.append("ideal-gas energy ≤ 0")
     if row["inadmissible_steps"]:

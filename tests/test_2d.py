@@ -365,3 +365,16 @@ def test_plic_of_a_disk_matches_its_area_and_circumference(cell_type):
         assert shapes.polygon_area(rebuilt.alpha).sum() + area[inside].sum() == pytest.approx(np.pi * 0.09, rel=1e-12)
         lengths.append(rebuilt.length.sum())
     assert all(abs(L / (2 * np.pi * 0.3) - 1) < 0.015 for L in lengths), lengths
+
+
+def test_stability_check_flags_a_cell_inverted_at_a_corner_even_with_positive_area():
+    from ale_xfem.stability import least_corner
+
+    mesh = rectangle_mesh([[0.0, 1.0], [0.0, 1.0]], [2, 2], "quadrilateral")
+    assert least_corner(mesh, mesh.node_position) == pytest.approx(1.0)
+    # push the middle node far into one cell: that cell becomes a dart (a reflex corner)
+    moved = mesh.node_position.copy()
+    middle = np.argmin(np.hypot(moved[0] - 0.5, moved[1] - 0.5))
+    moved[:, middle] = [0.9, 0.9]
+    assert np.all(mesh.cell_volumes(moved) > 0)
+    assert least_corner(mesh, moved) < 0
