@@ -275,7 +275,7 @@ class ExplicitWilkins:
         if evaluation.mixed_sound_speed is not None:
             cells = self.mixed.cells
             dt = min(dt, self._cfl_limit(evaluation.mixed_sound_speed, evaluation.velocity_jump[cells],
-                                         self.mesh.cell_type.length_scale(evaluation.volume[cells])))
+                                         evaluation.length[cells]))
         return self.numerics.cfl * dt
 
     def _cfl_limit(self, c, velocity_jump, length) -> float:
@@ -425,9 +425,12 @@ class ExplicitWilkins:
                 material_sound_speed=final.sound_speed)
             return new_state, final, boundary_work, boundary_impulse
         if solution is None:
-            work = 0.5 * (first.stress[self.mixed.cells] + predicted.stress[self.mixed.cells])
-            solution = self._equal_strain(state, first, self._mixed_volumes(x_new)
-                                          / first.volume[self.mixed.cells], work)[1]
+            cells = self.mixed.cells
+            # the cell's internal energy changes by the work of its corner forces on the
+            # nodes, as in pure cells (compatible: total energy conserved), shared by strain
+            change = (e_new[0, cells] - energy[0, cells]) * mass[0, cells]
+            solution = self._equal_strain(state, first, self._mixed_volumes(x_new) / first.volume[cells],
+                                          energy_change=change)[1]
         if remapped_next:
             return self._state_for_remap(state, solution, x_new, u_new, e_new, dt), None, \
                 boundary_work, boundary_impulse
@@ -491,26 +494,35 @@ class ExplicitWilkins:
         mean_force[0, b] += change
         return va, vb, details
 
-    def _equal_strain(self, state, first, strain, work=None):
+    def _equal_strain(self, state, first, strain, energy_change=None):
         """Single-velocity closure: both materials of a mixed cell take the cell's volume
-        change in proportion to their volumes (equal strain), their energies change by
-        −W ΔV_α (W: the work stress, P^n in the predictor), and the cell's stress is the
-        volume-weighted mean of their pressures.  The pressure relaxation at the start of
-        the next step then equilibrates them."""
+        change in proportion to their volumes (equal strain); their energies change by
+        −P^n ΔV_α in the predictor, and at the end of the step share ``energy_change``, the
+        cell's compatible work (in 1D exactly −P̄ ΔV), in proportion to their volumes; the
+        cell's stress is the volume-weighted mean of their pressures.  The pressure
+        relaxation at the start of the next step then equilibrates them."""
         m_a, m_b, va0, vb0, ea0, eb0 = self._mixed_start(state)
-        if work is None:
-            work = first.stress[self.mixed.cells]
         va, vb = va0 * strain, vb0 * strain
-        ea = ea0 - work * (va - va0) / m_a
-        eb = eb0 - work * (vb - vb0) / m_b
+        if energy_change is None:
+            work = first.stress[self.mixed.cells]
+            ea = ea0 - work * (va - va0) / m_a
+            eb = eb0 - work * (vb - vb0) / m_b
+        else:
+            share = va0 / (va0 + vb0)
+            ea = ea0 + energy_change * share / m_a
+            eb = eb0 + energy_change * (1.0 - share) / m_b
         pa, _, _, c2a = self.mixed.left_groups.eos_values(self.materials, m_a / va, ea)
         pb, _, _, c2b = self.mixed.right_groups.eos_values(self.materials, m_b / vb, eb)
         mean_pressure = (va * pa + vb * pb) / (va + vb)
         return mean_pressure, (va, vb, (ea, eb, pa, pb, m_a / va, m_b / vb, c2a, c2b))
 
     def _mixed_volumes(self, position):
-        """Volumes of the mixed cells only (1D: x_b − x_a)."""
-        return position[0, self.mixed.node_right] - position[0, self.mixed.node_left]
+        """Volumes of the mixed cells only (1D: x_b − x_a; 2D: their areas)."""
+        if self.mixed.node_left is not None:
+            return position[0, self.mixed.node_right] - position[0, self.mixed.node_left]
+        nodes = self.mesh.cell_nodes[self.mixed.cells]
+        corners = [[position[d, nodes[:, i]] for d in range(position.shape[0])] for i in range(nodes.shape[1])]
+        return self.mesh.cell_type.volume_and_gradient(corners)[0]
 
     def _assembled_predictor(self, state, first, predicted, mean_force, dt, mobility_a, mobility_b, start):
         """The predictor as the assembled FE system of forms/mixed_cell.py: returns a
@@ -563,13 +575,16 @@ class ExplicitWilkins:
         density, pressure, sound_speed = final.density, final.pressure, final.sound_speed
         density[1, cells], pressure[1, cells] = rho_b, pb
         sound_speed[1, cells] = np.sqrt(np.maximum(c2b, 0.0))
-        interface_before = state.node_position[0, a] + state.material_volume[0, cells]
-        interface_after = x_new[0, a] + va
+        if a is not None:  # 1D: Γ's displacement over the step
+            interface_before = state.node_position[0, a] + state.material_volume[0, cells]
+            interface_velocity = (x_new[0, a] + va - interface_before) / dt
+        else:  # 2D single-velocity cells: Γ is reconstructed, it has no velocity of its own
+            interface_velocity = np.zeros(cells.size)
         new_state = state.evolved(
             time=state.time + dt, node_position=x_new, node_velocity=u_new, material_energy=energy,
             material_volume=volume, material_density=density, material_pressure=pressure,
             material_sound_speed=sound_speed, interface_pressure=interface_pressure,
-            interface_velocity=(interface_after - interface_before) / dt)
+            interface_velocity=interface_velocity)
         return new_state, final
 
     def _state_for_remap(self, state, solution, x_new, u_new, e_new, dt):

@@ -96,3 +96,30 @@ def reconstruct(vertices: np.ndarray, normal: np.ndarray, fraction: np.ndarray, 
 def part_centroids(reconstruction: Reconstruction) -> tuple[np.ndarray, np.ndarray]:
     """Centroids (n, 2) of α's and β's parts."""
     return polygon_centroid(reconstruction.alpha), polygon_centroid(reconstruction.beta)
+
+
+def material_fractions(problem, state) -> np.ndarray:
+    """(n_materials, n_cells): each material's share of each cell's area."""
+    layout = problem.layout
+    area = problem.mesh.cell_volumes(state.node_position)
+    fractions = np.zeros((len(problem.materials), area.size))
+    for slot in range(layout.cell_material.shape[0]):
+        material = layout.cell_material[slot]
+        here = material >= 0
+        np.add.at(fractions, (material[here], np.flatnonzero(here)), state.material_volume[slot, here] / area[here])
+    return fractions
+
+
+def reconstruct_state(problem, state) -> Reconstruction:
+    """PLIC in the mixed cells of a state: α is each mixed cell's slot-0 material, its
+    normal from Youngs' method on that material's fractions."""
+    mesh, cells = problem.mesh, problem.mixed.cells
+    fractions = material_fractions(problem, state)
+    alpha = problem.layout.cell_material[0, cells]
+    normals = np.zeros((cells.size, 2))
+    for material in np.unique(alpha):
+        which = alpha == material
+        normals[which] = youngs_normals(mesh, state.node_position, fractions[material])[cells[which]]
+    vertices = mesh.cell_vertex_positions(state.node_position)[cells]
+    area = mesh.cell_volumes(state.node_position)[cells]
+    return reconstruct(vertices, normals, state.material_volume[0, cells] / area, cells)

@@ -19,9 +19,12 @@ from ale_xfem.state import Material, MaterialLayout, State, density_of, thermody
 
 @dataclass
 class ExactReference:
-    kind: str  # "riemann" | "plate_impact"
+    kind: str  # "riemann" | "plate_impact" | 2D: "noh" | "piston" | "planar_riemann"
     solution: object
     valid_until: float  # first time a wave reaches a boundary (the exact solution is for ∞ domain)
+    # 2D: (centre, radius) of the disk the L1 errors are taken over (no wave from the walls
+    # reaches it before t_end), or None: the whole domain
+    window: tuple | None = None
 
     def sample(self, x, t):
         return self.solution.sample(x, t)
@@ -198,8 +201,10 @@ def region_fractions_2d(scene: Scene, mesh: MeshArrays) -> np.ndarray:
 
 
 def _build_problem_2d(scene: Scene) -> Problem:
-    """2D: materials meet on mesh lines (every cell pure); node velocities sampled from the
-    region velocity fields at the nodes, with the corner momenta of each cell's regions."""
+    """2D: without [interface] materials meet on mesh lines (every cell pure); with it
+    (single_velocity) a cell may hold two materials, each with its exact area, mass and
+    energy (slot 0 the larger).  Node velocities: the region velocity fields sampled at the
+    nodes, with the corner momenta of each cell's regions (one velocity field)."""
     mesh = mesh_2d(scene)
     names = list(scene.materials)
     materials = [Material(n, scene.materials[n].eos, scene.materials[n].make_eos()) for n in names]
@@ -216,26 +221,33 @@ def _build_problem_2d(scene: Scene) -> Problem:
     for r, region in enumerate(scene.regions):
         material_share[names.index(region.material)] += fractions[r]
     present = material_share > 1e-9
-    if np.any(present.sum(axis=0) > 1):
-        c = int(np.flatnonzero(present.sum(axis=0) > 1)[0])
-        both = [names[m] for m in np.flatnonzero(present[:, c])]
+    count = present.sum(axis=0)
+    limit = 1 if scene.interface is None else 2
+    if np.any(count > limit):
+        c = int(np.flatnonzero(count > limit)[0])
+        held = [names[m] for m in np.flatnonzero(present[:, c])]
         owner = max(r for r in range(len(scene.regions)) if fractions[r, c] > 1e-9)
+        allowed = (f"a shape whose boundary between '{held[0]}' and '{held[1]}' follows mesh lines, or "
+                   "an [interface] table (mixed cells)" if limit == 1 else
+                   f"at most two materials in a cell (cell {c} holds {', '.join(held)}): refine the mesh")
         raise SceneError(f"regions[{owner}]", scene.regions[owner].material,
-                         f"a shape whose boundary between '{both[0]}' and '{both[1]}' follows mesh lines: "
-                         f"cell {c} at ({centroids[c, 0]:.4g}, {centroids[c, 1]:.4g}) holds both, and 2D "
-                         "mixed cells are not available in this version")
+                         f"{allowed}; cell {c} at ({centroids[c, 0]:.4g}, {centroids[c, 1]:.4g})")
+    # Slivers below round-off are merged into the cell's main material.
+    material_share = np.where(present, material_share, 0.0)
+    material_share /= material_share.sum(axis=0)
     corners = mesh.cell_type.nodes_per_cell
-    mass = np.zeros(n_cells)
-    energy = np.zeros(n_cells)
+    material_mass = np.zeros((n_materials, n_cells))
+    material_energy = np.zeros((n_materials, n_cells))
     corner_momentum = np.zeros((2, corners, n_cells))
     node_x = mesh.cell_vertex_positions()  # (n_cells, corners, 2)
     for r, region in enumerate(scene.regions):
         if not np.any(fractions[r] > 0):
             continue
+        m = names.index(region.material)
         eos = scene.materials[region.material].make_eos()
         region_mass = region.density * fractions[r] * area
-        mass += region_mass
-        energy += region_mass * float(eos.energy(region.density, region.pressure))
+        material_mass[m] += region_mass
+        material_energy[m] += region_mass * float(eos.energy(region.density, region.pressure))
         velocity = np.broadcast_to(np.array(region.velocity, dtype=float)[:, None, None], (2, corners, n_cells)).copy()
         if region.radial_velocity is not None:
             cx, cy, speed = region.radial_velocity
@@ -244,16 +256,57 @@ def _build_problem_2d(scene: Scene) -> Problem:
             unit = np.divide(offset, distance[..., None], out=np.zeros_like(offset), where=distance[..., None] > 0)
             velocity += speed * np.moveaxis(unit, -1, 0).transpose(0, 2, 1)
         corner_momentum += velocity * (region_mass / corners)
-    cell_material = np.argmax(material_share, axis=0)[None, :].astype(np.int64)
+    # Slot 0: the cell's larger material; slot 1: the other one of a mixed cell.
+    order = np.argsort(-material_share, axis=0, kind="stable")
+    mixed_cells = np.flatnonzero(count == 2)
+    slots = 2 if mixed_cells.size else 1
+    cell_material = np.full((slots, n_cells), -1, dtype=np.int64)
+    cell_material[0] = order[0]
+    slot_mass = np.zeros((slots, n_cells))
+    slot_energy = np.zeros((slots, n_cells))
+    slot_volume = np.zeros((slots, n_cells))
+    # a pure cell takes all the mass (slivers merged), a mixed cell each material's own
+    total_mass = material_mass.sum(axis=0)
+    slot_mass[0] = total_mass
+    slot_energy[0] = material_energy.sum(axis=0) / total_mass
+    slot_volume[0] = area
+    mixed = None
+    if mixed_cells.size:
+        c = mixed_cells
+        first, second = order[0, c], order[1, c]
+        cell_material[1, c] = second
+        for slot, m in ((0, first), (1, second)):
+            slot_mass[slot, c] = material_mass[m, c]
+            slot_energy[slot, c] = material_energy[m, c] / material_mass[m, c]
+            slot_volume[slot, c] = material_share[m, c] * area[c]
+        mixed = MixedCells(c, None, None, first, second, materials,
+                           tolerance=scene.numerics.interface_tolerance,
+                           max_iterations=scene.numerics.interface_max_iterations,
+                           nonlinear=True, model="single_velocity", relaxation=scene.interface.relaxation)
     layout = MaterialLayout(cell_material, n_materials)
-    state, node_mass = state_from_cells(mesh, materials, layout, mass[None, :], (energy / mass)[None, :],
-                                        corner_momentum=corner_momentum)
+    state, node_mass = state_from_cells(mesh, materials, layout, slot_mass, slot_energy,
+                                        material_volume=slot_volume, corner_momentum=corner_momentum)
     boundaries = side_boundaries(mesh, scene.mesh.extent, scene.boundaries)
     for boundary in boundaries:
         boundary.apply(state.node_velocity)
-    effect_table = scene_effects(scene, 0, [b.side for b in boundaries if b.kind == "velocity"])
+    effect_table = scene_effects(scene, 0 if mixed is None else mixed.cells.size,
+                                 [b.side for b in boundaries if b.kind == "velocity"])
+    effects = active(effect_table)
+    setup_failure = ""
+    if mixed is not None:
+        if "pressure_relaxation" in effects:
+            try:
+                state = initial_relaxation(mixed, state)
+            except MixedCellFailure as failure:
+                setup_failure = f"initial pressure relaxation: {failure}"
+        if setup_failure or "pressure_relaxation" not in effects:
+            cells = mixed.cells
+            volumes = state.material_volume[:, cells]
+            state = state.evolved(
+                interface_pressure=(state.material_pressure[:, cells] * volumes).sum(axis=0) / volumes.sum(axis=0),
+                interface_velocity=np.zeros(cells.size))
     return Problem(scene, mesh, materials, layout, node_mass, state, boundaries, exact_reference_2d(scene),
-                   active(effect_table), None, None, "", effect_table)
+                   effects, mixed, None, setup_failure, effect_table)
 
 
 def _left_material_first(scene, names, left, right, first, second):
@@ -385,6 +438,8 @@ def exact_reference_2d(scene: Scene) -> ExactReference | None:
     from ale_xfem.exact.planar_2d import NohSolution, PistonSolution
 
     states = {(r.material, r.density, r.pressure, r.velocity, r.radial_velocity) for r in scene.regions}
+    if len(states) == 2:
+        return _planar_riemann(scene)
     if len(states) != 1:
         return None
     material, density, pressure, velocity, radial = states.pop()
@@ -417,6 +472,53 @@ def exact_reference_2d(scene: Scene) -> ExactReference | None:
         length = (x1 - x0) if side in ("left", "right") else (y1 - y0)
         return ExactReference("piston", solution, float(length / solution.shock_speed))
     return None
+
+
+def _planar_riemann(scene: Scene) -> ExactReference | None:
+    """Two gas states, the later one a half-plane over the earlier (a box covering the
+    domain), at rest or moving along the half-plane's normal: a Riemann problem along it.
+    Walls reflect its waves in 2D, so the L1 errors are taken over the disk around the
+    domain's centre that no signal from a wall reaches before t_end."""
+    from ale_xfem.exact.planar_2d import PlanarRiemann
+    from ale_xfem.shapes import Box, HalfPlane
+
+    first, last = scene.regions[0], scene.regions[-1]
+    if not (isinstance(last.shape, HalfPlane) and isinstance(first.shape, Box)) or any(
+            r.radial_velocity is not None for r in scene.regions):
+        return None
+    if any(r.shape not in (first.shape, last.shape) for r in scene.regions):
+        return None
+    (x0, x1), (y0, y1) = scene.mesh.extent
+    if first.shape.lower != (x0, y0) or first.shape.upper != (x1, y1):
+        return None
+    normal = np.array(last.shape.normal, dtype=float)
+    normal /= np.linalg.norm(normal)
+    tangent = np.array([-normal[1], normal[0]])
+    gases = ("ideal_gas", "stiffened_gas")
+    states = []
+    for region in (last, first):  # left of the line (the half-plane), then right
+        material = scene.materials[region.material]
+        velocity = np.array(region.velocity)
+        if material.eos not in gases or abs(velocity @ tangent) > 1e-12 * (1 + np.abs(velocity).max()):
+            return None
+        states.append(exact.GasState(region.density, float(velocity @ normal), region.pressure,
+                                     material.parameters["gamma"], material.parameters.get("p_inf", 0.0)))
+    try:
+        solution = exact.RiemannSolution.solve(states[0], states[1], 0.0)
+    except exact.VacuumError:
+        return None
+    slow, fast = solution.wave_speeds()
+    star = solution.star
+    behind = [exact.GasState(rho, star.velocity, star.pressure, g.gamma, g.p_inf)
+              for rho, g in ((star.density_left, states[0]), (star.density_right, states[1]))]
+    # a bound on the speed of any signal: the fastest wave plus the largest sound speed
+    signal = max(abs(slow), abs(fast)) + max(g.sound_speed for g in states + behind)
+    centre = (0.5 * (x0 + x1), 0.5 * (y0 + y1))
+    radius = min(x1 - x0, y1 - y0) / 2 - signal * scene.t_end
+    if radius <= 0:
+        return None
+    return ExactReference("planar_riemann", PlanarRiemann(solution, last.shape.point, tuple(normal)),
+                          float("inf"), window=(centre, float(radius)))
 
 
 def _merge_identical_states(scene: Scene, pieces):

@@ -285,8 +285,9 @@ def cell_sample_points(cell_name: str, per_side: int):
 
 def _l1_errors_2d(problem: Problem, state: State) -> dict:
     """Σ_K ∫_K |f_h − f_exact| dA over SUBSAMPLES_PER_SIDE_2D² points per cell: density and
-    pressure constant per cell, velocity (Euclidean norm of the error) bilinear/linear
-    through the nodes."""
+    pressure constant per material part (a mixed cell's parts split by its PLIC segment),
+    velocity (Euclidean norm of the error) bilinear/linear through the nodes; over the
+    reference's window only when it has one."""
     mesh = problem.mesh
     shape, weight, derivative = cell_sample_points(mesh.cell_type.name, SUBSAMPLES_PER_SIDE_2D)
     x = np.moveaxis(state.node_position[:, mesh.cell_nodes], 0, -1)  # (n_cells, corners, 2)
@@ -298,12 +299,27 @@ def _l1_errors_2d(problem: Problem, state: State) -> dict:
     else:
         jacobian = np.einsum("mce,ncd->nmde", derivative, x)
         area = np.abs(np.linalg.det(jacobian)) * weight[None, :]
+    density = np.repeat(state.material_density[0][:, None], shape.shape[0], axis=1)
+    pressure = np.repeat(state.material_pressure[0][:, None], shape.shape[0], axis=1)
+    if problem.mixed is not None:  # the points on β's side of the reconstructed interface
+        from ale_xfem.plic import reconstruct_state
+
+        plic = reconstruct_state(problem, state)
+        c = plic.cells
+        beta = np.einsum("cmd,cd->cm", points[c], plic.normal) > plic.offset[:, None]
+        density[c] = np.where(beta, state.material_density[1, c][:, None], density[c])
+        pressure[c] = np.where(beta, state.material_pressure[1, c][:, None], pressure[c])
+    if problem.exact.window is not None:  # only where no wave from the walls has arrived
+        centre, radius = problem.exact.window
+        area = area * (np.linalg.norm(points - np.asarray(centre), axis=-1) <= radius)
     reference = problem.exact.sample(points, state.time)
     errors = {
-        "L1_density": float(np.sum(np.abs(state.material_density[0][:, None] - reference["density"]) * area)),
+        "L1_density": float(np.sum(np.abs(density - reference["density"]) * area)),
         "L1_velocity": float(np.sum(np.linalg.norm(velocity - reference["velocity"], axis=-1) * area)),
-        "L1_pressure": float(np.sum(np.abs(state.material_pressure[0][:, None] - reference["pressure"]) * area)),
+        "L1_pressure": float(np.sum(np.abs(pressure - reference["pressure"]) * area)),
         "exact": problem.exact.kind,
         "exact_valid_until": problem.exact.valid_until,
     }
+    if problem.exact.window is not None:
+        errors["window"] = {"centre": list(problem.exact.window[0]), "radius": problem.exact.window[1]}
     return errors

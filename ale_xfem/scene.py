@@ -282,9 +282,9 @@ def validate(data: dict, source: str = "") -> Scene:
     boundaries = _validate_boundaries(data.setdefault("boundaries", {}), dimension)
     numerics = _validate_numerics(data.setdefault("numerics", {}))
     interface = _validate_interface(data["interface"]) if "interface" in data else None
-    if dimension == 2 and interface is not None:
-        raise SceneError("interface", data["interface"], "not available in 2D in this version: 2D "
-                         "materials meet on mesh lines (mixed cells arrive with the 2D remap)")
+    if dimension == 2 and interface is not None and interface.model != "single_velocity":
+        raise SceneError("interface.model", interface.model, "'single_velocity' in 2D in this version "
+                         "(the enriched 2D method, bubble or Nitsche, comes next)")
 
     scene = Scene(name, description, dimension, t_end, mesh, materials, regions, boundaries, numerics,
                   interface, resolved=data, source=source)

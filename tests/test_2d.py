@@ -241,7 +241,7 @@ def test_bad_2d_scenes_are_rejected_in_one_line_naming_the_key(tmp_path, overrid
     assert str(error.value).startswith(key) and "\n" not in str(error.value)
 
 
-def test_material_boundary_inside_cells_needs_mesh_lines_in_2d(tmp_path):
+def test_material_boundary_inside_cells_needs_mesh_lines_or_an_interface_in_2d(tmp_path):
     path = _uniform_scene(tmp_path, extra="""
 [[regions]]
 material = "heavy"
@@ -251,7 +251,7 @@ pressure = 1.0
 """)
     path.write_text(path.read_text().replace(
         "[materials.gas]", '[materials.heavy]\neos = "ideal_gas"\ngamma = 1.4\n[materials.gas]'))
-    with pytest.raises(SceneError, match="mixed cells are not available"):
+    with pytest.raises(SceneError, match=r"follows mesh lines, or an \[interface\] table"):
         build_problem(load_scene(path))
     # the same disk region of the same material merges into pure cells, mass exact
     problem = build_problem(load_scene(path, ["regions.1.material=gas"]))

@@ -79,3 +79,20 @@ class PistonSolution:
         pressure = np.where(shocked, self.shocked_pressure, self.pressure)
         velocity = np.where(shocked[..., None], self.piston_speed * n, 0.0)
         return {"density": density, "velocity": velocity, "pressure": pressure}
+
+
+@dataclass(frozen=True)
+class PlanarRiemann:
+    """A 1D Riemann solution laid along the unit normal ``normal`` through ``point``: the
+    left state on (x − point)·n < 0.  Velocities are along n."""
+
+    solution: object  # ale_xfem.exact.RiemannSolution, x0 = 0
+    point: tuple[float, float]
+    normal: tuple[float, float]
+
+    def sample(self, points, t: float) -> dict[str, np.ndarray]:
+        n = np.asarray(self.normal, dtype=float)
+        s = (np.asarray(points, dtype=float) - np.asarray(self.point)) @ n
+        values = self.solution.sample(s, t)
+        return {"density": values["density"], "velocity": values["velocity"][..., None] * n,
+                "pressure": values["pressure"]}
