@@ -4,13 +4,14 @@ PNG snapshot of the density with the boundaries between materials drawn.
 ``cells.csv`` has a row per cell per material present, columns
 ``x,y,volume,material,volume_fraction,density,velocity_x,velocity_y,pressure,internal_energy``
 (x, y: centroid of that material's part of the cell; volume: its area; the velocity is the
-mean of the cell's corner velocities).  In this version 2D materials meet on mesh lines, so
-each cell holds one material and its part is the whole cell.
+mean of the cell's corner velocities, one field for both materials of a single-velocity
+mixed cell).  A mixed cell's parts are those of its PLIC reconstruction (``ale_xfem.plic``):
+their areas are the materials' volumes exactly; rows come cell by cell.
 
 The VTX folder ``<name>.bp`` holds, at each written time, the moving mesh, the nodal
 velocity, and per material m the cell fields ``volume_fraction_m``, ``density_m``,
 ``pressure_m``, ``internal_energy_m`` (0 where m is absent), with ``material`` (the index of
-the cell's material in the scene's order) and the cell's mean ``density``.
+the cell's main material — slot 0 — in the scene's order) and the cell's mean ``density``.
 """
 
 from __future__ import annotations
@@ -27,6 +28,7 @@ CELLS_COLUMNS = ("x", "y", "volume", "material", "volume_fraction", "density", "
 
 
 def cells_rows(problem, state) -> dict[str, np.ndarray]:
+    """Rows of ``cells.csv``: pure cells whole; a mixed cell as its two PLIC parts."""
     mesh = problem.mesh
     vertices = mesh.cell_vertex_positions(state.node_position)
     centroid = polygon_centroid(vertices)
@@ -34,15 +36,38 @@ def cells_rows(problem, state) -> dict[str, np.ndarray]:
     velocity = state.node_velocity[:, mesh.cell_nodes].mean(axis=2)
     names = np.array([m.name for m in problem.materials])
     material = problem.layout.cell_material[0]
-    return {
-        "x": centroid[:, 0], "y": centroid[:, 1], "volume": area,
+    rows = {
+        "x": centroid[:, 0], "y": centroid[:, 1], "volume": state.material_volume[0].copy(),
         "material": names[material],
         "volume_fraction": state.material_volume[0] / area,
         "density": state.material_density[0],
         "velocity_x": velocity[0], "velocity_y": velocity[1],
         "pressure": state.material_pressure[0],
         "internal_energy": state.material_energy[0],
+        "cell": np.arange(mesh.n_cells),
     }
+    if problem.mixed is None:
+        return rows
+    from ale_xfem.plic import part_centroids, reconstruct_state
+
+    plic = reconstruct_state(problem, state)
+    c = plic.cells
+    alpha_centre, beta_centre = part_centroids(plic)
+    rows = {k: v.copy() for k, v in rows.items()}
+    rows["x"][c], rows["y"][c] = alpha_centre[:, 0], alpha_centre[:, 1]
+    extra = {
+        "x": beta_centre[:, 0], "y": beta_centre[:, 1], "volume": state.material_volume[1, c],
+        "material": names[problem.layout.cell_material[1, c]],
+        "volume_fraction": state.material_volume[1, c] / area[c],
+        "density": state.material_density[1, c],
+        "velocity_x": velocity[0, c], "velocity_y": velocity[1, c],
+        "pressure": state.material_pressure[1, c],
+        "internal_energy": state.material_energy[1, c],
+        "cell": c,
+    }
+    rows = {k: np.concatenate([rows[k], extra[k]]) for k in rows}
+    order = np.argsort(rows["cell"], kind="stable")
+    return {k: v[order] for k, v in rows.items()}
 
 
 def write_cells(problem, state, folder: Path) -> Path:
@@ -109,13 +134,19 @@ class VTXSeries:
             self.fields[key].x.array[self.cell_dof] = values
 
         put("material", material.astype(float))
-        put("density", state.material_mass[0] / area)
+        put("density", state.material_mass.sum(axis=0) / area)
         for index, name in enumerate(self.names):
-            here = material == index
-            put(f"volume_fraction_{name}", np.where(here, state.material_volume[0] / area, 0.0))
-            put(f"density_{name}", np.where(here, state.material_density[0], 0.0))
-            put(f"pressure_{name}", np.where(here, state.material_pressure[0], 0.0))
-            put(f"internal_energy_{name}", np.where(here, state.material_energy[0], 0.0))
+            fraction, density, pressure, energy = (np.zeros(area.size) for _ in range(4))
+            for slot in range(problem.layout.cell_material.shape[0]):
+                here = problem.layout.cell_material[slot] == index
+                fraction[here] = state.material_volume[slot, here] / area[here]
+                density[here] = state.material_density[slot, here]
+                pressure[here] = state.material_pressure[slot, here]
+                energy[here] = state.material_energy[slot, here]
+            put(f"volume_fraction_{name}", fraction)
+            put(f"density_{name}", density)
+            put(f"pressure_{name}", pressure)
+            put(f"internal_energy_{name}", energy)
         self.writer.write(float(state.time))
         self.written += 1
 
@@ -123,8 +154,28 @@ class VTXSeries:
         self.writer.close()
 
 
+def material_edges(problem) -> tuple[np.ndarray, np.ndarray]:
+    """The mesh edges between two pure cells of different materials: (first node, second
+    node) arrays."""
+    nodes = problem.mesh.cell_nodes
+    k = nodes.shape[1]
+    pairs = np.sort(np.stack([nodes, np.roll(nodes, -1, axis=1)], axis=2).reshape(-1, 2), axis=1)
+    owner = np.repeat(np.arange(nodes.shape[0]), k)
+    _, edge, count = np.unique(pairs, axis=0, return_inverse=True, return_counts=True)
+    edge = edge.ravel()
+    material = problem.layout.cell_material[0].copy()
+    if problem.mixed is not None:
+        material[problem.mixed.cells] = -1  # drawn by their PLIC segments
+    order = np.argsort(edge, kind="stable")
+    shared = count[edge[order]] == 2
+    a, b = order[shared][0::2], order[shared][1::2]  # the two cells of each interior edge
+    differ = (material[owner[a]] != material[owner[b]]) & (material[owner[a]] >= 0) & (material[owner[b]] >= 0)
+    return pairs[a[differ], 0], pairs[a[differ], 1]
+
+
 def plot_density_2d(problem, result, path: Path) -> Path:
-    """PNG of the density on the deformed mesh, boundaries between materials in black."""
+    """PNG of the density (a mixed cell's mean) on the deformed mesh, boundaries between
+    materials in black: mesh lines between pure cells, PLIC segments in mixed cells."""
     import os
 
     if not os.environ.get("DISPLAY"):  # headless: render through EGL, not a missing X server
@@ -139,17 +190,23 @@ def plot_density_2d(problem, result, path: Path) -> Path:
     cell_kind = pv.CellType.QUAD if corners == 4 else pv.CellType.TRIANGLE
     connectivity = np.hstack([np.full((mesh.n_cells, 1), corners), mesh.cell_nodes]).ravel()
     grid = pv.UnstructuredGrid(connectivity, np.full(mesh.n_cells, cell_kind), points)
-    grid.cell_data["density"] = state.material_density[0]
+    grid.cell_data["density"] = state.material_mass.sum(axis=0) / mesh.cell_volumes(state.node_position)
     grid.cell_data["material"] = problem.layout.cell_material[0]
     plotter = pv.Plotter(off_screen=True, window_size=(900, 800))
     plotter.add_mesh(grid, scalars="density", cmap="viridis", show_edges=mesh.n_cells <= 2500,
                      edge_color="grey", scalar_bar_args={"title": "density"})
-    for index in range(len(problem.materials)):
-        part = grid.extract_cells(np.flatnonzero(problem.layout.cell_material[0] == index))
-        if part.n_cells and len(problem.materials) > 1:
-            edges = part.extract_feature_edges(boundary_edges=True, feature_edges=False,
-                                               manifold_edges=False, non_manifold_edges=False)
-            plotter.add_mesh(edges, color="black", line_width=2)
+    first, second = material_edges(problem)
+    if first.size:
+        ends = np.zeros((2 * first.size, 3))
+        ends[0::2, :2], ends[1::2, :2] = state.node_position[:, first].T, state.node_position[:, second].T
+        plotter.add_mesh(pv.line_segments_from_points(ends), color="black", line_width=2)
+    if problem.mixed is not None:  # the reconstructed interface
+        from ale_xfem.plic import reconstruct_state
+
+        plic = reconstruct_state(problem, state)
+        ends = np.zeros((2 * plic.cells.size, 3))
+        ends[0::2, :2], ends[1::2, :2] = plic.start, plic.end
+        plotter.add_mesh(pv.line_segments_from_points(ends), color="black", line_width=2)
     plotter.add_text(f"{problem.scene.name}, t = {state.time:.4g}", font_size=12)
     plotter.view_xy()
     plotter.screenshot(str(path))

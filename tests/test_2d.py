@@ -378,3 +378,61 @@ def test_stability_check_flags_a_cell_inverted_at_a_corner_even_with_positive_ar
     moved[:, middle] = [0.9, 0.9]
     assert np.all(mesh.cell_volumes(moved) > 0)
     assert least_corner(mesh, moved) < 0
+
+
+# -- single-velocity mixed cells in 2D -------------------------------------------------------
+
+
+def test_rotated_two_material_tube_converges_with_mixed_cells_and_conserves():
+    sizes, errors = [25, 50, 100], []
+    for n in sizes:
+        problem, result = run_scene("rotated-tube", f"mesh.cells=[{n},{n}]")
+        assert result.status == "ok" and problem.mixed is not None and problem.mixed.cells.size >= n
+        assert abs(result.conservation["total_energy"]) < 1e-13
+        assert abs(result.conservation["mass"]) < 1e-14 and result.conservation["momentum"] < 1e-13
+        assert result.errors["exact"] == "planar_riemann" and result.errors["window"]["radius"] > 0.1
+        errors.append(result.errors["L1_density"])
+    rate = fitted_rate(sizes, errors)
+    assert rate > 0.6 and errors[-1] < 2e-3, (errors, rate)
+
+
+def test_a_heavy_disk_in_pressure_balance_stays_at_rest_with_single_velocity_mixed_cells(tmp_path):
+    path = _uniform_scene(tmp_path, extra="""
+[[regions]]
+material = "heavy"
+disk = {center = [0.47, 0.52], radius = 0.23}
+density = 10.0
+pressure = 1.0
+
+[interface]
+model = "single_velocity"
+""")
+    path.write_text(path.read_text().replace(
+        "[materials.gas]", '[materials.heavy]\neos = "stiffened_gas"\ngamma = 4.4\np_inf = 3.0\n[materials.gas]'))
+    problem = build_problem(load_scene(path, ["t_end=1e9"]))
+    assert problem.mixed is not None and problem.mixed.cells.size >= 16  # 10 × 10 cells
+    result = simulate(problem, stop_after_steps=500)
+    assert result.status == "ok" and result.steps == 500
+    assert np.abs(result.state.node_velocity).max() < 1e-12
+    # (p = (γ − 1)ρe − γp∞ loses a digit to cancellation with p∞ = 3)
+    np.testing.assert_allclose(result.state.material_pressure[:, problem.mixed.cells], 1.0, rtol=1e-11)
+
+
+def test_cells_csv_gives_each_material_of_a_mixed_cell_its_plic_part(tmp_path):
+    from ale_xfem.io2d import cells_rows
+
+    problem, result = run_scene("rotated-tube", "mesh.cells=[20,20]")
+    rows = cells_rows(problem, result.state)
+    mixed = problem.mixed.cells
+    assert rows["x"].size == problem.mesh.n_cells + mixed.size
+    area = problem.mesh.cell_volumes(result.state.node_position)
+    np.testing.assert_allclose(np.bincount(rows["cell"], rows["volume"]), area, rtol=1e-12)
+    np.testing.assert_allclose(np.bincount(rows["cell"], rows["volume_fraction"]), 1.0, rtol=1e-12)
+    # each part's centroid lies inside its cell, α's and β's on either side of the cell's centre
+    for cell in mixed[:5]:
+        parts = rows["cell"] == cell
+        assert set(rows["material"][parts]) == {"left", "right"}
+        lo, hi = problem.mesh.cell_vertex_positions(result.state.node_position)[cell].min(0), \
+            problem.mesh.cell_vertex_positions(result.state.node_position)[cell].max(0)
+        assert np.all((rows["x"][parts] >= lo[0]) & (rows["x"][parts] <= hi[0]))
+        assert np.all((rows["y"][parts] >= lo[1]) & (rows["y"][parts] <= hi[1]))
