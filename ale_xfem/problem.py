@@ -247,7 +247,10 @@ def _build_problem_2d(scene: Scene) -> Problem:
         eos = scene.materials[region.material].make_eos()
         region_mass = region.density * fractions[r] * area
         material_mass[m] += region_mass
-        material_energy[m] += region_mass * float(eos.energy(region.density, region.pressure))
+        if region.total_energy is not None:  # spread evenly over the area the region holds
+            material_energy[m] += region.total_energy * region_mass / region_mass.sum()
+        else:
+            material_energy[m] += region_mass * float(eos.energy(region.density, region.pressure))
         velocity = np.broadcast_to(np.array(region.velocity, dtype=float)[:, None, None], (2, corners, n_cells)).copy()
         if region.radial_velocity is not None:
             cx, cy, speed = region.radial_velocity
@@ -438,6 +441,8 @@ def exact_reference_2d(scene: Scene) -> ExactReference | None:
     from ale_xfem.exact.planar_2d import NohSolution, PistonSolution
 
     states = {(r.material, r.density, r.pressure, r.velocity, r.radial_velocity) for r in scene.regions}
+    if any(r.total_energy is not None for r in scene.regions):
+        return _sedov(scene)
     if len(states) == 2:
         return _planar_riemann(scene)
     if len(states) != 1:
@@ -472,6 +477,35 @@ def exact_reference_2d(scene: Scene) -> ExactReference | None:
         length = (x1 - x0) if side in ("left", "right") else (y1 - y0)
         return ExactReference("piston", solution, float(length / solution.shock_speed))
     return None
+
+
+def _sedov(scene: Scene) -> ExactReference | None:
+    """Sedov's cylindrical blast: one ideal gas at rest at ~zero pressure, and a box at the
+    domain's lower-left corner holding ``total_energy`` with walls on the left and bottom
+    sides (a quarter of the plane: the blast's energy per unit length is 4 × total_energy).
+    Valid until the shock reaches the nearest other side."""
+    from ale_xfem.exact.sedov import SedovProfile, SedovSolution
+    from ale_xfem.shapes import Box
+
+    background, source = scene.regions[0], scene.regions[-1]
+    (x0, x1), (y0, y1) = scene.mesh.extent
+    spec = scene.materials[background.material]
+    if (len(scene.regions) != 2 or source.total_energy is None or background.total_energy is not None
+            or source.material != background.material or spec.eos != "ideal_gas"
+            or not isinstance(source.shape, Box) or source.shape.lower != (x0, y0)
+            or scene.boundaries["left"].kind != "wall" or scene.boundaries["bottom"].kind != "wall"
+            or source.density != background.density
+            or any(np.any(np.array(r.velocity)) or r.radial_velocity for r in scene.regions)):
+        return None
+    energy = 4.0 * source.total_energy
+    if background.pressure > 1e-4 * energy / min(x1 - x0, y1 - y0) ** 2:
+        return None  # not a strong blast: the similarity solution does not hold
+    solution = SedovSolution((x0, y0), energy, background.density,
+                             SedovProfile.solve(spec.parameters["gamma"], 2))
+    # R(t) = ξ0 (E t²/ρ0)^{1/4} reaches the nearest far side
+    reach = min(x1 - x0, y1 - y0)
+    valid = (reach / solution.profile.xi0) ** 2 * np.sqrt(background.density / energy)
+    return ExactReference("sedov", solution, float(valid))
 
 
 def _planar_riemann(scene: Scene) -> ExactReference | None:

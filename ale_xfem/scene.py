@@ -41,8 +41,9 @@ NUMERICS_DEFAULTS = {
     # total: the kinetic energy the momentum remap loses goes into the internal energy of
     # the cells around each node (total energy conserved); internal: it is lost (reported)
     "remap_energy": "total",
-    # 2D quadrilaterals: viscous hourglass control, f_i = −κ ρ c L (Σ_j γ_j u_j) γ_i
-    "hourglass": 0.1,
+    # 2D quadrilaterals: viscous hourglass control, f_i = −(κ/4) ρ c √A (Σ_j γ_j u_j) γ_i;
+    # 0.3: with 0.1 a cell of the rotated tube (50 × 50) turned a corner inside out
+    "hourglass": 0.3,
 }
 
 INTERFACE_DEFAULTS = {
@@ -106,6 +107,7 @@ class RegionSpec:
     velocity: tuple[float, ...]
     shape: object = None  # 2D: a shape of ale_xfem.shapes
     radial_velocity: tuple[float, float, float] | None = None  # 2D: (cx, cy, speed), u = speed r̂
+    total_energy: float | None = None  # 2D: the region's internal energy (instead of its pressure)
 
 
 @dataclass(frozen=True)
@@ -125,7 +127,7 @@ class Numerics:
     interface_max_iterations: int = 50
     remap_order: int = 2
     remap_energy: str = "total"
-    hourglass: float = 0.1
+    hourglass: float = 0.3
 
 
 @dataclass(frozen=True)
@@ -378,8 +380,11 @@ def _validate_regions(regions: Any, materials: dict[str, MaterialSpec], mesh: Me
         if dimension == 1:
             _keys(table, where, ("material", "interval", "density", "pressure"), ("velocity",))
         else:
-            _keys(table, where, ("material", "density", "pressure"),
-                  ("velocity", "radial_velocity") + shapes.SHAPES)
+            _keys(table, where, ("material", "density"),
+                  ("pressure", "total_energy", "velocity", "radial_velocity") + shapes.SHAPES)
+            if ("pressure" in table) == ("total_energy" in table):
+                raise SceneError(where, ", ".join(k for k in ("pressure", "total_energy") if k in table) or _MISSING,
+                                 "exactly one of pressure, total_energy (the region's internal energy)")
         material = table["material"]
         if material not in materials:
             raise SceneError(f"{where}.material", material,
@@ -395,7 +400,10 @@ def _validate_regions(regions: Any, materials: dict[str, MaterialSpec], mesh: Me
         else:
             shape = _validate_shape(table, where)
         density = _real(table["density"], f"{where}.density")
-        pressure = _real(table["pressure"], f"{where}.pressure")
+        total_energy = None
+        if "total_energy" in table:
+            total_energy = _real(table["total_energy"], f"{where}.total_energy", lambda v: v > 0, "a real number > 0")
+        pressure = _real(table["pressure"], f"{where}.pressure") if total_energy is None else 0.0
         raw_velocity = table.setdefault("velocity", [0.0] * dimension)
         if dimension == 1 and (not isinstance(raw_velocity, list) or len(raw_velocity) not in (1, 2)):
             raise SceneError(f"{where}.velocity", raw_velocity,
@@ -411,13 +419,13 @@ def _validate_regions(regions: Any, materials: dict[str, MaterialSpec], mesh: Me
         eos = materials[material].make_eos()
         if not density > 0.0:
             raise SceneError(f"{where}.density", density, "a real number > 0")
-        reason = eos.admissible(density, pressure)
+        reason = eos.admissible(density, pressure) if total_energy is None else None
         if reason is not None:
             key = "density" if reason.startswith("density") else "pressure"
             value = density if key == "density" else pressure
             raise SceneError(f"{where}.{key}", value,
                              f"{reason} for {materials[material].eos} material '{material}'")
-        specs.append(RegionSpec(index, material, interval, density, pressure, velocity, shape, radial))
+        specs.append(RegionSpec(index, material, interval, density, pressure, velocity, shape, radial, total_energy))
     return tuple(specs)
 
 

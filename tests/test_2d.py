@@ -436,3 +436,37 @@ def test_cells_csv_gives_each_material_of_a_mixed_cell_its_plic_part(tmp_path):
             problem.mesh.cell_vertex_positions(result.state.node_position)[cell].max(0)
         assert np.all((rows["x"][parts] >= lo[0]) & (rows["x"][parts] <= hi[0]))
         assert np.all((rows["y"][parts] >= lo[1]) & (rows["y"][parts] <= hi[1]))
+
+
+# -- Sedov ----------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("gamma, nu, xi0", [(1.4, 3, 1.033), (5.0 / 3.0, 3, 1.152), (1.4, 2, 1.004)])
+def test_sedov_similarity_constant_matches_the_literature(gamma, nu, xi0):
+    from ale_xfem.exact.sedov import SedovProfile
+
+    profile = SedovProfile.solve(gamma, nu)
+    assert profile.xi0 == pytest.approx(xi0, abs=6e-4)
+    # the strong-shock state at λ = 1, a gas at rest at the centre
+    assert profile.g[-1] == pytest.approx((gamma + 1) / (gamma - 1))
+    # near the centre u = r/(γ t) δ … : f ≈ λ/γ, the gas evacuated
+    assert profile.f[1] / profile.lam[1] == pytest.approx(1.0 / gamma, rel=0.02) and profile.g[1] < 1e-6
+
+
+def test_sedov_shock_radius_is_within_two_percent_of_the_similarity_solution():
+    errors = []
+    for n in (30, 60):
+        problem, result = run_scene("sedov", f"mesh.cells=[{n},{n}]")
+        assert result.status == "ok" and problem.exact.kind == "sedov"
+        assert abs(result.conservation["total_energy"]) < 1e-13
+        centre = problem.mesh.cell_centroids(result.state.node_position)
+        radius = np.hypot(*centre.T)
+        angle = np.arctan2(centre[:, 1], centre[:, 0])
+        rho = result.state.material_density[0]
+        bins = np.linspace(0.0, np.pi / 2, 7)
+        peaks = [radius[(angle >= a) & (angle < b)][np.argmax(rho[(angle >= a) & (angle < b)])]
+                 for a, b in zip(bins[:-1], bins[1:])]
+        exact = problem.exact.solution.shock_radius(result.state.time)
+        assert np.abs(np.array(peaks) / exact - 1).max() < 0.02, (peaks, exact)
+        errors.append(result.errors["L1_density"])
+    assert errors[1] < 0.75 * errors[0], errors
