@@ -602,9 +602,13 @@ class ExplicitWilkins:
             e_new[0, cells], e_new[1, cells] = details[0], details[1]
             volumes = _two_slots(volume, cells, volume[cells] - va)
             volumes[0, cells] = va
-            interface_before = state.node_position[0, a] + state.material_volume[0, cells]
+            if a is not None:
+                interface_before = state.node_position[0, a] + state.material_volume[0, cells]
+                interface_velocity = (x_new[0, a] + va - interface_before) / dt
+            else:  # 2D single-velocity cells
+                interface_velocity = np.zeros(cells.size)
             interface = dict(interface_pressure=0.5 * (details[2] + details[3]),
-                             interface_velocity=(x_new[0, a] + va - interface_before) / dt)
+                             interface_velocity=interface_velocity)
         occupied = volumes[:, self.mixed.cells] if self.mixed is not None else volume
         if not (volume.min() > 0.0 and occupied.min() > 0.0 and np.isfinite(e_new.sum())):
             for name, values, allowed, good in (("volume", volumes, "> 0", lambda v: v > 0.0),

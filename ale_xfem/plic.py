@@ -98,9 +98,9 @@ def part_centroids(reconstruction: Reconstruction) -> tuple[np.ndarray, np.ndarr
     return polygon_centroid(reconstruction.alpha), polygon_centroid(reconstruction.beta)
 
 
-def material_fractions(problem, state) -> np.ndarray:
+def material_fractions(problem, state, layout=None) -> np.ndarray:
     """(n_materials, n_cells): each material's share of each cell's area."""
-    layout = problem.layout
+    layout = problem.layout if layout is None else layout
     area = problem.mesh.cell_volumes(state.node_position)
     fractions = np.zeros((len(problem.materials), area.size))
     for slot in range(layout.cell_material.shape[0]):
@@ -110,12 +110,16 @@ def material_fractions(problem, state) -> np.ndarray:
     return fractions
 
 
-def reconstruct_state(problem, state) -> Reconstruction:
+def reconstruct_state(problem, state, layout=None, mixed=None) -> Reconstruction:
     """PLIC in the mixed cells of a state: α is each mixed cell's slot-0 material, its
-    normal from Youngs' method on that material's fractions."""
-    mesh, cells = problem.mesh, problem.mixed.cells
-    fractions = material_fractions(problem, state)
-    alpha = problem.layout.cell_material[0, cells]
+    normal from Youngs' method on that material's fractions.  ``layout``, ``mixed``: those
+    of the state when not the problem's (``problem`` needs only ``mesh`` and ``materials``
+    then)."""
+    layout = problem.layout if layout is None else layout
+    mixed = problem.mixed if mixed is None else mixed
+    mesh, cells = problem.mesh, mixed.cells
+    fractions = material_fractions(problem, state, layout)
+    alpha = layout.cell_material[0, cells]
     normals = np.zeros((cells.size, 2))
     for material in np.unique(alpha):
         which = alpha == material

@@ -479,6 +479,7 @@ class Remapper:
         # the kinetic energy lost by the momentum remap goes to internal energy
         self.heat = problem.scene.numerics.remap_energy == "total"
         self.windows_remapped = 0  # interface-following motion: local remaps done
+        self.wall_impulse = 0.0  # walls are applied after this remap (the 2D one applies its own)
         self.general_remaps = 0  # steps remapped by the general intersection
         self.materials = problem.materials
         self.corner_mass = problem.corner_mass

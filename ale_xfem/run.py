@@ -90,7 +90,12 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
     stepper = make_stepper(problem)
     remapper = None
     if any(name.startswith("remap_") for name in problem.effects):
-        remapper = Remapper(problem, problem.scene.mesh.motion, problem.scene.numerics.remap_order)
+        if problem.mesh.dimension == 2:
+            from ale_xfem.remap2d import Remapper2D
+
+            remapper = Remapper2D(problem, problem.scene.mesh.motion, problem.scene.numerics.remap_order)
+        else:
+            remapper = Remapper(problem, problem.scene.mesh.motion, problem.scene.numerics.remap_order)
     remap_energy_change, remap_seconds = 0.0, 0.0
     state = problem.state
     start_totals = totals(state, problem.node_mass)
@@ -190,7 +195,7 @@ def _remap(problem, stepper, remapper, state, evaluation, impulse):
     for boundary in stepper.constraints:
         boundary.apply(state.node_velocity)  # the remap's own array
     after = state.node_velocity[:, held]
-    impulse = impulse + (node_mass[held] * (after - before)).sum(axis=1)
+    impulse = impulse + (node_mass[held] * (after - before)).sum(axis=1) + remapper.wall_impulse
     kinetic_change += 0.5 * float(np.sum(node_mass[held] * (after**2 - before**2)))
     if mixed is not None and mixed.relaxation:  # the remap leaves a pressure jump in mixed cells
         state, _ = stepper.relax_mixed_cells(state, in_place=True)

@@ -25,7 +25,7 @@ BOUNDARY_SIDES_1D = ("left", "right")
 BOUNDARY_SIDES_2D = ("left", "right", "bottom", "top")
 MOTIONS_AVAILABLE = ("lagrangian", "eulerian", "smoothed", "interface")
 MOTIONS_PLANNED = ()
-MOTIONS_2D = ("lagrangian",)  # the 2D remap is not built yet
+MOTIONS_2D = ("lagrangian", "eulerian", "smoothed")  # interface-following is 1D only
 CELL_TYPES_2D = ("quadrilateral", "triangle")
 MESH_KINDS_2D = ("rectangle", "saltzman", "file")
 

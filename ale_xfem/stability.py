@@ -1,7 +1,8 @@
 """Hard cases stay stable (`ale-xfem study stability`).
 
 A suite of 1D cases (and 2D ones: Noh on quadrilaterals and triangles, Saltzman, the
-rotated two-material tube, a shock reaching a heavy disk), each run with an enriched interface inside a cell (unless the case is
+rotated two-material tube on a Lagrangian and on an Eulerian mesh, a shock reaching a heavy
+disk), each run with an enriched interface inside a cell (unless the case is
 about something else), checked for: finished, positive densities, volumes and (ideal-gas)
 energies, admissible states (real sound speeds), volume fractions in [0, 1], mass and
 momentum conserved to round-off, and — where an exact solution exists — the L1 error of
@@ -193,9 +194,10 @@ def cases_2d(cells: int = 200) -> list[Case]:
     u_shock = 1.4790199457749041  # Mach 2 into air at rest
     disk = {
         "name": "shock-disk-2d", "description": "a Mach 2 shock reaching a disk five times denser "
-        "(single-velocity mixed cells on its edge)",
+        "(single-velocity mixed cells on its edge) on a smoothed mesh (on a Lagrangian one cells turn "
+        "inside out)",
         "dimension": 2, "t_end": 0.35,
-        "mesh": {"extent": [[0.0, 2.0], [0.0, 1.0]], "cells": max(20, cells // 2)},
+        "mesh": {"extent": [[0.0, 2.0], [0.0, 1.0]], "cells": max(20, cells // 2), "motion": "smoothed"},
         "materials": {"air": {"eos": "ideal_gas", "gamma": 1.4},
                       "heavy": {"eos": "stiffened_gas", "gamma": 3.0, "p_inf": 5.0}},
         "regions": [{"material": "air", "box": [[0.0, 2.0], [0.0, 1.0]], "density": 1.0, "pressure": 1.0},
@@ -206,8 +208,11 @@ def cases_2d(cells: int = 200) -> list[Case]:
         "interface": {"model": "single_velocity"},
         "boundaries": {"left": {"velocity": [u_shock, 0.0]}, "right": "wall", "bottom": "wall", "top": "wall"},
     }
+    eulerian = {**tube, "name": "interface-eulerian-2d", "description": "the rotated two-material tube on an "
+                "Eulerian mesh: the interface moves through the cells (material-by-material remap)",
+                "mesh": {**tube["mesh"], "motion": "eulerian"}}
     cases = [Case(d["name"], d["description"], d, d["mesh"]["cells"], refinement=2)
-             for d in (noh, noh_triangles, saltzman, tube, disk)]
+             for d in (noh, noh_triangles, saltzman, tube, eulerian, disk)]
     cases[-1].exact = False
     return cases
 

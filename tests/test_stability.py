@@ -14,15 +14,7 @@ from ale_xfem.stability import random_case, run_case, suite, vacuum_forms
 SMALL = 50
 
 
-# A Lagrangian mesh cannot follow the vortical shear around the disk: cells turn inside out
-# (checked by the suite's inverted-cell test) until the 2D remap (issue 5) regularises it.
-TANGLES_WITHOUT_REMAP = {"shock-disk-2d"}
-
-
-@pytest.mark.parametrize("case", [
-    pytest.param(case, marks=pytest.mark.xfail(strict=True, reason="the Lagrangian mesh tangles around the disk; "
-                                               "needs the 2D remap (issue 5, open)"))
-    if case.name in TANGLES_WITHOUT_REMAP else case for case in suite(SMALL)], ids=lambda case: case.name)
+@pytest.mark.parametrize("case", suite(SMALL), ids=lambda case: case.name)
 def test_every_hard_case_passes(case):
     row = run_case(case)
     assert row["verdict"] == "pass", f"{case.name}: {row['verdict']} {row['diagnostic']}"
