@@ -108,3 +108,26 @@ def run_phase_bench(sizes=(1_000, 100_000), out=print) -> list[dict]:
             out(f"{cells:>8d} {label:<42} {1e3 * t['lagrange']:>9.3f} {1e3 * t['mixed_cell_solve']:>9.3f} "
                 f"{1e3 * t['remap']:>9.3f} {1e3 * t['total']:>9.3f} {t['total'] / reference:>7.2f}")
     return rows
+
+
+PHASE_CASES_2D = (
+    ("rotated two-material tube, Lagrangian", ["mesh.motion=lagrangian"]),
+    ("rotated two-material tube, Eulerian remap", ["mesh.motion=eulerian"]),
+    ("rotated two-material tube, smoothed mesh", ["mesh.motion=smoothed"]),
+)
+
+
+def run_phase_bench_2d(side: int = 200, steps: int = 10, out=print) -> list[dict]:
+    """The 2D remap against the Lagrange step: the rotated two-material tube (its interface
+    crossing the domain, single-velocity mixed cells) on side × side quadrilaterals."""
+    out(f"time per step by phase (ms, best of 3 runs of {steps} steps), 2D rotated two-material tube, "
+        f"{side} × {side} quadrilaterals")
+    out(f"{'case':<44} {'lagrange':>9} {'remap':>9} {'total':>9} {'remap / Lagrangian step':>24}")
+    rows, reference = [], None
+    for label, overrides in PHASE_CASES_2D:
+        t = phase_times(side, steps, [f"mesh.cells=[{side},{side}]", *overrides], "rotated-tube")
+        reference = reference or t["total"]
+        rows.append({"case": label, **t})
+        out(f"{label:<44} {1e3 * t['lagrange']:>9.2f} {1e3 * t['remap']:>9.2f} {1e3 * t['total']:>9.2f} "
+            f"{t['remap'] / reference:>24.2f}")
+    return rows

@@ -66,7 +66,8 @@ def _parser() -> argparse.ArgumentParser:
                        help="comma-separated mesh sizes (default: 1000,...,1000000)")
     bench.add_argument("--dimension", type=int, choices=(1, 2), default=1,
                        help="2: the 2D loop on √n × √n quadrilaterals (scene sod-2d), n = 10^4 ... 10^6 "
-                            "by default")
+                            "by default; with --phases the 2D remap against the Lagrange step on the rotated "
+                            "two-material tube, 200 × 200 (or --cells N: N × N)")
     bench.add_argument("--phases", action="store_true",
                        help="time per step by phase (explicit, mixed-cell solve, remap) with and "
                             "without an enriched interface, at 1000 and 100000 cells (or --cells)")
@@ -179,7 +180,11 @@ def _bench(args) -> int:
     except ValueError:
         print(f"error: --cells = {args.cells!r}: comma-separated positive integers", file=sys.stderr)
         return EXIT_BAD_INPUT
-    if args.phases:
+    if args.phases and args.dimension == 2:
+        from ale_xfem.bench import run_phase_bench_2d
+
+        run_phase_bench_2d(200 if args.cells == "1000,10000,100000,1000000" else sizes[0])
+    elif args.phases:
         run_phase_bench(sizes if args.cells != "1000,10000,100000,1000000" else (1_000, 100_000))
     elif args.dimension == 2:
         run_bench(sizes if args.cells != "1000,10000,100000,1000000" else (10_000, 100_000, 1_000_000), "sod-2d")

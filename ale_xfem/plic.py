@@ -5,7 +5,7 @@ In each mixed cell the interface is a straight segment {x : x·n = s} whose α s
 method: the volume fraction averaged to the nodes (area-weighted over the cells around each
 node), its gradient in the cell through the same corner gradients ∂A/∂x_i as the Wilkins
 forces (∇f = (1/A) Σ_i f_i ∂A/∂x_i), n = −∇f/|∇f| pointing out of α.  The offset s is found
-by bisection on the exact clipped area (monotone in s), to round-off.
+exactly: the clipped area is quadratic in s between the cell's vertex projections.
 
 Everything is vectorised over the mixed cells; the loops run over bisection iterations and
 over the corners of a cell.
@@ -18,8 +18,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from ale_xfem.shapes import clip_half_plane, polygon_area, polygon_centroid
-
-BISECTION_STEPS = 64  # halves the bracket to round-off of the cell's extent along n
 
 
 @dataclass
@@ -43,35 +41,51 @@ class Reconstruction:
         return 0.5 * (self.start + self.end)
 
 
-def youngs_normals(mesh, node_position, fraction) -> np.ndarray:
-    """Unit normals (n_cells, 2) pointing out of the material whose volume fraction per cell
-    is ``fraction``; (0, 0) where the fraction is locally uniform."""
+def youngs_normals(mesh, node_position, fraction, cells=None) -> np.ndarray:
+    """Unit normals pointing out of the material whose volume fraction per cell is
+    ``fraction`` — (n_cells, 2), or (len(cells), 2) for the cells given; (0, 0) where the
+    fraction is locally uniform."""
     corners = mesh.corners
-    positions = corners.gather(node_position)
-    area, gradient = mesh.cell_type.volume_and_gradient(positions)
-    weighted = corners.scatter([fraction * area] * mesh.cell_type.nodes_per_cell)
-    weight = corners.scatter([area] * mesh.cell_type.nodes_per_cell)
-    nodal = weighted / weight
-    at_corners = corners.gather(nodal[None, :])
-    grad = np.zeros((mesh.n_cells, 2))
+    k = mesh.cell_type.nodes_per_cell
+    area = mesh.cell_type.volume_and_gradient(corners.gather(node_position))[0]
+    nodal = corners.scatter([fraction * area] * k) / corners.scatter([area] * k)
+    nodes = mesh.cell_nodes if cells is None else mesh.cell_nodes[cells]
+    here = [[node_position[d, nodes[:, i]] for d in range(2)] for i in range(k)]
+    gradient = mesh.cell_type.volume_and_gradient(here)[1]
+    grad = np.zeros((nodes.shape[0], 2))
     for i, g in enumerate(gradient):
-        grad[:, 0] += at_corners[i][0] * g[0]
-        grad[:, 1] += at_corners[i][0] * g[1]
+        grad[:, 0] += nodal[nodes[:, i]] * g[0]
+        grad[:, 1] += nodal[nodes[:, i]] * g[1]
     size = np.linalg.norm(grad, axis=1)
     return np.divide(-grad, size[:, None], out=np.zeros_like(grad), where=size[:, None] > 0)
 
 
 def cut_offsets(vertices: np.ndarray, normal: np.ndarray, fraction: np.ndarray) -> np.ndarray:
-    """s per cell with area({x·n ≤ s} ∩ K) = fraction · area(K), by bisection."""
-    projection = np.einsum("nmd,nd->nm", vertices, normal)
-    lo, hi = projection.min(axis=1), projection.max(axis=1)
-    target = fraction * polygon_area(vertices)
-    for _ in range(BISECTION_STEPS):
-        middle = 0.5 * (lo + hi)
-        below = polygon_area(clip_half_plane(vertices, normal, middle)) < target
-        lo = np.where(below, middle, lo)
-        hi = np.where(below, hi, middle)
-    return 0.5 * (lo + hi)
+    """s per cell with area({x·n ≤ s} ∩ K) = fraction · area(K), exactly: between two
+    consecutive vertex projections the cut's length is linear in s, so the area is
+    quadratic; the area at every vertex projection brackets the target, and the quadratic
+    through the bracket's ends and middle is solved in it."""
+    n, k, _ = vertices.shape
+    projection = np.sort(np.einsum("nmd,nd->nm", vertices, normal), axis=1)
+    total = polygon_area(vertices)
+    target = fraction * total
+    below = np.stack([polygon_area(clip_half_plane(vertices, normal, projection[:, j])) for j in range(k)], axis=1)
+    # the bracket [p_j, p_{j+1}] with below_j ≤ target ≤ below_{j+1}
+    j = np.clip((below < target[:, None]).sum(axis=1) - 1, 0, k - 2)
+    rows = np.arange(n)
+    lo, hi = projection[rows, j], projection[rows, j + 1]
+    a_lo, a_hi = below[rows, j], below[rows, j + 1]
+    middle = 0.5 * (lo + hi)
+    a_mid = polygon_area(clip_half_plane(vertices, normal, middle))
+    # A(lo + t (hi − lo)) = a_lo + β t + γ t², t ∈ [0, 1]
+    gamma = 2.0 * (a_hi + a_lo - 2.0 * a_mid)
+    beta = a_hi - a_lo - gamma
+    rhs = np.maximum(target - a_lo, 0.0)
+    # the root in [0, 1] of γt² + βt = rhs, with β ≥ 0 (the cut's length at lo times the
+    # bracket): t = 2 rhs / (β + √(β² + 4γ rhs)), free of cancellation, and γ = 0 allowed
+    denominator = beta + np.sqrt(np.maximum(beta * beta + 4.0 * gamma * rhs, 0.0))
+    t = np.divide(2.0 * rhs, denominator, out=np.zeros_like(rhs), where=denominator > 0)
+    return lo + np.clip(t, 0.0, 1.0) * (hi - lo)
 
 
 def reconstruct(vertices: np.ndarray, normal: np.ndarray, fraction: np.ndarray, cells=None) -> Reconstruction:
@@ -123,7 +137,7 @@ def reconstruct_state(problem, state, layout=None, mixed=None) -> Reconstruction
     normals = np.zeros((cells.size, 2))
     for material in np.unique(alpha):
         which = alpha == material
-        normals[which] = youngs_normals(mesh, state.node_position, fractions[material])[cells[which]]
+        normals[which] = youngs_normals(mesh, state.node_position, fractions[material], cells[which])
     vertices = mesh.cell_vertex_positions(state.node_position)[cells]
     area = mesh.cell_volumes(state.node_position)[cells]
     return reconstruct(vertices, normals, state.material_volume[0, cells] / area, cells)
