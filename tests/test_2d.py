@@ -531,3 +531,52 @@ def test_2d_remap_edges_sweep_the_exact_change_of_every_cell_area():
     S = shapes.polygon_area(swept)
     change = np.bincount(plus, S, mesh.n_cells) - np.bincount(minus[minus >= 0], S[minus >= 0], mesh.n_cells)
     np.testing.assert_allclose(mesh.cell_volumes(moved) - mesh.cell_volumes(x), change, atol=1e-15)
+
+
+def test_a_mesh_from_an_xdmf_file_with_two_materials_on_its_lines(tmp_path):
+    """A DOLFINx XDMF mesh (here written from a rectangle) read by a scene, two materials
+    meeting on a mesh line without [interface]: a pressure step on the line runs, conserving."""
+    import dolfinx_solver  # noqa: F401
+    import dolfinx
+    import dolfinx.io
+    from mpi4py import MPI
+
+    mesh = dolfinx.mesh.create_rectangle(MPI.COMM_SELF, [[0.0, 0.0], [1.0, 0.5]], [16, 8],
+                                         dolfinx.mesh.CellType.triangle)
+    with dolfinx.io.XDMFFile(MPI.COMM_SELF, str(tmp_path / "mesh.xdmf"), "w") as handle:
+        handle.write_mesh(mesh)
+    scene = tmp_path / "file.toml"
+    scene.write_text("""
+name = "from-file"
+dimension = 2
+t_end = 0.05
+[mesh]
+extent = [[0.0, 1.0], [0.0, 0.5]]
+cells = [16, 8]
+kind = "file"
+file = "mesh.xdmf"
+[materials.heavy]
+eos = "ideal_gas"
+gamma = 1.4
+[materials.light]
+eos = "ideal_gas"
+gamma = 1.667
+[[regions]]
+material = "light"
+box = [[0.0, 1.0], [0.0, 0.5]]
+density = 0.125
+pressure = 0.1
+[[regions]]
+material = "heavy"
+box = [[0.0, 0.5], [0.0, 0.5]]
+density = 1.0
+pressure = 1.0
+""")
+    problem = build_problem(load_scene(scene))
+    assert problem.mesh.n_cells == 16 * 8 * 2 and problem.mixed is None
+    assert set(problem.layout.cell_material[0]) == {0, 1}
+    result = simulate(problem)
+    assert result.status == "ok"
+    assert abs(result.conservation["total_energy"]) < 1e-13 and result.conservation["momentum"] < 1e-13
+    with pytest.raises(SceneError, match="mesh.file"):
+        build_problem(load_scene(scene, ["mesh.file=missing.xdmf"]))
