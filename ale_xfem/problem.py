@@ -136,6 +136,14 @@ def build_problem(scene: Scene) -> Problem:
                                         material_volume=material_volume, corner_mass=own_mass,
                                         corner_momentum=own_momentum)
 
+    return finish_problem(scene, mesh, materials, layout, node_mass, state, mixed, corner_by_position,
+                          exact_reference(scene))
+
+
+def finish_problem(scene, mesh, materials, layout, node_mass, state, mixed, corner_mass, exact) -> Problem:
+    """What 1D and 2D problems share once the state is built: boundary conditions held from
+    t = 0, the effects, and the mixed cells' initial pressure relaxation (or, without it or
+    when it fails, the volume-weighted mean pressure as the interface pressure)."""
     boundaries = side_boundaries(mesh, scene.mesh.extent, scene.boundaries)
     for boundary in boundaries:  # walls and pistons hold from t = 0
         boundary.apply(state.node_velocity)
@@ -149,20 +157,14 @@ def build_problem(scene: Scene) -> Problem:
                 state = initial_relaxation(mixed, state)
             except MixedCellFailure as failure:  # reported by the run, with this state
                 setup_failure = f"initial pressure relaxation: {failure}"
-        else:  # the mixed cells start with their pressures as given
+        if setup_failure or "pressure_relaxation" not in effects:  # the pressures as given
             cells = mixed.cells
-            pressures = state.material_pressure[:, cells]
             volumes = state.material_volume[:, cells]
-            state = state.evolved(interface_pressure=(pressures * volumes).sum(axis=0) / volumes.sum(axis=0),
-                                  interface_velocity=np.zeros(cells.size))
-    if setup_failure:  # an unrelaxed mixed cell has no interface pressure yet
-        cells = mixed.cells
-        volumes = state.material_volume[:, cells]
-        state = state.evolved(
-            interface_pressure=(state.material_pressure[:, cells] * volumes).sum(axis=0) / volumes.sum(axis=0),
-            interface_velocity=np.zeros(cells.size))
-    return Problem(scene, mesh, materials, layout, node_mass, state, boundaries,
-                   exact_reference(scene), effects, mixed, corner_by_position, setup_failure, effect_table)
+            state = state.evolved(
+                interface_pressure=(state.material_pressure[:, cells] * volumes).sum(axis=0) / volumes.sum(axis=0),
+                interface_velocity=np.zeros(cells.size))
+    return Problem(scene, mesh, materials, layout, node_mass, state, boundaries, exact, effects, mixed,
+                   corner_mass, setup_failure, effect_table)
 
 
 def mesh_2d(scene: Scene) -> MeshArrays:
@@ -289,27 +291,7 @@ def _build_problem_2d(scene: Scene) -> Problem:
     layout = MaterialLayout(cell_material, n_materials)
     state, node_mass = state_from_cells(mesh, materials, layout, slot_mass, slot_energy,
                                         material_volume=slot_volume, corner_momentum=corner_momentum)
-    boundaries = side_boundaries(mesh, scene.mesh.extent, scene.boundaries)
-    for boundary in boundaries:
-        boundary.apply(state.node_velocity)
-    effect_table = scene_effects(scene, 0 if mixed is None else mixed.cells.size,
-                                 [b.side for b in boundaries if b.kind == "velocity"])
-    effects = active(effect_table)
-    setup_failure = ""
-    if mixed is not None:
-        if "pressure_relaxation" in effects:
-            try:
-                state = initial_relaxation(mixed, state)
-            except MixedCellFailure as failure:
-                setup_failure = f"initial pressure relaxation: {failure}"
-        if setup_failure or "pressure_relaxation" not in effects:
-            cells = mixed.cells
-            volumes = state.material_volume[:, cells]
-            state = state.evolved(
-                interface_pressure=(state.material_pressure[:, cells] * volumes).sum(axis=0) / volumes.sum(axis=0),
-                interface_velocity=np.zeros(cells.size))
-    return Problem(scene, mesh, materials, layout, node_mass, state, boundaries, exact_reference_2d(scene),
-                   effects, mixed, None, setup_failure, effect_table)
+    return finish_problem(scene, mesh, materials, layout, node_mass, state, mixed, None, exact_reference_2d(scene))
 
 
 def _left_material_first(scene, names, left, right, first, second):

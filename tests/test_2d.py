@@ -396,7 +396,9 @@ def test_rotated_two_material_tube_converges_with_mixed_cells_and_conserves():
     assert rate > 0.6 and errors[-1] < 2e-3, (errors, rate)
 
 
-def test_a_heavy_disk_in_pressure_balance_stays_at_rest_with_single_velocity_mixed_cells(tmp_path):
+def _heavy_disk_scene(tmp_path, heavy_eos: str):
+    """The uniform gas at p = 1 with a disk of a heavy material (``heavy_eos``: its TOML lines)
+    in pressure balance, single-velocity mixed cells on its edge."""
     path = _uniform_scene(tmp_path, extra="""
 [[regions]]
 material = "heavy"
@@ -407,8 +409,12 @@ pressure = 1.0
 [interface]
 model = "single_velocity"
 """)
-    path.write_text(path.read_text().replace(
-        "[materials.gas]", '[materials.heavy]\neos = "stiffened_gas"\ngamma = 4.4\np_inf = 3.0\n[materials.gas]'))
+    path.write_text(path.read_text().replace("[materials.gas]", f"[materials.heavy]\n{heavy_eos}\n[materials.gas]"))
+    return path
+
+
+def test_a_heavy_disk_in_pressure_balance_stays_at_rest_with_single_velocity_mixed_cells(tmp_path):
+    path = _heavy_disk_scene(tmp_path, 'eos = "stiffened_gas"\ngamma = 4.4\np_inf = 3.0')
     problem = build_problem(load_scene(path, ["t_end=1e9"]))
     assert problem.mixed is not None and problem.mixed.cells.size >= 16  # 10 × 10 cells
     result = simulate(problem, stop_after_steps=500)
@@ -498,18 +504,7 @@ def test_rotated_tube_on_an_eulerian_mesh_converges():
 
 
 def test_a_heavy_disk_at_rest_stays_at_rest_through_the_eulerian_remap(tmp_path):
-    path = _uniform_scene(tmp_path, extra="""
-[[regions]]
-material = "heavy"
-disk = {center = [0.47, 0.52], radius = 0.23}
-density = 10.0
-pressure = 1.0
-
-[interface]
-model = "single_velocity"
-""")
-    path.write_text(path.read_text().replace(
-        "[materials.gas]", '[materials.heavy]\neos = "ideal_gas"\ngamma = 3.0\n[materials.gas]'))
+    path = _heavy_disk_scene(tmp_path, 'eos = "ideal_gas"\ngamma = 3.0')
     problem = build_problem(load_scene(path, ["t_end=1e9", "mesh.motion=eulerian"]))
     mixed_before = problem.mixed.cells.copy()
     result = simulate(problem, stop_after_steps=300)
