@@ -479,7 +479,9 @@ class Remapper:
         # the kinetic energy lost by the momentum remap goes to internal energy
         self.heat = problem.scene.numerics.remap_energy == "total"
         self.windows_remapped = 0  # interface-following motion: local remaps done
-        self.wall_impulse = 0.0  # walls are applied after this remap (the 2D one applies its own)
+        # walls are applied after this remap (the 2D one applies its own: their impulse and
+        # a piston's work then come from it)
+        self.wall_impulse, self.wall_work = 0.0, 0.0
         self.general_remaps = 0  # steps remapped by the general intersection
         self.materials = problem.materials
         self.corner_mass = problem.corner_mass

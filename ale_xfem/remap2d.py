@@ -2,7 +2,8 @@
 
 After a Lagrange step the nodes go from x (Lagrangian) to X (the regularised mesh:
 ``eulerian`` — back to the initial mesh — or ``smoothed`` — each interior node half-way to
-the mean of its neighbours along edges, boundary nodes kept).  Each edge a→b (counter-
+the mean of its neighbours along edges, each boundary node half-way to the mean of its two
+boundary neighbours along a straight boundary, corners kept).  Each edge a→b (counter-
 clockwise in the cell K₊ on its left) sweeps the quadrilateral (x_a, X_a, X_b, x_b), of
 signed area S: S > 0 moves that volume from the cell on its other side K₋ into K₊, S < 0
 from K₊ into K₋.  The new cell areas are then exact: A' = A + Σ_edges ±S.
@@ -26,7 +27,9 @@ share: a mesh that does not move changes nothing, a uniform velocity stays unifo
 momentum is conserved to round-off.  The kinetic energy this loses is returned to the
 cells' internal energy by corner mass (``numerics.remap_energy = "total"``), so total
 energy is conserved too — including what the walls take when they hold the remapped
-velocities (done here, their impulse reported as ``wall_impulse``).  A cell that ends with
+velocities (done here, their impulse reported as ``wall_impulse``; a piston's imposed
+velocity is boundary work, ``wall_work``).  Only the nodes' losses are deposited, scaled to
+the total (a node can gain a little where its neighbours lose): cold gas is never cooled.  A cell that ends with
 a material below ``TRACE`` (10⁻⁴) of its area hands that material's mass and energy to its
 other material (total mass exact, each material's within such traces); a cell receiving a
 third material stops the run with a diagnostic.
@@ -91,17 +94,40 @@ class Remapper2D:
         # walls and pistons hold the remapped velocities inside the remap, so that the kinetic
         # energy they remove is heat like the rest; their impulse is reported here
         self.constraints = [boundary for boundary in problem.boundaries if boundary.kind != "free"]
-        self.wall_impulse = np.zeros(2)
+        self.wall_impulse, self.wall_work = np.zeros(2), 0.0
 
     def target(self, position):
+        """The regularised mesh.  smoothed: interior nodes half-way to the mean of their edge
+        neighbours; boundary nodes half-way to the mean of their two boundary neighbours,
+        along the boundary (a node where the boundary turns stays)."""
         if self.motion == "eulerian":
             return self.initial.copy()
-        # smoothed: interior nodes half-way to the mean of their edge neighbours
-        mean = np.stack([np.bincount(self.a, position[d, self.b], position.shape[1])
-                         + np.bincount(self.b, position[d, self.a], position.shape[1]) for d in range(2)])
+        n = position.shape[1]
+        mean = np.stack([np.bincount(self.a, position[d, self.b], n) + np.bincount(self.b, position[d, self.a], n)
+                         for d in range(2)])
         mean /= np.maximum(self.neighbours, 1)
         target = position + 0.5 * (mean - position)
-        target[:, self.boundary_node] = position[:, self.boundary_node]
+        a, b = self.a[self.minus < 0], self.b[self.minus < 0]  # boundary edges
+        ends = np.stack([np.bincount(a, position[d, b], n) + np.bincount(b, position[d, a], n) for d in range(2)])
+        count = np.bincount(a, minlength=n) + np.bincount(b, minlength=n)
+        nodes = np.flatnonzero(self.boundary_node)
+        # the two boundary edges at a node: straight if (p − prev) × (next − p) = 0
+        previous = np.full(n, -1)
+        following = np.full(n, -1)
+        previous[b], following[a] = a, b
+        straight = np.zeros(n, dtype=bool)
+        valid = nodes[(previous[nodes] >= 0) & (following[nodes] >= 0) & (count[nodes] == 2)]
+        e1 = position[:, valid] - position[:, previous[valid]]
+        e2 = position[:, following[valid]] - position[:, valid]
+        cross = e1[0] * e2[1] - e1[1] * e2[0]
+        straight[valid] = np.abs(cross) <= 1e-9 * np.hypot(*e1) * np.hypot(*e2)
+        target[:, nodes] = position[:, nodes]
+        slide = nodes[straight[nodes]]
+        if slide.size:
+            tangent = position[:, following[slide]] - position[:, previous[slide]]
+            tangent /= np.hypot(*tangent)
+            move = 0.5 * (ends[:, slide] / 2 - position[:, slide])
+            target[:, slide] += tangent * np.sum(move * tangent, axis=0)
         return target
 
     # -- the remap -----------------------------------------------------------------------
@@ -172,21 +198,42 @@ class Remapper2D:
             raise RemapFailure("a node lost all its mass in the remap")
         momentum = u * old_node_mass + np.stack([corners.scatter([c / k] * k) for c in change])
         velocity = momentum / node_mass
-        free = velocity.copy()
-        for boundary in self.constraints:
-            boundary.apply(velocity)
-        self.wall_impulse = np.sum(node_mass * (velocity - free), axis=1)
         kinetic_before = 0.5 * old_node_mass * np.sum(u * u, axis=0)
-        kinetic_after = 0.5 * node_mass * np.sum(velocity * velocity, axis=0)
         kinetic_in = corners.scatter([kinetic_change_cells / k] * k)
-        loss = kinetic_before + kinetic_in - kinetic_after  # per node; sums to the global loss
-        kinetic_change = float(kinetic_after.sum() - kinetic_before.sum())
-        if self.heat:  # to the cells around each node by corner mass, then by material mass
+        # per node: what the remap itself dissipates (sums to the global loss)
+        loss = kinetic_before + kinetic_in - 0.5 * node_mass * np.sum(velocity * velocity, axis=0)
+        # walls take the normal velocity (that kinetic energy is heat too); pistons impose
+        # theirs (the energy that costs is work of the boundary, like in the Lagrange step)
+        self.wall_impulse, self.wall_work = np.zeros(velocity.shape[0]), 0.0
+        for boundary in self.constraints:
+            free = velocity[:, boundary.nodes].copy()
+            boundary.apply(velocity)
+            held = velocity[:, boundary.nodes]
+            self.wall_impulse += np.sum(node_mass[boundary.nodes] * (held - free), axis=1)
+            change_k = 0.5 * node_mass[boundary.nodes] * np.sum(held * held - free * free, axis=0)
+            if boundary.kind == "wall":
+                np.subtract.at(loss, boundary.nodes, change_k)
+            else:
+                self.wall_work += float(change_k.sum())
+        kinetic_after = 0.5 * node_mass * np.sum(velocity * velocity, axis=0)
+        kinetic_change = float(kinetic_after.sum() - kinetic_before.sum()) - self.wall_work
+        if self.heat and loss.sum() > 0:
+            # Deposited where it is lost, by corner mass then by material mass.  A node may
+            # gain a little where its neighbours lose (the cells' momentum is shared by
+            # corners): only the losses are deposited, scaled to their sum — cold gas must
+            # not be cooled below zero by a neighbour's gain.
+            positive = np.maximum(loss, 0.0)
+            loss = positive * (loss.sum() / positive.sum())
             per_mass = loss / node_mass
             gathered = corners.gather(per_mass[None, :])
             heat = sum(g[0] for g in gathered) * (new_cell_mass / k)
             with np.errstate(invalid="ignore", divide="ignore"):
                 energy += heat * np.where(new_cell_mass > 0, mass / np.where(new_cell_mass > 0, new_cell_mass, 1), 0)
+        elif self.heat and loss.sum() < 0:
+            # The momentum remap through the cells is not dissipative node by node, and now and
+            # then not overall either: the kinetic energy it made is taken from the internal
+            # energies in proportion (each scaled by the same factor, so none goes below 0).
+            energy *= 1.0 + loss.sum() / energy.sum()
 
         # -- back to slots ---------------------------------------------------------------------
         area = mesh.cell_volumes(X)

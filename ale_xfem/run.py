@@ -131,6 +131,7 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
                 remap_clock = time.perf_counter()
                 new_state, evaluation, impulse, kinetic_change = _remap(
                     problem, stepper, remapper, new_state, evaluation, impulse)
+                work += remapper.wall_work
                 remap_energy_change += kinetic_change
                 remap_seconds += time.perf_counter() - remap_clock
             state = new_state
