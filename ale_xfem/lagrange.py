@@ -173,13 +173,14 @@ class ExplicitWilkins:
 
     def evaluate(self, node_position, node_velocity, material_mass, material_energy,
                  mixed_view: MixedView | None = None, slots: int = 1, known=None,
-                 with_length: bool = True) -> ForceEvaluation:
+                 with_length: bool = True, hourglass=None) -> ForceEvaluation:
         """Forces of a state.  Density, pressure and sound speed come out as (slots,
         n_cells) arrays with slot 0 filled (slots = 2: the caller fills slot 1 of the
         mixed cells, every other entry of slot 1 is 0), so that the mixed-cell step takes
         them as they are instead of copying rows.  ``known``: the (density, pressure, sound
         speed) of a state at these positions, taken instead of evaluated again.
-        ``with_length``: also the cells' CFL lengths (not needed of the predicted state)."""
+        ``with_length``: also the cells' CFL lengths (not needed of the predicted state);
+        ``hourglass``: hourglass corner forces to use instead of evaluating them."""
         cell_type, corners = self.mesh.cell_type, self.corners
         positions = corners.gather(node_position)
         volume, gradient = cell_type.volume_and_gradient(positions)
@@ -234,10 +235,10 @@ class ExplicitWilkins:
             mixed_viscosity = viscosity[cells]
             stress[cells] = mixed_view.interface_pressure + mixed_viscosity
         nodal_force = np.empty((cell_type.dimension, corners.n_nodes))
-        hourglass = None
-        if self.hourglass > 0.0:
+        if self.hourglass > 0.0 and hourglass is None:
             hourglass = hourglass_corner_forces(positions, velocities, gradient, volume, density[0],
                                                 sound_speed[0], self.hourglass)
+        if hourglass is not None:
             for d in range(cell_type.dimension):  # F_Ki = P ∂V/∂x_i + f_Ki, one scatter
                 corner_force = [np.multiply(g_corner[d], stress) for g_corner in gradient]
                 for force, f in zip(corner_force, hourglass):
@@ -323,11 +324,15 @@ class ExplicitWilkins:
             work *= stress
         else:
             work = None
+            hourglass_work = {}  # the predicted state reuses the start's hourglass forces
             for evaluation in evaluations:
                 term = corner_dot(evaluation.volume_gradient, gather)
                 term *= evaluation.stress
-                if evaluation.hourglass_force is not None:  # its work heats the cell too
-                    term += corner_dot(evaluation.hourglass_force, gather)
+                forces = evaluation.hourglass_force
+                if forces is not None:  # their work heats the cell too
+                    if id(forces) not in hourglass_work:
+                        hourglass_work[id(forces)] = corner_dot(forces, gather)
+                    term += hourglass_work[id(forces)]
                 work = term if work is None else np.add(work, term, out=work)
         work *= scale
         return work
@@ -374,7 +379,10 @@ class ExplicitWilkins:
                 predicted_pressure = self._equal_strain(state, first, strain)[0]
             view = MixedView(view.volume_left * strain, view.volume_right * strain,
                              view.mass_right, view.energy_right, predicted_pressure)
-        predicted = self.evaluate(x_pred, u_pred, mass, e_pred, view, with_length=False)
+        # the hourglass forces of the start serve the predicted state too (a damping device,
+        # evaluated once a step; the same forces enter momentum and energy: still compatible)
+        predicted = self.evaluate(x_pred, u_pred, mass, e_pred, view, with_length=False,
+                                  hourglass=first.hourglass_force)
         if not predicted.volume.min() > 0.0:
             self.check(predicted, x_pred, e_pred, "predicted ")
 
