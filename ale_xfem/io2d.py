@@ -21,6 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ale_xfem.mesh import mesh_edges
 from ale_xfem.shapes import polygon_area, polygon_centroid
 
 CELLS_COLUMNS = ("x", "y", "volume", "material", "volume_fraction", "density", "velocity_x",
@@ -157,20 +158,13 @@ class VTXSeries:
 def material_edges(problem) -> tuple[np.ndarray, np.ndarray]:
     """The mesh edges between two pure cells of different materials: (first node, second
     node) arrays."""
-    nodes = problem.mesh.cell_nodes
-    k = nodes.shape[1]
-    pairs = np.sort(np.stack([nodes, np.roll(nodes, -1, axis=1)], axis=2).reshape(-1, 2), axis=1)
-    owner = np.repeat(np.arange(nodes.shape[0]), k)
-    _, edge, count = np.unique(pairs, axis=0, return_inverse=True, return_counts=True)
-    edge = edge.ravel()
+    a, b, plus, minus = mesh_edges(problem.mesh.cell_nodes)
     material = problem.layout.cell_material[0].copy()
     if problem.mixed is not None:
         material[problem.mixed.cells] = -1  # drawn by their PLIC segments
-    order = np.argsort(edge, kind="stable")
-    shared = count[edge[order]] == 2
-    a, b = order[shared][0::2], order[shared][1::2]  # the two cells of each interior edge
-    differ = (material[owner[a]] != material[owner[b]]) & (material[owner[a]] >= 0) & (material[owner[b]] >= 0)
-    return pairs[a[differ], 0], pairs[a[differ], 1]
+    other = np.where(minus >= 0, material[np.maximum(minus, 0)], -1)  # −1: the domain's boundary
+    differ = (material[plus] != other) & (material[plus] >= 0) & (other >= 0)
+    return a[differ], b[differ]
 
 
 def plot_density_2d(problem, result, path: Path) -> Path:

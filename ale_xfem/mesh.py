@@ -86,6 +86,42 @@ def _scaled(coefficient, values, out):
         np.multiply(coefficient, values, out=out)
 
 
+def node_averaged_gradient(mesh, node_position, value, cells=None) -> np.ndarray:
+    """The gradient in each cell (or in ``cells``) of a cell field averaged to the nodes by
+    area: ∇v_K = (1/A_K) Σ_i v̄_i ∂A_K/∂x_i with v̄_i = Σ_K A_K v_K / Σ_K A_K over the cells
+    around node i (exact for a linear field; Youngs' normals and the remap's slopes)."""
+    corners = mesh.corners
+    k = mesh.cell_type.nodes_per_cell
+    area = mesh.cell_type.volume_and_gradient(corners.gather(node_position))[0]
+    nodal = corners.scatter([value * area] * k) / corners.scatter([area] * k)
+    nodes = mesh.cell_nodes if cells is None else mesh.cell_nodes[cells]
+    here = [[node_position[d, nodes[:, i]] for d in range(node_position.shape[0])] for i in range(k)]
+    area_here, gradient = mesh.cell_type.volume_and_gradient(here)
+    grad = np.zeros((nodes.shape[0], 2))
+    for i, g in enumerate(gradient):
+        grad[:, 0] += nodal[nodes[:, i]] * g[0]
+        grad[:, 1] += nodal[nodes[:, i]] * g[1]
+    return grad / area_here[:, None]
+
+
+def mesh_edges(cell_nodes: np.ndarray):
+    """Unique edges (a, b) of a 2D mesh, oriented counter-clockwise in cell ``plus``;
+    ``minus`` the cell on the other side (−1 on the boundary)."""
+    k = cell_nodes.shape[1]
+    start, end = cell_nodes.ravel(), np.roll(cell_nodes, -1, axis=1).ravel()
+    owner = np.repeat(np.arange(cell_nodes.shape[0]), k)
+    key = np.stack([np.minimum(start, end), np.maximum(start, end)], axis=1)
+    _, edge, count = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    edge = edge.ravel()
+    order = np.argsort(edge, kind="stable")
+    first = np.flatnonzero(np.r_[True, edge[order][1:] != edge[order][:-1]])
+    plus = order[first]
+    minus = np.full(first.size, -1, dtype=np.int64)
+    shared = count[edge[plus]] == 2
+    minus[shared] = owner[order[first[shared] + 1]]
+    return start[plus], end[plus], owner[plus], minus
+
+
 def constant_gradient(gradient) -> bool:
     """True when ∂V/∂x_i does not depend on the positions (intervals)."""
     return all(isinstance(g, float) for corner in gradient for g in corner)

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ale_xfem.mesh import node_averaged_gradient
 from ale_xfem.shapes import clip_half_plane, polygon_area, polygon_centroid
 
 
@@ -45,17 +46,7 @@ def youngs_normals(mesh, node_position, fraction, cells=None) -> np.ndarray:
     """Unit normals pointing out of the material whose volume fraction per cell is
     ``fraction`` — (n_cells, 2), or (len(cells), 2) for the cells given; (0, 0) where the
     fraction is locally uniform."""
-    corners = mesh.corners
-    k = mesh.cell_type.nodes_per_cell
-    area = mesh.cell_type.volume_and_gradient(corners.gather(node_position))[0]
-    nodal = corners.scatter([fraction * area] * k) / corners.scatter([area] * k)
-    nodes = mesh.cell_nodes if cells is None else mesh.cell_nodes[cells]
-    here = [[node_position[d, nodes[:, i]] for d in range(2)] for i in range(k)]
-    gradient = mesh.cell_type.volume_and_gradient(here)[1]
-    grad = np.zeros((nodes.shape[0], 2))
-    for i, g in enumerate(gradient):
-        grad[:, 0] += nodal[nodes[:, i]] * g[0]
-        grad[:, 1] += nodal[nodes[:, i]] * g[1]
+    grad = node_averaged_gradient(mesh, node_position, fraction, cells)
     size = np.linalg.norm(grad, axis=1)
     return np.divide(-grad, size[:, None], out=np.zeros_like(grad), where=size[:, None] > 0)
 

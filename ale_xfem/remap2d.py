@@ -39,6 +39,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ale_xfem.mesh import mesh_edges, node_averaged_gradient
 from ale_xfem.mixed import MixedCells
 from ale_xfem.remap import RemapFailure
 from ale_xfem.shapes import clip_convex, polygon_area, polygon_centroid
@@ -49,24 +50,6 @@ from ale_xfem.state import MaterialLayout, density_of, thermodynamics
 # Measured on the shock on a heavy disk (80 × 40, smoothed mesh): 1e-6 left 453 mixed cells
 # of debris, 1e-4 60 (the disk lost 0.05 % of its mass to the air), 1e-3 51 (0.09 %).
 TRACE = 1e-4
-
-
-def mesh_edges(cell_nodes: np.ndarray):
-    """Unique edges (a, b) oriented counter-clockwise in cell ``plus``; ``minus`` the cell on
-    the other side (−1 on the boundary)."""
-    k = cell_nodes.shape[1]
-    start, end = cell_nodes.ravel(), np.roll(cell_nodes, -1, axis=1).ravel()
-    owner = np.repeat(np.arange(cell_nodes.shape[0]), k)
-    key = np.stack([np.minimum(start, end), np.maximum(start, end)], axis=1)
-    _, edge, count = np.unique(key, axis=0, return_inverse=True, return_counts=True)
-    edge = edge.ravel()
-    order = np.argsort(edge, kind="stable")
-    first = np.flatnonzero(np.r_[True, edge[order][1:] != edge[order][:-1]])
-    plus = order[first]
-    minus = np.full(first.size, -1, dtype=np.int64)
-    shared = count[edge[plus]] == 2
-    minus[shared] = owner[order[first[shared] + 1]]
-    return start[plus], end[plus], owner[plus], minus
 
 
 class Remapper2D:
@@ -341,10 +324,7 @@ class Remapper2D:
         """Limited linear density and energy density in pure donors, at the centroid of the
         swept region (module docstring)."""
         mesh = self.mesh
-        corners = mesh.corners
         k = mesh.cell_type.nodes_per_cell
-        positions = corners.gather(x)
-        area, gradient = mesh.cell_type.volume_and_gradient(positions)
         material = layout.cell_material[0]
         cell_rho = rho[material, np.arange(mesh.n_cells)]
         cell_eps = eps[material, np.arange(mesh.n_cells)]
@@ -361,16 +341,9 @@ class Remapper2D:
         for i in range(k):
             node = mesh.cell_nodes[:, i]
             inside &= (low_tag[node] == tag) & (high_tag[node] == tag)
-        weight = corners.scatter([area] * k)
         slopes = []
         for value in (cell_rho, cell_eps):
-            nodal = corners.scatter([value * area] * k) / weight
-            grad = np.zeros((mesh.n_cells, 2))
-            for i, g in enumerate(gradient):
-                at = corners.gather(nodal[None, :])[i][0]
-                grad[:, 0] += at * g[0]
-                grad[:, 1] += at * g[1]
-            grad /= area[:, None]
+            grad = node_averaged_gradient(mesh, x, value)
             # Barth–Jespersen: the reconstruction at the corners within the node-neighbour range
             high = np.full(mesh.n_nodes, -np.inf)
             low = np.full(mesh.n_nodes, np.inf)

@@ -514,7 +514,7 @@ def test_a_heavy_disk_at_rest_stays_at_rest_through_the_eulerian_remap(tmp_path)
 
 
 def test_2d_remap_edges_sweep_the_exact_change_of_every_cell_area():
-    from ale_xfem.remap2d import mesh_edges
+    from ale_xfem.mesh import mesh_edges
 
     mesh = MESHES["skewed"]()
     a, b, plus, minus = mesh_edges(mesh.cell_nodes)
