@@ -1,6 +1,7 @@
 """The stability suite at small resolution: every hard case must finish with positive
 densities, volumes and energies, volume fractions in [0, 1], mass and momentum conserved
-to round-off, and L1(ρ) falling from n to 2n cells where an exact solution exists."""
+to round-off, and L1(ρ) falling from n to 4n cells (2D: twice the cells along each side)
+where an exact solution exists; no inverted cell in 2D."""
 
 import subprocess
 import sys
@@ -37,8 +38,17 @@ def test_the_checks_can_fail():
 magnitude = st.floats(min_value=-2.0, max_value=2.0)
 
 
-@settings(max_examples=8, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+# The convergence check compares n with 4n cells and is asymptotic: at 50 cells a heavy gas
+# (ρ = 10, u = 1) entering a light one (ρ = 0.01) at equal pressure, γ = 2, had L1(ρ) rise
+# from 0.0030 to 0.0061 at 200 cells (it falls from 100 to 400 and from 200 to 800): drawn
+# problems run at 100 cells.  Draws are derandomized so that CI runs the same ones;
+# `ale-xfem study stability --random N --seed S` explores further.
+DRAWN_CELLS = 100
+
+
+@settings(max_examples=8, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
 @example(rho=(1.0, 0.0), pressure=(0.0, 0.0), velocity=(0.0, 0.0), gamma=(2.0, 2.0))  # a lone contact
+@example(rho=(1.0, -2.0), pressure=(0.0, 0.0), velocity=(1.0, 0.0), gamma=(2.0, 2.0))  # the case above
 @given(rho=st.tuples(magnitude, magnitude), pressure=st.tuples(magnitude, st.floats(-2.0, 3.0)),
        velocity=st.tuples(st.floats(-5.0, 5.0), st.floats(-5.0, 5.0)),
        gamma=st.tuples(st.floats(1.2, 3.0), st.floats(1.2, 3.0)))
@@ -46,7 +56,7 @@ def test_random_riemann_problems_stay_stable_and_converge(rho, pressure, velocit
     left = (10 ** rho[0], velocity[0], 10 ** pressure[0])
     right = (10 ** rho[1], velocity[1], 10 ** pressure[1])
     assume(not vacuum_forms(left, right, gamma))
-    row = run_case(random_case(0, left, right, gamma, cells=SMALL))
+    row = run_case(random_case(0, left, right, gamma, cells=DRAWN_CELLS))
     assert row["verdict"] == "pass", f"{left} | {right}, γ {gamma}: {row['verdict']} {row['diagnostic']}"
 
 
