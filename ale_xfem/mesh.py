@@ -86,22 +86,28 @@ def _scaled(coefficient, values, out):
         np.multiply(coefficient, values, out=out)
 
 
-def node_averaged_gradient(mesh, node_position, value, cells=None) -> np.ndarray:
-    """The gradient in each cell (or in ``cells``) of a cell field averaged to the nodes by
+def node_averaged_gradient(mesh, node_position, values, cells=None) -> np.ndarray:
+    """The gradient in each cell (or in ``cells``) of cell fields averaged to the nodes by
     area: ∇v_K = (1/A_K) Σ_i v̄_i ∂A_K/∂x_i with v̄_i = Σ_K A_K v_K / Σ_K A_K over the cells
-    around node i (exact for a linear field; Youngs' normals and the remap's slopes)."""
+    around node i (exact for a linear field; Youngs' normals and the remap's slopes).
+    ``values`` (n_cells,) or (m, n_cells) → gradients (…, n, 2), the geometry done once."""
     corners = mesh.corners
     k = mesh.cell_type.nodes_per_cell
+    values = np.asarray(values)
+    fields = values.reshape(-1, values.shape[-1])
     area = mesh.cell_type.volume_and_gradient(corners.gather(node_position))[0]
-    nodal = corners.scatter([value * area] * k) / corners.scatter([area] * k)
+    weight = corners.scatter([area] * k)
     nodes = mesh.cell_nodes if cells is None else mesh.cell_nodes[cells]
     here = [[node_position[d, nodes[:, i]] for d in range(node_position.shape[0])] for i in range(k)]
     area_here, gradient = mesh.cell_type.volume_and_gradient(here)
-    grad = np.zeros((nodes.shape[0], 2))
-    for i, g in enumerate(gradient):
-        grad[:, 0] += nodal[nodes[:, i]] * g[0]
-        grad[:, 1] += nodal[nodes[:, i]] * g[1]
-    return grad / area_here[:, None]
+    grad = np.zeros((fields.shape[0], nodes.shape[0], 2))
+    for f, field in enumerate(fields):
+        nodal = corners.scatter([field * area] * k) / weight
+        for i, g in enumerate(gradient):
+            grad[f, :, 0] += nodal[nodes[:, i]] * g[0]
+            grad[f, :, 1] += nodal[nodes[:, i]] * g[1]
+    grad /= area_here[:, None]
+    return grad.reshape(values.shape[:-1] + grad.shape[1:])
 
 
 def mesh_edges(cell_nodes: np.ndarray):

@@ -129,6 +129,6 @@ def reconstruct_state(problem, state, layout=None, mixed=None) -> Reconstruction
     for material in np.unique(alpha):
         which = alpha == material
         normals[which] = youngs_normals(mesh, state.node_position, fractions[material], cells[which])
-    vertices = mesh.cell_vertex_positions(state.node_position)[cells]
-    area = mesh.cell_volumes(state.node_position)[cells]
+    vertices = np.moveaxis(state.node_position[:, mesh.cell_nodes[cells]], 0, -1)  # the mixed cells only
+    area = polygon_area(vertices)
     return reconstruct(vertices, normals, state.material_volume[0, cells] / area, cells)

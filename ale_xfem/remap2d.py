@@ -344,8 +344,8 @@ class Remapper2D:
             node = mesh.cell_nodes[:, i]
             inside &= (low_tag[node] == tag) & (high_tag[node] == tag)
         slopes = []
-        for value in (cell_rho, cell_eps):
-            grad = node_averaged_gradient(mesh, x, value)
+        gradients = node_averaged_gradient(mesh, x, np.stack([cell_rho, cell_eps]))
+        for value, grad in zip((cell_rho, cell_eps), gradients):
             # Barth–Jespersen: the reconstruction at the corners within the node-neighbour range
             high = np.full(mesh.n_nodes, -np.inf)
             low = np.full(mesh.n_nodes, np.inf)
