@@ -570,7 +570,7 @@ class ExplicitWilkins:
         """Assemble the new state: pure cells from the explicit update, mixed cells from the
         interface solve; every (S, n_cells) array is allocated once."""
         va, vb, (ea, eb, pa, pb, rho_a, rho_b, c2a, c2b) = solution
-        cells, a = self.mixed.cells, self.mixed.node_left
+        cells = self.mixed.cells
         vb = self._mixed_volumes(x_new) - va  # the geometric cell volume takes the round-off
         energy = e_new  # slot 0 from the explicit update
         energy[1].fill(0.0)
@@ -583,17 +583,21 @@ class ExplicitWilkins:
         density, pressure, sound_speed = final.density, final.pressure, final.sound_speed
         density[1, cells], pressure[1, cells] = rho_b, pb
         sound_speed[1, cells] = np.sqrt(np.maximum(c2b, 0.0))
-        if a is not None:  # 1D: Γ's displacement over the step
-            interface_before = state.node_position[0, a] + state.material_volume[0, cells]
-            interface_velocity = (x_new[0, a] + va - interface_before) / dt
-        else:  # 2D single-velocity cells: Γ is reconstructed, it has no velocity of its own
-            interface_velocity = np.zeros(cells.size)
         new_state = state.evolved(
             time=state.time + dt, node_position=x_new, node_velocity=u_new, material_energy=energy,
             material_volume=volume, material_density=density, material_pressure=pressure,
             material_sound_speed=sound_speed, interface_pressure=interface_pressure,
-            interface_velocity=interface_velocity)
+            interface_velocity=self._interface_velocity(state, x_new, va, dt))
         return new_state, final
+
+    def _interface_velocity(self, state, x_new, va, dt):
+        """The mixed cells' interface velocity over the step: in 1D Γ's displacement / dt
+        (Γ = node a + V_α); 2D single-velocity cells rebuild Γ (PLIC), it has none of its own."""
+        cells, a = self.mixed.cells, self.mixed.node_left
+        if a is None:
+            return np.zeros(cells.size)
+        before = state.node_position[0, a] + state.material_volume[0, cells]
+        return (x_new[0, a] + va - before) / dt
 
     def _state_for_remap(self, state, solution, x_new, u_new, e_new, dt):
         """The new state as the remap reads it (no force evaluation): volumes from the
@@ -604,19 +608,14 @@ class ExplicitWilkins:
         if self.mixed is None:
             volumes = volume[None, :]
         else:
-            cells, a = self.mixed.cells, self.mixed.node_left
+            cells = self.mixed.cells
             va, vb, details = solution
             e_new[1].fill(0.0)
             e_new[0, cells], e_new[1, cells] = details[0], details[1]
             volumes = _two_slots(volume, cells, volume[cells] - va)
             volumes[0, cells] = va
-            if a is not None:
-                interface_before = state.node_position[0, a] + state.material_volume[0, cells]
-                interface_velocity = (x_new[0, a] + va - interface_before) / dt
-            else:  # 2D single-velocity cells
-                interface_velocity = np.zeros(cells.size)
             interface = dict(interface_pressure=0.5 * (details[2] + details[3]),
-                             interface_velocity=interface_velocity)
+                             interface_velocity=self._interface_velocity(state, x_new, va, dt))
         occupied = volumes[:, self.mixed.cells] if self.mixed is not None else volume
         if not (volume.min() > 0.0 and occupied.min() > 0.0 and np.isfinite(e_new.sum())):
             for name, values, allowed, good in (("volume", volumes, "> 0", lambda v: v > 0.0),
