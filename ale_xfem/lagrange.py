@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ale_xfem.mesh import MeshArrays, constant_gradient, corner_dot, hourglass_corner_forces
+from ale_xfem.mesh import MeshArrays, QuadCorners, QuadGradient, QuadHourglass, constant_gradient, corner_dot
 from ale_xfem.mixed import MixedCellFailure, MixedCells, with_mixed_state
 from ale_xfem.state import MaterialLayout, State, thermodynamics
 
@@ -107,7 +107,8 @@ class ForceEvaluation:
     mixed_sound_speed: np.ndarray | None  # c of each mixed cell (the larger of its two)
     mixed_viscosity: np.ndarray | None = None  # q of the mixed cells (n_mixed,)
     length: np.ndarray | None = None  # CFL length of each cell (1D: its volume)
-    hourglass_force: list | None = None  # [corner][component] (2D quadrilaterals)
+    hourglass_force: QuadHourglass | None = None  # quadrilaterals; iterated: [corner][component]
+    corner_velocity: object = None  # what the corner work needs of the velocities (corner_velocities)
 
 
 @dataclass
@@ -153,7 +154,8 @@ class ExplicitWilkins:
         self.numerics = numerics
         self.artificial_viscosity = artificial_viscosity
         # viscous hourglass control: quadrilaterals only (triangles have no hourglass modes)
-        self.hourglass = numerics.hourglass if mesh.cell_type.name == "quadrilateral" else 0.0
+        self.quadrilaterals = mesh.cell_type.name == "quadrilateral"
+        self.hourglass = numerics.hourglass if self.quadrilaterals else 0.0
         self.mixed_seconds, self.mixed_calls = 0.0, 0  # time in the implicit interface solve
         self.assembled_predictor = None  # set by use_assembled_predictor()
 
@@ -171,19 +173,36 @@ class ExplicitWilkins:
 
     # -- forces -------------------------------------------------------------------------
 
+    def corner_velocities(self, node_velocity):
+        """What the corner work needs of a nodal velocity field: for quadrilaterals its
+        QuadCorners (linear: those of u^n + u are the sum of theirs), otherwise its values
+        gathered to the corners."""
+        gathered = self.corners.gather(node_velocity)
+        return QuadCorners.gathered(gathered) if self.quadrilaterals else gathered
+
     def evaluate(self, node_position, node_velocity, material_mass, material_energy,
                  mixed_view: MixedView | None = None, slots: int = 1, known=None,
-                 with_length: bool = True, hourglass=None) -> ForceEvaluation:
+                 with_length: bool = True, hourglass=None, corner_positions=None,
+                 corner_velocity=None) -> ForceEvaluation:
         """Forces of a state.  Density, pressure and sound speed come out as (slots,
         n_cells) arrays with slot 0 filled (slots = 2: the caller fills slot 1 of the
         mixed cells, every other entry of slot 1 is 0), so that the mixed-cell step takes
         them as they are instead of copying rows.  ``known``: the (density, pressure, sound
         speed) of a state at these positions, taken instead of evaluated again.
         ``with_length``: also the cells' CFL lengths (not needed of the predicted state);
-        ``hourglass``: hourglass corner forces to use instead of evaluating them."""
+        ``hourglass``: hourglass corner forces to use instead of evaluating them;
+        ``corner_positions`` (quadrilaterals: the positions' QuadCorners) and
+        ``corner_velocity`` (corner_velocities of node_velocity): already known, not
+        gathered again."""
         cell_type, corners = self.mesh.cell_type, self.corners
-        positions = corners.gather(node_position)
-        volume, gradient = cell_type.volume_and_gradient(positions)
+        if self.quadrilaterals:
+            if corner_positions is None:
+                corner_positions = QuadCorners.gathered(corners.gather(node_position))
+            gradient = QuadGradient(corner_positions)
+            volume, positions = gradient.area, None
+        else:
+            positions = corners.gather(node_position)
+            volume, gradient = cell_type.volume_and_gradient(positions)
         mass0, energy0 = material_mass[:1], material_energy[:1]
         if mixed_view is not None:
             cells = self.mixed.cells
@@ -198,8 +217,12 @@ class ExplicitWilkins:
                 density[0, cells] = mass0[0, cells] / mixed_view.volume_left
             thermodynamics(self.materials, self.pure_layout, density[:1], energy0,
                            out=(pressure[:1], sound_speed[:1]))
-        velocities = corners.gather(node_velocity)
-        volume_rate = corner_dot(gradient, velocities)  # dV/dt = Σ ∂V/∂x_i·u_i
+        if corner_velocity is None:
+            corner_velocity = self.corner_velocities(node_velocity)
+        if self.quadrilaterals:  # dV/dt = Σ ∂V/∂x_i·u_i
+            volume_rate = gradient.dot(corner_velocity)
+        else:
+            volume_rate = corner_dot(gradient, corner_velocity)
         velocity_jump = cell_type.velocity_jump(volume_rate, volume)
         mixed_viscosity = mixed_sound_speed = None
         if mixed_view is not None:
@@ -235,15 +258,13 @@ class ExplicitWilkins:
             mixed_viscosity = viscosity[cells]
             stress[cells] = mixed_view.interface_pressure + mixed_viscosity
         nodal_force = np.empty((cell_type.dimension, corners.n_nodes))
-        if self.hourglass > 0.0 and hourglass is None:
-            hourglass = hourglass_corner_forces(positions, velocities, gradient, volume, density[0],
-                                                sound_speed[0], self.hourglass)
-        if hourglass is not None:
-            for d in range(cell_type.dimension):  # F_Ki = P ∂V/∂x_i + f_Ki, one scatter
-                corner_force = [np.multiply(g_corner[d], stress) for g_corner in gradient]
-                for force, f in zip(corner_force, hourglass):
-                    force += f[d]
-                corners.scatter_scaled(corner_force, None, out=nodal_force[d])
+        if self.quadrilaterals:
+            if self.hourglass > 0.0 and hourglass is None:
+                hourglass = QuadHourglass(gradient, corner_velocity, volume, density[0], sound_speed[0],
+                                          self.hourglass)
+            rows = np.empty((4, volume.size))
+            for d in range(2):  # F_Ki = P ∂A/∂x_i + f_Ki, one scatter
+                corners.scatter_rows(gradient.corner_forces(stress, hourglass, d, rows), nodal_force[d])
         else:
             for d in range(cell_type.dimension):
                 corners.scatter_scaled([g_corner[d] for g_corner in gradient], stress, out=nodal_force[d])
@@ -251,10 +272,10 @@ class ExplicitWilkins:
         if cell_type.dimension == 1:
             length = volume
         elif with_length:
-            length = cell_type.length_scale(volume, positions)
+            length = cell_type.length_scale(volume, positions, gradient)
         return ForceEvaluation(volume, gradient, density, pressure, sound_speed, viscosity,
                                velocity_jump, stress, nodal_force, mixed_sound_speed, mixed_viscosity,
-                               length, hourglass)
+                               length, hourglass, corner_velocity)
 
     def evaluate_state(self, state: State, thermodynamics_known: bool = False) -> ForceEvaluation:
         """Forces of a state; ``thermodynamics_known``: its densities, pressures and sound
@@ -309,12 +330,29 @@ class ExplicitWilkins:
             boundary.apply(new_velocity)
         return new_velocity
 
-    def _corner_work(self, evaluations, velocity_sum, scale):
+    def _corner_work(self, evaluations, velocity_sum, scale, corner_sum=None):
         """scale · Σ_i F_Ki·(u^n + u)_i per cell, with F_Ki the sum over ``evaluations`` of
-        their corner forces P_K ∂V_K/∂x_i.  When ∂V/∂x_i is constant (intervals) the
-        stresses are summed first and the corner velocities are gathered once."""
-        gather = self.corners.gather(velocity_sum)
+        their corner forces P_K ∂V_K/∂x_i (+ hourglass forces).  ``corner_sum``: the
+        corner_velocities of u^n + u when known (quadrilaterals: the sum of those of u^n and
+        u, no new gather).  When ∂V/∂x_i is constant (intervals) the stresses are summed
+        first and the corner velocities are gathered once."""
         gradients = [e.volume_gradient for e in evaluations]
+        if self.quadrilaterals:
+            corner_velocity = corner_sum if corner_sum is not None else self.corner_velocities(velocity_sum)
+            work, hourglass_work = None, {}
+            for evaluation in evaluations:
+                term = evaluation.volume_gradient.dot(corner_velocity)
+                term *= evaluation.stress
+                forces = evaluation.hourglass_force
+                if forces is not None:  # their work heats the cell too
+                    # the predicted state reuses the start's hourglass forces
+                    if id(forces) not in hourglass_work:
+                        hourglass_work[id(forces)] = forces.dot(corner_velocity)
+                    term += hourglass_work[id(forces)]
+                work = term if work is None else np.add(work, term, out=work)
+            work *= scale
+            return work
+        gather = self.corners.gather(velocity_sum)
         if len(evaluations) > 1 and all(constant_gradient(g) for g in gradients) \
                 and all(g == gradients[0] for g in gradients):
             stress = evaluations[0].stress + evaluations[1].stress
@@ -324,15 +362,9 @@ class ExplicitWilkins:
             work *= stress
         else:
             work = None
-            hourglass_work = {}  # the predicted state reuses the start's hourglass forces
             for evaluation in evaluations:
                 term = corner_dot(evaluation.volume_gradient, gather)
                 term *= evaluation.stress
-                forces = evaluation.hourglass_force
-                if forces is not None:  # their work heats the cell too
-                    if id(forces) not in hourglass_work:
-                        hourglass_work[id(forces)] = corner_dot(forces, gather)
-                    term += hourglass_work[id(forces)]
                 work = term if work is None else np.add(work, term, out=work)
         work *= scale
         return work
@@ -365,7 +397,15 @@ class ExplicitWilkins:
         velocity_sum = u0 + u_pred
         x_pred = velocity_sum[: x0.shape[0]] * (0.5 * dt)
         x_pred += x0
-        e_pred = energy[:1] - self._corner_work([first], velocity_sum, half_dt_over_mass)
+        corner_velocity = corner_positions = corner_sum = None
+        if self.quadrilaterals:  # the corners of u^n + u* by a sum, not a gather
+            corner_velocity = self.corner_velocities(u_pred)
+            corner_sum = first.corner_velocity.plus(corner_velocity)
+            # x* gathered, not summed: the cells around a node then see the same coordinates
+            # and their forces balance to round-off (a state at rest stays at rest); its
+            # hourglass shape is not needed (the start's hourglass forces serve)
+            corner_positions = QuadCorners.gathered(self.corners.gather(x_pred), hourglass=False)
+        e_pred = energy[:1] - self._corner_work([first], velocity_sum, half_dt_over_mass, corner_sum)
         view = None
         if self.mixed is not None:
             # Mixed cells are not advanced by the predictor; their materials are only
@@ -382,7 +422,8 @@ class ExplicitWilkins:
         # the hourglass forces of the start serve the predicted state too (a damping device,
         # evaluated once a step; the same forces enter momentum and energy: still compatible)
         predicted = self.evaluate(x_pred, u_pred, mass, e_pred, view, with_length=False,
-                                  hourglass=first.hourglass_force)
+                                  hourglass=first.hourglass_force, corner_positions=corner_positions,
+                                  corner_velocity=corner_velocity)
         if not predicted.volume.min() > 0.0:
             self.check(predicted, x_pred, e_pred, "predicted ")
 
@@ -405,8 +446,12 @@ class ExplicitWilkins:
         # With mixed cells the new energies fill slot 0 of a two-slot array (slot 1: the
         # mixed cells' second materials, set by the interface solve).
         e_new = np.empty((energy.shape[0] if self.mixed is not None else 1, energy.shape[1]))
-        np.subtract(energy[:1], self._corner_work([first, predicted], velocity_sum, half_dt_over_mass),
-                    out=e_new[:1])
+        corner_velocity = corner_sum = None
+        if self.quadrilaterals:
+            corner_velocity = self.corner_velocities(u_new)
+            corner_sum = first.corner_velocity.plus(corner_velocity)
+        np.subtract(energy[:1], self._corner_work([first, predicted], velocity_sum, half_dt_over_mass,
+                                                  corner_sum), out=e_new[:1])
 
         # Work and impulse of the boundary reactions R = M du/dt − F̄ on held nodes.
         dim = x0.shape[0]
@@ -422,7 +467,7 @@ class ExplicitWilkins:
             return self._state_for_remap(state, None, x_new, u_new, e_new, dt), None, \
                 boundary_work, boundary_impulse
         if self.mixed is None:
-            final = self.evaluate(x_new, u_new, mass, e_new)
+            final = self.evaluate(x_new, u_new, mass, e_new, corner_velocity=corner_velocity)
             if not self._healthy(final, e_new):
                 self.check(predicted, x_pred, e_pred, "predicted ")  # report the first cause
                 self.check(final, x_new, e_new, "")

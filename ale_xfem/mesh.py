@@ -36,6 +36,9 @@ class Corners:
             run = column.size > 0 and np.all(np.diff(column) == 1)
             self.index.append(slice(int(column[0]), int(column[-1]) + 1) if run else column.copy())
         self.all_slices = all(isinstance(i, slice) for i in self.index)
+        # every corner's node in one index: a (k, n_cells) block of corner values goes to
+        # the nodes in one bincount
+        self.flat_index = None if self.all_slices else np.ascontiguousarray(cell_nodes.T).ravel()
 
     def gather(self, node_values) -> list:
         """node_values (dim, n_nodes) → [corner][component] arrays (n_cells,)."""
@@ -73,6 +76,15 @@ class Corners:
             else:
                 out += np.bincount(index, weights=values, minlength=self.n_nodes)
         return out
+
+
+    def scatter_rows(self, rows: np.ndarray, out: np.ndarray) -> np.ndarray:
+        """Sum a (k, n_cells) block of corner values (row i: corner i) onto ``out``
+        (n_nodes,), overwritten."""
+        if self.flat_index is not None:
+            out[:] = np.bincount(self.flat_index, weights=rows.ravel(), minlength=self.n_nodes)
+            return out
+        return self.scatter_scaled(list(rows), None, out=out)
 
 
 def _scaled(coefficient, values, out):
@@ -130,12 +142,14 @@ def mesh_edges(cell_nodes: np.ndarray):
 
 def constant_gradient(gradient) -> bool:
     """True when ∂V/∂x_i does not depend on the positions (intervals)."""
-    return all(isinstance(g, float) for corner in gradient for g in corner)
+    return not isinstance(gradient, QuadGradient) and all(isinstance(g, float) for corner in gradient for g in corner)
 
 
 def corner_dot(gradient, corner_values):
     """Σ_i ∂V/∂x_i · v_i per cell, for [corner][component] lists (gradient entries may be
     scalars ±1)."""
+    if isinstance(gradient, QuadGradient):
+        return gradient.dot(QuadCorners.gathered(corner_values))
     if len(gradient) == 2 and gradient[0] == [-1.0] and gradient[1] == [1.0]:
         return corner_values[1][0] - corner_values[0][0]  # interval: v_right − v_left
     total = None
@@ -170,6 +184,119 @@ def _polygon_geometry(x):
     return 0.5 * area, gradient
 
 
+class QuadCorners:
+    """The three combinations of a quadrilateral's corner values [corner][component] that
+    the explicit loop needs, component by component: across02 = v_0 − v_2,
+    across13 = v_1 − v_3 and the hourglass sum v_0 − v_1 + v_2 − v_3.  They are linear in
+    the values: those of a sum of nodal fields are the sums of theirs (no new gather)."""
+
+    __slots__ = ("across02", "across13", "hourglass")
+
+    def __init__(self, across02, across13, hourglass):
+        self.across02, self.across13, self.hourglass = across02, across13, hourglass
+
+    @classmethod
+    def gathered(cls, corner_values, hourglass: bool = True) -> "QuadCorners":
+        """From values gathered to the corners (``hourglass`` False: the diagonals only)."""
+        v0, v1, v2, v3 = corner_values
+        across02, across13 = [a - c for a, c in zip(v0, v2)], [b - d for b, d in zip(v1, v3)]
+        if not hourglass:
+            return cls(across02, across13, None)
+        hourglass = []
+        for a, b, c, d in zip(v0, v1, v2, v3):
+            total = a + c
+            total -= b
+            total -= d
+            hourglass.append(total)
+        return cls(across02, across13, hourglass)
+
+    def plus(self, other: "QuadCorners") -> "QuadCorners":
+        def combine(mine, theirs):
+            return [np.add(a, b) for a, b in zip(mine, theirs)]
+        return QuadCorners(combine(self.across02, other.across02), combine(self.across13, other.across13),
+                           combine(self.hourglass, other.hourglass))
+
+
+class QuadGradient:
+    """Area and ∂A/∂x_i of quadrilaterals (corners going round) from their diagonals, with
+    p = x_0 − x_2 and r = x_1 − x_3 (a QuadCorners of the positions):
+    A = ½ (p_x r_y − p_y r_x),  ∂A/∂x_0 = ½ (r_y, −r_x) = −∂A/∂x_2,
+    ∂A/∂x_1 = ½ (−p_y, p_x) = −∂A/∂x_3.  Two corners are independent, so
+    Σ_i ∂A/∂x_i·v_i = g_0·(v_0 − v_2) + g_1·(v_1 − v_3) and a cell's four corner forces
+    come from two products.  Indexed or iterated it gives the [corner][component] lists
+    of the other cell types (corners 2, 3 made on demand)."""
+
+    def __init__(self, corners: QuadCorners):
+        self.corners = corners
+        (px, py), (rx, ry) = corners.across02, corners.across13
+        area = px * ry
+        area -= py * rx
+        area *= 0.5
+        self.area = area
+        self.independent = ([0.5 * ry, -0.5 * rx], [-0.5 * py, 0.5 * px])
+
+    def __len__(self) -> int:
+        return 4
+
+    def __getitem__(self, corner: int):
+        if not 0 <= corner < 4:
+            raise IndexError(corner)
+        g = self.independent[corner % 2]
+        return g if corner < 2 else [-g[0], -g[1]]
+
+    def __iter__(self):
+        return (self[i] for i in range(4))
+
+    def dot(self, values: QuadCorners):
+        """Σ_i ∂A/∂x_i·v_i."""
+        (g0x, g0y), (g1x, g1y) = self.independent
+        (ax, ay), (bx, by) = values.across02, values.across13
+        total = g0x * ax
+        total += g0y * ay
+        total += g1x * bx
+        total += g1y * by
+        return total
+
+    def longest_median(self):
+        """The longer of the two lines joining the midpoints of opposite edges: they are
+        (p + r)/2 and (p − r)/2 (|a ± b|² = |a|² + |b|² ± 2 a·b)."""
+        (px, py), (rx, ry) = self.corners.across02, self.corners.across13
+        squares = px * px
+        squares += py * py
+        squares += rx * rx
+        squares += ry * ry
+        cross = px * rx
+        cross += py * ry
+        np.abs(cross, out=cross)
+        cross *= 2.0
+        squares += cross
+        np.sqrt(squares, out=squares)
+        squares *= 0.5
+        return squares
+
+    def corner_forces(self, stress, hourglass, component: int, out: np.ndarray) -> np.ndarray:
+        """Row i of ``out`` (4, n_cells): component ``component`` of the corner force
+        F_Ki = P ∂A/∂x_i + f_i (f: the hourglass forces γ_i Q, or none).  With
+        γ = (1 − s_0, −1 − s_1, 1 + s_0, −1 + s_1):  F_0 = a + Q, F_2 = Q − a with
+        a = P g_0 − s_0 Q;  F_1 = b − Q, F_3 = −b − Q with b = P g_1 − s_1 Q."""
+        g0, g1 = self.independent[0][component], self.independent[1][component]
+        np.multiply(stress, g0, out=out[0])
+        np.multiply(stress, g1, out=out[1])
+        if hourglass is None:
+            np.negative(out[0], out=out[2])
+            np.negative(out[1], out=out[3])
+            return out
+        q = hourglass.force[component]
+        out[0] -= hourglass.s0 * q
+        out[1] -= hourglass.s1 * q
+        np.subtract(q, out[0], out=out[2])
+        out[0] += q
+        np.negative(out[1], out=out[3])
+        out[3] -= q
+        out[1] -= q
+        return out
+
+
 @dataclass(frozen=True)
 class CellType:
     name: str
@@ -180,6 +307,9 @@ class CellType:
         """[corner][component] positions → (V_K (n_cells,), ∂V_K/∂x_i [corner][component])."""
         if self.name == "interval":
             return _interval_geometry(corner_positions)
+        if self.name == "quadrilateral":
+            gradient = QuadGradient(QuadCorners.gathered(corner_positions))
+            return gradient.area, gradient
         return _polygon_geometry(corner_positions)
 
     def velocity_jump(self, volume_rate, volume):
@@ -196,7 +326,7 @@ class CellType:
             return volume_rate
         return volume_rate / np.sqrt(volume)
 
-    def length_scale(self, volume, positions=None):
+    def length_scale(self, volume, positions=None, gradient=None):
         """The sound-crossing length of the CFL condition (1D: the cell length; triangles:
         the least altitude 2A / longest edge; quadrilaterals: A over the longer of the two
         lines joining the midpoints of opposite edges — the smaller side of a rectangle)."""
@@ -206,44 +336,64 @@ class CellType:
             longest = None
             for i in range(3):
                 j = (i + 1) % 3
-                edge = np.hypot(positions[j][0] - positions[i][0], positions[j][1] - positions[i][1])
-                longest = edge if longest is None else np.maximum(longest, edge)
+                dx, dy = positions[j][0] - positions[i][0], positions[j][1] - positions[i][1]
+                square = dx * dx
+                square += dy * dy
+                longest = square if longest is None else np.maximum(longest, square, out=longest)
+            np.sqrt(longest, out=longest)
             return 2.0 * volume / longest
-        # quadrilateral: medians from mid(0,1) to mid(2,3) and from mid(1,2) to mid(3,0)
-        first = np.hypot(positions[2][0] + positions[3][0] - positions[0][0] - positions[1][0],
-                         positions[2][1] + positions[3][1] - positions[0][1] - positions[1][1])
-        second = np.hypot(positions[3][0] + positions[0][0] - positions[1][0] - positions[2][0],
-                          positions[3][1] + positions[0][1] - positions[1][1] - positions[2][1])
-        return volume / (0.5 * np.maximum(first, second))
+        if gradient is None:
+            gradient = self.volume_and_gradient(positions)[1]
+        return volume / gradient.longest_median()
 
 
-HOURGLASS_BASE = (1.0, -1.0, 1.0, -1.0)  # the quadrilateral's hourglass mode, corners going round
-
-
-def hourglass_corner_forces(positions, velocities, gradient, volume, density, sound_speed, coefficient):
+class QuadHourglass:
     """Viscous hourglass control of quadrilaterals (Flanagan & Belytschko, IJNME 17, 1981):
-    with γ_i = h_i − (Σ_j h_j x_j)·(∂A/∂x_i)/A, orthogonal to every linear field, the
-    hourglass velocity q = Σ_i γ_i u_i is resisted by f_i = −(κ/4) ρ c √A q γ_i.  Returns the
-    corner forces [corner][component]; their work goes to the internal energy with the
-    pressure forces' (compatible energy)."""
-    h = HOURGLASS_BASE
-    hx = sum(h[i] * positions[i][0] for i in range(4))
-    hy = sum(h[i] * positions[i][1] for i in range(4))
-    inverse_area = 1.0 / volume
-    gamma = [h[i] - (hx * gradient[i][0] + hy * gradient[i][1]) * inverse_area for i in range(4)]
-    scale = np.sqrt(volume)
-    scale *= density
-    scale *= sound_speed
-    scale *= -0.25 * coefficient
-    forces = [[None, None] for _ in range(4)]
-    for d in range(2):
-        q = gamma[0] * velocities[0][d]
-        for i in range(1, 4):
-            q += gamma[i] * velocities[i][d]
-        q *= scale
-        for i in range(4):
-            forces[i][d] = gamma[i] * q
-    return forces
+    with h = (1, −1, 1, −1) going round and γ_i = h_i − (Σ_j h_j x_j)·(∂A/∂x_i)/A, orthogonal
+    to every linear field, the hourglass velocity Σ_i γ_i u_i is resisted by the corner forces
+    f_i = γ_i Q,  Q = −(κ/4) ρ c √A Σ_j γ_j u_j.  Since ∂A/∂x_2 = −∂A/∂x_0 and
+    ∂A/∂x_3 = −∂A/∂x_1, γ = (1 − s_0, −1 − s_1, 1 + s_0, −1 + s_1) with
+    s_i = (Σ_j h_j x_j)·(∂A/∂x_i)/A.  The forces' work goes to the internal energy with the
+    pressure forces' (compatible energy).  Iterated: the corner forces [corner][component]."""
+
+    def __init__(self, gradient: QuadGradient, velocities: QuadCorners, volume, density, sound_speed,
+                 coefficient):
+        hx, hy = gradient.corners.hourglass
+        inverse_area = 1.0 / volume
+        (g0x, g0y), (g1x, g1y) = gradient.independent
+        self.s0 = hx * g0x
+        self.s0 += hy * g0y
+        self.s0 *= inverse_area
+        self.s1 = hx * g1x
+        self.s1 += hy * g1y
+        self.s1 *= inverse_area
+        scale = np.sqrt(volume)
+        scale *= density
+        scale *= sound_speed
+        scale *= -0.25 * coefficient
+        self.force = self.velocity(velocities)  # Q = scale Σ γ_j u_j
+        for q in self.force:
+            q *= scale
+
+    def velocity(self, values: QuadCorners):
+        """Σ_i γ_i v_i per component."""
+        out = []
+        for a, b, h in zip(values.across02, values.across13, values.hourglass):
+            total = h - self.s0 * a
+            total -= self.s1 * b
+            out.append(total)
+        return out
+
+    def dot(self, values: QuadCorners):
+        """Σ_i f_i·v_i = Q·Σ_i γ_i v_i."""
+        gamma_v = self.velocity(values)
+        total = self.force[0] * gamma_v[0]
+        total += self.force[1] * gamma_v[1]
+        return total
+
+    def __iter__(self):
+        gamma = (1.0 - self.s0, -1.0 - self.s1, 1.0 + self.s0, -1.0 + self.s1)
+        return ([g * q for q in self.force] for g in gamma)
 
 
 CELL_TYPES = {

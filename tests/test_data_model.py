@@ -69,3 +69,47 @@ def test_cell_volumes_sum_to_the_domain_and_cells_are_counter_clockwise():
         volume = mesh.cell_volumes()
         assert volume.min() > 0
         assert volume.sum() == pytest.approx(6.0, rel=1e-14)
+
+
+def test_quadrilateral_two_corner_kernel_equals_the_textbook_corner_sums():
+    """The quadrilateral kernel (QuadGradient, QuadHourglass: two independent corners) gives
+    the shoelace area and gradient, Flanagan–Belytschko's hourglass forces written corner by
+    corner (γ_i = h_i − (Σ_j h_j x_j)·∇_i A / A), their corner work, and the CFL length from
+    the medians, on a perturbed mesh with random velocities."""
+    from ale_xfem.mesh import QuadCorners, QuadHourglass, _polygon_geometry
+
+    mesh = _perturbed(rectangle_mesh([[0.0, 1.0], [0.0, 1.0]], [6, 5], "quadrilateral"), 0.05)
+    rng = np.random.default_rng(3)
+    x = mesh.corners.gather(mesh.node_position)
+    u = mesh.corners.gather(rng.normal(size=(2, mesh.n_nodes)))
+    area, gradient = mesh.cell_type.volume_and_gradient(x)
+    shoelace_area, shoelace_gradient = _polygon_geometry(x)
+    np.testing.assert_allclose(area, shoelace_area, rtol=1e-14)
+    for i in range(4):
+        np.testing.assert_allclose(gradient[i], shoelace_gradient[i], atol=1e-15)
+    rho, c, kappa = rng.uniform(1, 2, mesh.n_cells), rng.uniform(1, 2, mesh.n_cells), 0.3
+    hourglass = QuadHourglass(gradient, QuadCorners.gathered(u), area, rho, c, kappa)
+    h = (1.0, -1.0, 1.0, -1.0)
+    shape = [sum(h[j] * x[j][d] for j in range(4)) for d in range(2)]
+    gamma = [h[i] - (shape[0] * shoelace_gradient[i][0] + shape[1] * shoelace_gradient[i][1]) / area
+             for i in range(4)]
+    expected = []
+    for i in range(4):
+        q = [sum(gamma[j] * u[j][d] for j in range(4)) for d in range(2)]
+        expected.append([-0.25 * kappa * rho * c * np.sqrt(area) * q[d] * gamma[i] for d in range(2)])
+    for got, want in zip(hourglass, expected):
+        np.testing.assert_allclose(got, want, atol=1e-13)
+    stress = rng.uniform(0.5, 2.0, mesh.n_cells)
+    rows = np.empty((4, mesh.n_cells))
+    for d in range(2):
+        gradient.corner_forces(stress, hourglass, d, rows)
+        for i in range(4):
+            np.testing.assert_allclose(rows[i], stress * shoelace_gradient[i][d] + expected[i][d], atol=1e-13)
+    work = sum(expected[i][d] * u[i][d] for i in range(4) for d in range(2))
+    np.testing.assert_allclose(hourglass.dot(QuadCorners.gathered(u)), work, atol=1e-13)
+    rate = sum(shoelace_gradient[i][d] * u[i][d] for i in range(4) for d in range(2))
+    np.testing.assert_allclose(gradient.dot(QuadCorners.gathered(u)), rate, atol=1e-14)
+    medians = [np.hypot(x[2][0] + x[3][0] - x[0][0] - x[1][0], x[2][1] + x[3][1] - x[0][1] - x[1][1]),
+               np.hypot(x[3][0] + x[0][0] - x[1][0] - x[2][0], x[3][1] + x[0][1] - x[1][1] - x[2][1])]
+    np.testing.assert_allclose(mesh.cell_type.length_scale(area, x, gradient),
+                               area / (0.5 * np.maximum(*medians)), rtol=1e-14)
