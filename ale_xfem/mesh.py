@@ -107,18 +107,26 @@ def node_averaged_gradient(mesh, node_position, values, cells=None) -> np.ndarra
     k = mesh.cell_type.nodes_per_cell
     values = np.asarray(values)
     fields = values.reshape(-1, values.shape[-1])
-    area = mesh.cell_type.volume_and_gradient(corners.gather(node_position))[0]
+    area, gradient = mesh.cell_type.volume_and_gradient(corners.gather(node_position))
     weight = corners.scatter([area] * k)
-    nodes = mesh.cell_nodes if cells is None else mesh.cell_nodes[cells]
-    here = [[node_position[d, nodes[:, i]] for d in range(node_position.shape[0])] for i in range(k)]
-    area_here, gradient = mesh.cell_type.volume_and_gradient(here)
-    grad = np.zeros((fields.shape[0], nodes.shape[0], 2))
+    if cells is None:
+        nodes, area_here = mesh.cell_nodes, area
+    else:
+        nodes = mesh.cell_nodes[cells]
+        here = [[node_position[d, nodes[:, i]] for d in range(node_position.shape[0])] for i in range(k)]
+        area_here, gradient = mesh.cell_type.volume_and_gradient(here)
+    grad = np.empty((fields.shape[0], nodes.shape[0], 2))
     for f, field in enumerate(fields):
         nodal = corners.scatter([field * area] * k) / weight
-        for i, g in enumerate(gradient):
-            grad[f, :, 0] += nodal[nodes[:, i]] * g[0]
-            grad[f, :, 1] += nodal[nodes[:, i]] * g[1]
-    grad /= area_here[:, None]
+        corner_values = [nodal[nodes[:, i]] for i in range(k)]
+        if isinstance(gradient, QuadGradient):  # Σ_i v̄_i g_i = g_0 (v̄_0 − v̄_2) + g_1 (v̄_1 − v̄_3)
+            across02, across13 = corner_values[0] - corner_values[2], corner_values[1] - corner_values[3]
+            (g0x, g0y), (g1x, g1y) = gradient.independent
+            gx, gy = g0x * across02 + g1x * across13, g0y * across02 + g1y * across13
+        else:
+            gx = sum(v * g[0] for v, g in zip(corner_values, gradient))
+            gy = sum(v * g[1] for v, g in zip(corner_values, gradient))
+        grad[f, :, 0], grad[f, :, 1] = gx / area_here, gy / area_here
     return grad.reshape(values.shape[:-1] + grad.shape[1:])
 
 

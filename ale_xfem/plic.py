@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ale_xfem.mesh import node_averaged_gradient
-from ale_xfem.shapes import clip_half_plane, polygon_area, polygon_centroid
+from ale_xfem.shapes import clip_half_plane, clipped_area, polygon_area, polygon_centroid
 
 
 @dataclass
@@ -45,10 +45,10 @@ class Reconstruction:
 def youngs_normals(mesh, node_position, fraction, cells=None) -> np.ndarray:
     """Unit normals pointing out of the material whose volume fraction per cell is
     ``fraction`` — (n_cells, 2), or (len(cells), 2) for the cells given; (0, 0) where the
-    fraction is locally uniform."""
+    fraction is locally uniform.  ``fraction`` (m, n_cells): m materials at once, (m, …, 2)."""
     grad = node_averaged_gradient(mesh, node_position, fraction, cells)
-    size = np.linalg.norm(grad, axis=1)
-    return np.divide(-grad, size[:, None], out=np.zeros_like(grad), where=size[:, None] > 0)
+    size = np.linalg.norm(grad, axis=-1)[..., None]
+    return np.divide(-grad, size, out=np.zeros_like(grad), where=size > 0)
 
 
 def cut_offsets(vertices: np.ndarray, normal: np.ndarray, fraction: np.ndarray) -> np.ndarray:
@@ -60,14 +60,14 @@ def cut_offsets(vertices: np.ndarray, normal: np.ndarray, fraction: np.ndarray) 
     projection = np.sort(np.einsum("nmd,nd->nm", vertices, normal), axis=1)
     total = polygon_area(vertices)
     target = fraction * total
-    below = np.stack([polygon_area(clip_half_plane(vertices, normal, projection[:, j])) for j in range(k)], axis=1)
+    below = np.stack([clipped_area(vertices, normal, projection[:, j]) for j in range(k)], axis=1)
     # the bracket [p_j, p_{j+1}] with below_j ≤ target ≤ below_{j+1}
     j = np.clip((below < target[:, None]).sum(axis=1) - 1, 0, k - 2)
     rows = np.arange(n)
     lo, hi = projection[rows, j], projection[rows, j + 1]
     a_lo, a_hi = below[rows, j], below[rows, j + 1]
     middle = 0.5 * (lo + hi)
-    a_mid = polygon_area(clip_half_plane(vertices, normal, middle))
+    a_mid = clipped_area(vertices, normal, middle)
     # A(lo + t (hi − lo)) = a_lo + β t + γ t², t ∈ [0, 1]
     gamma = 2.0 * (a_hi + a_lo - 2.0 * a_mid)
     beta = a_hi - a_lo - gamma
@@ -111,7 +111,8 @@ def material_fractions(problem, state, layout=None) -> np.ndarray:
     for slot in range(layout.cell_material.shape[0]):
         material = layout.cell_material[slot]
         here = material >= 0
-        np.add.at(fractions, (material[here], np.flatnonzero(here)), state.material_volume[slot, here] / area[here])
+        # (a material appears once per cell in a slot: no repeated index)
+        fractions[material[here], np.flatnonzero(here)] += state.material_volume[slot, here] / area[here]
     return fractions
 
 
@@ -125,10 +126,9 @@ def reconstruct_state(problem, state, layout=None, mixed=None) -> Reconstruction
     mesh, cells = problem.mesh, mixed.cells
     fractions = material_fractions(problem, state, layout)
     alpha = layout.cell_material[0, cells]
-    normals = np.zeros((cells.size, 2))
-    for material in np.unique(alpha):
-        which = alpha == material
-        normals[which] = youngs_normals(mesh, state.node_position, fractions[material], cells[which])
+    materials = np.unique(alpha)  # each α material's normals, in one pass over the mesh
+    normals = youngs_normals(mesh, state.node_position, fractions[materials], cells)
+    normals = normals[np.searchsorted(materials, alpha), np.arange(cells.size)]
     vertices = np.moveaxis(state.node_position[:, mesh.cell_nodes[cells]], 0, -1)  # the mixed cells only
     area = polygon_area(vertices)
     return reconstruct(vertices, normals, state.material_volume[0, cells] / area, cells)

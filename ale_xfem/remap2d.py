@@ -42,7 +42,7 @@ import numpy as np
 from ale_xfem.mesh import mesh_edges, node_averaged_gradient
 from ale_xfem.mixed import MixedCells
 from ale_xfem.remap import RemapFailure
-from ale_xfem.shapes import clip_convex, polygon_area, polygon_centroid
+from ale_xfem.shapes import corner_centroid, intersection_area, polygon_area
 from ale_xfem.state import MaterialLayout, density_of, thermodynamics
 
 # A material below this fraction of its cell's area leaves the cell (its mass and energy go
@@ -80,13 +80,23 @@ class Remapper2D:
         # energy they remove is heat like the rest; their impulse is reported here
         self.constraints = [boundary for boundary in problem.boundaries if boundary.kind != "free"]
         self.wall_impulse, self.wall_work = np.zeros(2), 0.0
+        self._fixed_target = None  # an Eulerian target's edge ends and cell areas (they never change)
+
+    def _target_geometry(self, X):
+        """The target mesh's edge ends (2, n_edges) each and cell areas."""
+        if self._fixed_target is not None:
+            return self._fixed_target
+        geometry = (X[:, self.a], X[:, self.b], self.mesh.cell_volumes(X))
+        if self.motion == "eulerian":
+            self._fixed_target = geometry
+        return geometry
 
     def target(self, position):
         """The regularised mesh.  smoothed: interior nodes half-way to the mean of their edge
         neighbours; boundary nodes half-way to the mean of their two boundary neighbours,
         along the boundary (a node where the boundary turns stays)."""
         if self.motion == "eulerian":
-            return self.initial.copy()
+            return self.initial.copy()  # the new state's own array
         n = position.shape[1]
         mean = np.stack([np.bincount(self.a, position[d, self.b], n) + np.bincount(self.b, position[d, self.a], n)
                          for d in range(2)])
@@ -134,11 +144,17 @@ class Remapper2D:
 
         # -- the swept regions ------------------------------------------------------------
         a, b, plus, minus = self.a, self.b, self.plus, self.minus
-        swept = np.stack([x[:, a].T, X[:, a].T, X[:, b].T, x[:, b].T], axis=1)  # (n_edges, 4, 2)
-        S = polygon_area(swept)
+        xa, xb = x[:, a], x[:, b]
+        Xa, Xb, area = self._target_geometry(X)
+        # the swept quadrilateral (x_a, X_a, X_b, x_b): S = ½ (X_b − x_a) × (x_b − X_a)
+        S = (Xb[0] - xa[0]) * (xb[1] - Xa[1])
+        S -= (Xb[1] - xa[1]) * (xb[0] - Xa[0])
+        S *= 0.5
         moving = (S != 0.0) & (minus >= 0)
         e = np.flatnonzero(moving)
         S_e = S[e]
+        # the moving edges' swept quadrilaterals, vertex by vertex: ([x_i], [y_i])
+        swept = tuple([ends[d, e] for ends in (xa, Xa, Xb, xb)] for d in range(2))
         donor = np.where(S_e > 0, minus[e], plus[e])
         receiver = np.where(S_e > 0, plus[e], minus[e])
         size = np.abs(S_e)
@@ -151,7 +167,7 @@ class Remapper2D:
         pure = ~is_mixed[donor]
         flux_volume[material_of[0, donor[pure]], np.flatnonzero(pure)] = size[pure]
         if np.any(~pure):  # mixed donors: exact clipping with their PLIC polygons
-            self._mixed_donor_volumes(state, layout, mixed, swept[e], donor, size, flux_volume)
+            self._mixed_donor_volumes(state, layout, mixed, swept, donor, size, flux_volume)
         if np.any(~pure):
             self._cap_outflow(volume, donor, size, flux_volume)
         # densities and specific energies of the donors, per material
@@ -161,7 +177,7 @@ class Remapper2D:
         flux_mass = flux_volume * rho[:, donor]
         flux_energy = flux_volume * eps[:, donor]
         if self.order == 2:
-            self._second_order(x, layout, is_mixed, rho, eps, swept[e], donor, pure, flux_volume,
+            self._second_order(x, layout, is_mixed, rho, eps, swept, donor, pure, flux_volume,
                                flux_mass, flux_energy)
         for quantity, flux in ((volume, flux_volume), (mass, flux_mass), (energy, flux_energy)):
             for m in range(n_materials):
@@ -221,7 +237,6 @@ class Remapper2D:
             energy *= 1.0 + loss.sum() / energy.sum()
 
         # -- back to slots ---------------------------------------------------------------------
-        area = mesh.cell_volumes(X)
         present = volume > TRACE * area
         for m in range(n_materials):  # a trace of a material leaves the cell: merge it
             trace = ~present[m] & (mass[m] != 0.0)
@@ -310,12 +325,12 @@ class Remapper2D:
             return
         k = where[donor[edges]]
         # the swept quadrilateral, counter-clockwise, clipped by α's convex polygon
-        region = swept[edges]
+        region = np.stack([np.stack([px[edges], py[edges]], axis=-1) for px, py in zip(*swept)], axis=1)
         region = np.where((polygon_area(region) < 0)[:, None, None], region[:, ::-1], region)
         alpha_polygon = plic.alpha[k]
         alpha_polygon = np.where((polygon_area(alpha_polygon) < 0)[:, None, None], alpha_polygon[:, ::-1],
                                  alpha_polygon)
-        alpha = np.clip(polygon_area(clip_convex(region, alpha_polygon)), 0.0, size[edges])
+        alpha = np.clip(intersection_area(region, alpha_polygon), 0.0, size[edges])
         first, second = layout.cell_material[0, donor[edges]], layout.cell_material[1, donor[edges]]
         flux_volume[:, edges] = 0.0
         flux_volume[first, edges] = alpha
@@ -330,8 +345,9 @@ class Remapper2D:
         material = layout.cell_material[0]
         cell_rho = rho[material, np.arange(mesh.n_cells)]
         cell_eps = eps[material, np.arange(mesh.n_cells)]
-        vertices = mesh.cell_vertex_positions(x)
-        centre = polygon_centroid(vertices)
+        corner_x = [c[0] for c in mesh.corners.gather(x[:1])]
+        corner_y = [c[0] for c in mesh.corners.gather(x[1:])]
+        _, centre_x, centre_y = corner_centroid(corner_x, corner_y)
         # slopes only in cells whose every node touches cells of their own material alone
         # (no slope next to another material or a mixed cell: nothing crosses Γ)
         tag = np.where(is_mixed, -1, material)
@@ -343,6 +359,8 @@ class Remapper2D:
         for i in range(k):
             node = mesh.cell_nodes[:, i]
             inside &= (low_tag[node] == tag) & (high_tag[node] == tag)
+        # corners relative to the centroid, component by component
+        relative = [(cx - centre_x, cy - centre_y) for cx, cy in zip(corner_x, corner_y)]
         slopes = []
         gradients = node_averaged_gradient(mesh, x, np.stack([cell_rho, cell_eps]))
         for value, grad in zip((cell_rho, cell_eps), gradients):
@@ -352,20 +370,28 @@ class Remapper2D:
             for i in range(k):
                 np.maximum.at(high, mesh.cell_nodes[:, i], value)
                 np.minimum.at(low, mesh.cell_nodes[:, i], value)
+            gx, gy = np.ascontiguousarray(grad[:, 0]), np.ascontiguousarray(grad[:, 1])
             limiter = np.ones(mesh.n_cells)
             for i in range(k):
                 node = mesh.cell_nodes[:, i]
-                delta = np.einsum("nd,nd->n", grad, vertices[:, i] - centre)
-                with np.errstate(invalid="ignore", divide="ignore"):
-                    bound = np.where(delta > 0, (high[node] - value) / delta,
-                                     np.where(delta < 0, (low[node] - value) / delta, 1.0))
-                limiter = np.minimum(limiter, np.clip(bound, 0.0, 1.0))
-            grad *= limiter[:, None]
-            grad[~inside] = 0.0
-            slopes.append(grad)
+                delta = gx * relative[i][0]
+                delta += gy * relative[i][1]
+                room = np.where(delta > 0, high[node], low[node])
+                room -= value
+                bound = np.divide(room, delta, out=np.ones(mesh.n_cells), where=delta != 0)
+                np.clip(bound, 0.0, 1.0, out=bound)
+                np.minimum(limiter, bound, out=limiter)
+            limiter[~inside] = 0.0
+            slopes.append((gx * limiter, gy * limiter))
         where = np.flatnonzero(pure)
-        offset = polygon_centroid(swept[where]) - centre[donor[where]]
-        for grad, flux in ((slopes[0], flux_mass), (slopes[1], flux_energy)):
-            correction = np.einsum("nd,nd->n", grad[donor[where]], offset) * flux_volume.sum(axis=0)[where]
-            m = material[donor[where]]
+        source = donor[where]
+        m = material[source]
+        _, swept_x, swept_y = corner_centroid([c[where] for c in swept[0]], [c[where] for c in swept[1]])
+        swept_x -= centre_x[source]
+        swept_y -= centre_y[source]
+        volume = flux_volume.sum(axis=0)[where]
+        for (sx, sy), flux in ((slopes[0], flux_mass), (slopes[1], flux_energy)):
+            correction = sx[source] * swept_x
+            correction += sy[source] * swept_y
+            correction *= volume
             flux[m, where] += correction

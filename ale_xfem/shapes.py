@@ -26,23 +26,49 @@ import numpy as np
 def polygon_area(vertices: np.ndarray) -> np.ndarray:
     """Signed (shoelace) areas of polygons (n, m, 2): > 0 counter-clockwise."""
     x, y = vertices[..., 0], vertices[..., 1]
-    return 0.5 * np.sum(x * np.roll(y, -1, axis=-1) - np.roll(x, -1, axis=-1) * y, axis=-1)
+    m = vertices.shape[-2]
+    total = x[..., m - 1] * y[..., 0] - x[..., 0] * y[..., m - 1]
+    for i in range(m - 1):  # a loop over the polygon's vertices, vectorised over polygons
+        total += x[..., i] * y[..., i + 1] - x[..., i + 1] * y[..., i]
+    total *= 0.5
+    return total
+
+
+def corner_centroid(xs, ys):
+    """Areas and centroids of polygons given as lists over their vertices of coordinate
+    arrays (xs[i], ys[i]: vertex i of every polygon): (area, cx, cy); a polygon of zero area
+    gets the mean of its vertices."""
+    m = len(xs)
+    area = cx = cy = None
+    for i in range(m):
+        j = (i + 1) % m
+        cross = xs[i] * ys[j]
+        cross -= xs[j] * ys[i]
+        tx, ty = xs[i] + xs[j], ys[i] + ys[j]
+        tx *= cross
+        ty *= cross
+        if area is None:
+            area, cx, cy = cross, tx, ty
+        else:
+            area += cross
+            cx += tx
+            cy += ty
+    area *= 0.5
+    empty = area == 0.0
+    scale = 1.0 / (6.0 * np.where(empty, 1.0, area))
+    cx *= scale
+    cy *= scale
+    if np.any(empty):
+        cx[empty] = sum(x[empty] for x in xs) / m
+        cy[empty] = sum(y[empty] for y in ys) / m
+    return area, cx, cy
 
 
 def polygon_centroid(vertices: np.ndarray) -> np.ndarray:
     """Centroids (n, 2) of polygons (n, m, 2); that of the vertices where the area is 0."""
-    x, y = vertices[..., 0], vertices[..., 1]
-    xn, yn = np.roll(x, -1, axis=-1), np.roll(y, -1, axis=-1)
-    cross = x * yn - xn * y
-    area = 0.5 * cross.sum(axis=-1)
-    safe = np.where(np.abs(area) > 0, area, 1.0)
-    cx = ((x + xn) * cross).sum(axis=-1) / (6.0 * safe)
-    cy = ((y + yn) * cross).sum(axis=-1) / (6.0 * safe)
-    centre = np.stack([cx, cy], axis=-1)
-    empty = np.abs(area) <= 0
-    if np.any(empty):
-        centre[empty] = vertices[empty].mean(axis=-2)
-    return centre
+    m = vertices.shape[-2]
+    _, cx, cy = corner_centroid([vertices[..., i, 0] for i in range(m)], [vertices[..., i, 1] for i in range(m)])
+    return np.stack([cx, cy], axis=-1)
 
 
 def clip_half_plane(vertices: np.ndarray, normal: np.ndarray, offset: np.ndarray) -> np.ndarray:
@@ -75,22 +101,74 @@ def clip_half_plane(vertices: np.ndarray, normal: np.ndarray, offset: np.ndarray
     return result
 
 
+def clipped_area(vertices: np.ndarray, normal: np.ndarray, offset: np.ndarray) -> np.ndarray:
+    """Signed area of clip_half_plane(vertices, normal, offset) without building the
+    polygon (Green's theorem, A = ½ ∮ x × dx): each edge contributes ½ P × Q for its
+    piece [P, Q] inside the half-plane, and each exit point E, joined along the line to the
+    next entry point N (cyclically, as Sutherland–Hodgman joins them), ½ E × N."""
+    n, m, _ = vertices.shape
+    normal = np.broadcast_to(np.asarray(normal, dtype=float), (n, 2))
+    offset = np.broadcast_to(np.asarray(offset, dtype=float), (n,))
+    x, y = [vertices[:, i, 0] for i in range(m)], [vertices[:, i, 1] for i in range(m)]
+    distance = [x[i] * normal[:, 0] + y[i] * normal[:, 1] - offset for i in range(m)]
+    inside = [d <= 0.0 for d in distance]
+    area = np.zeros(n)
+    exit_x, exit_y, first_x, first_y = (np.zeros(n) for _ in range(4))
+    pending, first = np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
+    for i in range(m):
+        j = (i + 1) % m
+        crossing = inside[i] != inside[j]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            t = np.where(crossing, distance[i] / (distance[i] - distance[j]), 0.0)
+        cut_x, cut_y = x[i] + t * (x[j] - x[i]), y[i] + t * (y[j] - y[i])
+        px, py = np.where(inside[i], x[i], cut_x), np.where(inside[i], y[i], cut_y)
+        qx, qy = np.where(inside[j], x[j], cut_x), np.where(inside[j], y[j], cut_y)
+        area += np.where(inside[i] | inside[j], px * qy - qx * py, 0.0)
+        entering = ~inside[i] & inside[j]
+        joined = entering & pending  # the chord from the pending exit to this entry
+        area += np.where(joined, exit_x * cut_y - cut_x * exit_y, 0.0)
+        opening = entering & ~pending & ~first  # an entry before any exit: joined at the end
+        first_x, first_y = np.where(opening, cut_x, first_x), np.where(opening, cut_y, first_y)
+        first |= opening
+        pending &= ~joined
+        leaving = inside[i] & ~inside[j]
+        exit_x, exit_y = np.where(leaving, cut_x, exit_x), np.where(leaving, cut_y, exit_y)
+        pending |= leaving
+    area += np.where(pending & first, exit_x * first_y - first_x * exit_y, 0.0)
+    return 0.5 * area
+
+
+def _edge_half_planes(clip: np.ndarray, i: int):
+    """The outward unit normal and offset of edge i of convex counter-clockwise polygons
+    (a zero-length edge: offset ∞, it clips nothing)."""
+    k = clip.shape[1]
+    a, b = clip[:, i], clip[:, (i + 1) % k]
+    edge = b - a
+    outward = np.stack([edge[:, 1], -edge[:, 0]], axis=1)  # right of a ccw edge
+    length = np.linalg.norm(outward, axis=1)
+    degenerate = length == 0.0
+    outward = outward / np.where(degenerate, 1.0, length)[:, None]
+    offset = np.einsum("nd,nd->n", outward, a)
+    return outward, np.where(degenerate, np.inf, offset)
+
+
 def clip_convex(subject: np.ndarray, clip: np.ndarray) -> np.ndarray:
     """subject (n, m, 2) polygons (any shape) clipped by convex counter-clockwise polygons
     clip (n, k, 2): their intersection, exact."""
     result = subject
-    k = clip.shape[1]
-    for i in range(k):  # one pass per edge of the clipping polygon
-        a, b = clip[:, i], clip[:, (i + 1) % k]
-        edge = b - a
-        outward = np.stack([edge[:, 1], -edge[:, 0]], axis=1)  # right of a ccw edge
-        length = np.linalg.norm(outward, axis=1)
-        degenerate = length == 0.0
-        outward = outward / np.where(degenerate, 1.0, length)[:, None]
-        offset = np.einsum("nd,nd->n", outward, a)
-        offset = np.where(degenerate, np.inf, offset)  # a zero-length edge clips nothing
-        result = clip_half_plane(result, outward, offset)
+    for i in range(clip.shape[1]):  # one pass per edge of the clipping polygon
+        result = clip_half_plane(result, *_edge_half_planes(clip, i))
     return result
+
+
+def intersection_area(subject: np.ndarray, clip: np.ndarray) -> np.ndarray:
+    """polygon_area(clip_convex(subject, clip)), the last pass giving only the area
+    (clipped_area)."""
+    result = subject
+    k = clip.shape[1]
+    for i in range(k - 1):
+        result = clip_half_plane(result, *_edge_half_planes(clip, i))
+    return clipped_area(result, *_edge_half_planes(clip, k - 1))
 
 
 def _sector(u, v, radius):
@@ -219,7 +297,7 @@ def _polygon_area_in(polygon, bounds, cells):
     near = _near(cells, *bounds)
     if np.any(near):
         subject = np.broadcast_to(polygon, (int(near.sum()),) + polygon.shape)
-        area[near] = polygon_area(clip_convex(np.ascontiguousarray(subject), cells[near]))
+        area[near] = intersection_area(np.ascontiguousarray(subject), cells[near])
     return area
 
 

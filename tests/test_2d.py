@@ -96,6 +96,29 @@ def test_box_and_nonconvex_polygon_cell_areas_sum_to_their_areas(mesh_name):
 # -- the 2D Wilkins loop ------------------------------------------------------------------------
 
 
+def test_clipped_areas_without_the_polygon_equal_those_of_the_clipped_polygon():
+    """shapes.clipped_area (Green's theorem, exits joined to the next entries) against the
+    area of clip_half_plane's polygon, on convex, star-shaped (several exits) and random,
+    self-intersecting quadrilaterals; intersection_area against clip_convex."""
+    rng = np.random.default_rng(7)
+    n = 2000
+    normal = rng.normal(size=(n, 2))
+    normal /= np.linalg.norm(normal, axis=1)[:, None]
+    offset = 0.5 * rng.normal(size=n)
+    angles = np.sort(rng.uniform(0, 2 * np.pi, (n, 8)), axis=1)
+    radius = {"convex": np.ones((n, 1)), "star": rng.uniform(0.2, 2.0, (n, 8))}
+    polygons = [np.stack([r * np.cos(angles), r * np.sin(angles)], axis=-1) for r in radius.values()]
+    polygons.append(rng.normal(size=(n, 4, 2)))
+    for polygon in polygons:
+        exact = shapes.polygon_area(shapes.clip_half_plane(polygon, normal, offset))
+        np.testing.assert_allclose(shapes.clipped_area(polygon, normal, offset), exact, atol=1e-14)
+        assert np.ptp(exact) > 0.5  # the cuts go through the polygons
+    convex = polygons[0][:, ::2]  # quadrilaterals, counter-clockwise
+    subject = rng.normal(size=(n, 4, 2))
+    np.testing.assert_allclose(shapes.intersection_area(subject, convex),
+                               shapes.polygon_area(shapes.clip_convex(subject, convex)), atol=1e-14)
+
+
 def test_noh_converges_on_quadrilaterals():
     sizes = [20, 40, 80]
     errors = []
