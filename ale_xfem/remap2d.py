@@ -386,9 +386,9 @@ class Remapper2D:
         where = np.flatnonzero(pure)
         source = donor[where]
         m = material[source]
-        _, swept_x, swept_y = corner_centroid([c[where] for c in swept[0]], [c[where] for c in swept[1]])
-        swept_x -= centre_x[source]
-        swept_y -= centre_y[source]
+        _, swept_x, swept_y = corner_centroid(*swept)
+        swept_x = swept_x[where] - centre_x[source]
+        swept_y = swept_y[where] - centre_y[source]
         volume = flux_volume.sum(axis=0)[where]
         for (sx, sy), flux in ((slopes[0], flux_mass), (slopes[1], flux_energy)):
             correction = sx[source] * swept_x
