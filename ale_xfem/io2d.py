@@ -100,10 +100,18 @@ class VTXSeries:
         velocity_space = dolfinx.fem.functionspace(mesh, ("Lagrange", 1, (2,)))
         cell_space = dolfinx.fem.functionspace(mesh, ("DG", 0))
         self.velocity = dolfinx.fem.Function(velocity_space, name="velocity")
+        # the project's node and cell numbers may differ from DOLFINx's (a rectangle is
+        # numbered row by row: MeshArrays.dolfinx_node / dolfinx_cell)
+        arrays = problem.mesh
+        self.geometry_node = (np.arange(arrays.n_nodes) if arrays.dolfinx_node is None
+                              else arrays.dolfinx_node)
+        node_of_geometry = np.empty_like(self.geometry_node)
+        node_of_geometry[self.geometry_node] = np.arange(arrays.n_nodes)
         node_of_dof = np.empty(velocity_space.dofmap.index_map.size_local, dtype=np.int64)
-        node_of_dof[velocity_space.dofmap.list] = mesh.geometry.dofmaps[0]
+        node_of_dof[velocity_space.dofmap.list] = node_of_geometry[mesh.geometry.dofmaps[0]]
         self.node_of_dof = node_of_dof
-        self.cell_dof = cell_space.dofmap.list[:, 0].copy()
+        cell_dof = cell_space.dofmap.list[:, 0]
+        self.cell_dof = (cell_dof if arrays.dolfinx_cell is None else cell_dof[arrays.dolfinx_cell]).copy()
         names = [m.name for m in problem.materials]
         self.fields = {"material": dolfinx.fem.Function(cell_space, name="material"),
                        "density": dolfinx.fem.Function(cell_space, name="density")}
@@ -126,7 +134,7 @@ class VTXSeries:
 
     def write(self, state, problem) -> None:
         mesh = problem.mesh
-        self.mesh.geometry.x[:, :2] = state.node_position.T
+        self.mesh.geometry.x[self.geometry_node, :2] = state.node_position.T
         self.velocity.x.array[:] = state.node_velocity[:2, self.node_of_dof].T.ravel()
         material = problem.layout.cell_material[0]
         area = mesh.cell_volumes(state.node_position)

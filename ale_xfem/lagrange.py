@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ale_xfem.mesh import MeshArrays, QuadCorners, QuadGradient, QuadHourglass, constant_gradient, corner_dot
+from ale_xfem.mesh import MeshArrays, QuadGradient, QuadHourglass, constant_gradient, corner_dot
 from ale_xfem.mixed import MixedCellFailure, MixedCells, with_mixed_state
 from ale_xfem.state import MaterialLayout, State, thermodynamics
 
@@ -177,8 +177,9 @@ class ExplicitWilkins:
         """What the corner work needs of a nodal velocity field: for quadrilaterals its
         QuadCorners (linear: those of u^n + u are the sum of theirs), otherwise its values
         gathered to the corners."""
-        gathered = self.corners.gather(node_velocity)
-        return QuadCorners.gathered(gathered) if self.quadrilaterals else gathered
+        if self.quadrilaterals:
+            return self.corners.quad_corners(node_velocity)
+        return self.corners.gather(node_velocity)
 
     def evaluate(self, node_position, node_velocity, material_mass, material_energy,
                  mixed_view: MixedView | None = None, slots: int = 1, known=None,
@@ -197,7 +198,7 @@ class ExplicitWilkins:
         cell_type, corners = self.mesh.cell_type, self.corners
         if self.quadrilaterals:
             if corner_positions is None:
-                corner_positions = QuadCorners.gathered(corners.gather(node_position))
+                corner_positions = corners.quad_corners(node_position)
             gradient = QuadGradient(corner_positions)
             volume, positions = gradient.area, None
         else:
@@ -404,7 +405,7 @@ class ExplicitWilkins:
             # x* gathered, not summed: the cells around a node then see the same coordinates
             # and their forces balance to round-off (a state at rest stays at rest); its
             # hourglass shape is not needed (the start's hourglass forces serve)
-            corner_positions = QuadCorners.gathered(self.corners.gather(x_pred), hourglass=False)
+            corner_positions = self.corners.quad_corners(x_pred, hourglass=False)
         e_pred = energy[:1] - self._corner_work([first], velocity_sum, half_dt_over_mass, corner_sum)
         view = None
         if self.mixed is not None:

@@ -6,7 +6,10 @@ Read once from DOLFINx:
   component by component so that every per-step operation runs on contiguous rows;
 - ``cell_nodes`` (n_cells, nodes_per_cell): the geometry dofmap, reordered so that the
   nodes of a quadrilateral go round the cell (DOLFINx stores them in tensor-product order)
-  and every cell has positive volume.
+  and every cell has positive volume.  A rectangle (or Saltzman mesh) of quadrilaterals is
+  renumbered row by row instead (``MeshArrays.grid``; ``dolfinx_node``, ``dolfinx_cell``
+  map back to DOLFINx's numbers for output), so that a corner of every cell is a strided
+  view of a node field.
 
 Cell geometry is written once per cell type as the volume V_K(x) and its gradient
 ∂V_K/∂x_i: for a cell of constant pressure P the corner force −∫_K σ:∇ψ_i = P ∫_K ∇·ψ_i
@@ -16,7 +19,10 @@ quadrilaterals share every loop that uses it.
 Per-corner arrays: a field gathered to the corners of the cells is a list over corners of
 lists over components of (n_cells,) arrays, ``values[i][d]``.  A corner whose node indices
 form a contiguous run (an interval mesh from DOLFINx: cell k has nodes k, k+1) is gathered
-as a view and scattered by a slice addition, which costs a fraction of an indexed gather.
+as a view and scattered by a slice addition, which costs a fraction of an indexed gather;
+on a grid of quadrilaterals the same holds with 2D strided views.  Quadrilaterals use only
+the combinations v_0 − v_2, v_1 − v_3 and v_0 − v_1 + v_2 − v_3 of their corner values
+(QuadCorners): two independent corner gradients (QuadGradient) and the hourglass mode.
 """
 
 from __future__ import annotations
@@ -27,10 +33,20 @@ import numpy as np
 
 
 class Corners:
-    """Gather node fields to cell corners and scatter corner values back to nodes."""
+    """Gather node fields to cell corners and scatter corner values back to nodes.
 
-    def __init__(self, cell_nodes: np.ndarray, n_nodes: int):
+    ``grid`` (nx, ny): the nodes and quadrilaterals of a logically structured nx × ny mesh
+    numbered row by row (node (i, j) = j (nx + 1) + i, cell (i, j) = j nx + i, corners
+    (i, j), (i+1, j), (i+1, j+1), (i, j+1)): corner i of every cell is then a strided view of
+    a node field seen as (ny + 1, nx + 1), so the quadrilaterals' corner combinations are
+    read without gathers and scatters are slice additions."""
+
+    GRID_VIEWS = ((slice(None, -1), slice(None, -1)), (slice(None, -1), slice(1, None)),
+                  (slice(1, None), slice(1, None)), (slice(1, None), slice(None, -1)))
+
+    def __init__(self, cell_nodes: np.ndarray, n_nodes: int, grid=None):
         self.n_nodes = n_nodes
+        self.grid = grid
         self.index = []
         for column in np.ascontiguousarray(cell_nodes.T):
             run = column.size > 0 and np.all(np.diff(column) == 1)
@@ -42,7 +58,33 @@ class Corners:
 
     def gather(self, node_values) -> list:
         """node_values (dim, n_nodes) → [corner][component] arrays (n_cells,)."""
+        if self.grid is not None:  # strided copies
+            views = [self._views(component) for component in node_values]
+            return [[v[i].ravel() for v in views] for i in range(4)]
         return [[component[i] for component in node_values] for i in self.index]
+
+    def _views(self, component):
+        nx, ny = self.grid
+        plane = component.reshape(ny + 1, nx + 1)
+        return [plane[view] for view in self.GRID_VIEWS]
+
+    def quad_corners(self, node_values, hourglass: bool = True):
+        """The QuadCorners of a node field (dim, n_nodes) (``hourglass`` False: the
+        diagonals only); on a grid straight from strided views, without gathers."""
+        if self.grid is None:
+            return QuadCorners.gathered(self.gather(node_values), hourglass)
+        nx, ny = self.grid
+        across02, across13, sums = [], [], []
+        for component in node_values:
+            v0, v1, v2, v3 = self._views(component)
+            across02.append(np.subtract(v0, v2).reshape(-1))
+            across13.append(np.subtract(v1, v3).reshape(-1))
+            if hourglass:
+                total = np.add(v0, v2)
+                total -= v1
+                total -= v3
+                sums.append(total.reshape(-1))
+        return QuadCorners(across02, across13, sums if hourglass else None)
 
     def scatter(self, corner_values) -> np.ndarray:
         """Sum per-corner values (a sequence over corners of (n_cells,) arrays) onto nodes."""
@@ -54,6 +96,14 @@ class Corners:
         multiplication) or an array; ``common`` None: the coefficients are the values."""
         if out is None:
             out = np.empty(self.n_nodes)
+        if self.grid is not None:
+            nx, ny = self.grid
+            views = self._views(out)
+            out.fill(0.0)
+            for view, coefficient in zip(views, coefficients):
+                values = coefficient if common is None else coefficient * common
+                view += np.reshape(values, (ny, nx))
+            return out
         first = self.index[0]
         if isinstance(first, slice):
             # The first corner is written, not added: only the nodes it misses start at 0.
@@ -81,6 +131,16 @@ class Corners:
     def scatter_rows(self, rows: np.ndarray, out: np.ndarray) -> np.ndarray:
         """Sum a (k, n_cells) block of corner values (row i: corner i) onto ``out``
         (n_nodes,), overwritten."""
+        if self.grid is not None:
+            nx, ny = self.grid
+            views = self._views(out)
+            plane = out.reshape(ny + 1, nx + 1)
+            plane[-1].fill(0.0)  # the nodes corner 0 misses: the last row and column
+            plane[:, -1].fill(0.0)
+            np.copyto(views[0], rows[0].reshape(ny, nx))
+            for view, row in zip(views[1:], rows[1:]):
+                view += row.reshape(ny, nx)
+            return out
         if self.flat_index is not None:
             out[:] = np.bincount(self.flat_index, weights=rows.ravel(), minlength=self.n_nodes)
             return out
@@ -419,9 +479,12 @@ class MeshArrays:
     node_position: np.ndarray  # (dim, n_nodes)
     cell_nodes: np.ndarray  # (n_cells, nodes_per_cell), int
     dolfinx_mesh: object = None
+    grid: tuple | None = None  # (nx, ny): numbered as a structured grid (Corners)
+    dolfinx_node: np.ndarray | None = None  # DOLFINx geometry node of each node (None: the same)
+    dolfinx_cell: np.ndarray | None = None  # DOLFINx cell of each cell (None: the same)
 
     def __post_init__(self):
-        self.corners = Corners(self.cell_nodes, self.node_position.shape[1])
+        self.corners = Corners(self.cell_nodes, self.node_position.shape[1], self.grid)
 
     @property
     def n_nodes(self) -> int:
@@ -475,6 +538,46 @@ def from_dolfinx(mesh) -> MeshArrays:
     return arrays
 
 
+def _grid_numbering(mesh, extent, cells):
+    """Row-by-row numbers of the nodes and cells of a DOLFINx rectangle of quadrilaterals
+    (before any skew): (node number of each DOLFINx node, cell number of each DOLFINx
+    cell, cell_nodes in the new numbering going round from (i, j))."""
+    (x0, x1), (y0, y1) = extent
+    nx, ny = cells
+    x = mesh.geometry.x
+    i = np.rint((x[:, 0] - x0) / (x1 - x0) * nx).astype(np.int64)
+    j = np.rint((x[:, 1] - y0) / (y1 - y0) * ny).astype(np.int64)
+    node_number = j * (nx + 1) + i
+    dofmap = np.asarray(mesh.geometry.dofmaps[0])
+    ci, cj = i[dofmap].min(axis=1), j[dofmap].min(axis=1)
+    cell_number = cj * nx + ci
+    start = (np.arange(ny)[:, None] * (nx + 1) + np.arange(nx)[None, :]).ravel()
+    cell_nodes = np.stack([start, start + 1, start + nx + 2, start + nx + 1], axis=1)
+    # the same four nodes as DOLFINx's cell, each node and cell numbered once
+    if not (np.array_equal(np.sort(node_number), np.arange((nx + 1) * (ny + 1)))
+            and np.array_equal(np.sort(cell_number), np.arange(nx * ny))
+            and np.array_equal(np.sort(cell_nodes[cell_number], axis=1), np.sort(node_number[dofmap], axis=1))):
+        return None
+    return node_number, cell_number, cell_nodes
+
+
+def from_structured_dolfinx(mesh, numbering, cells) -> MeshArrays:
+    """A DOLFINx rectangle of quadrilaterals read with the row-by-row numbering of
+    _grid_numbering (its nodes may have been moved since, as Saltzman's are)."""
+    node_number, cell_number, cell_nodes = numbering
+    position = np.empty((2, node_number.size))
+    position[:, node_number] = mesh.geometry.x[:, :2].T
+    dolfinx_node = np.empty_like(node_number)
+    dolfinx_node[node_number] = np.arange(node_number.size)
+    dolfinx_cell = np.empty_like(cell_number)
+    dolfinx_cell[cell_number] = np.arange(cell_number.size)
+    arrays = MeshArrays(CELL_TYPES["quadrilateral"], position, cell_nodes, mesh, tuple(cells),
+                        dolfinx_node, dolfinx_cell)
+    if np.any(arrays.cell_volumes() <= 0):
+        raise ValueError("mesh has cells of zero or negative volume")
+    return arrays
+
+
 def _dolfinx():
     import dolfinx_solver  # noqa: F401  (must come before dolfinx: it loads MPI and PETSc)
     import dolfinx
@@ -505,7 +608,9 @@ def _rectangle(extent, cells, cell_type):
 
 
 def rectangle_mesh(extent, cells, cell_type: str = "quadrilateral") -> MeshArrays:
-    return from_dolfinx(_rectangle(extent, cells, cell_type))
+    mesh = _rectangle(extent, cells, cell_type)
+    numbering = _grid_numbering(mesh, extent, cells) if cell_type == "quadrilateral" else None
+    return from_dolfinx(mesh) if numbering is None else from_structured_dolfinx(mesh, numbering, cells)
 
 
 def saltzman_mesh(extent, cells, cell_type: str = "quadrilateral") -> MeshArrays:
@@ -514,9 +619,10 @@ def saltzman_mesh(extent, cells, cell_type: str = "quadrilateral") -> MeshArrays
     x = ξ + (0.1 − η) sin πξ).  The left and right sides stay straight."""
     (x0, x1), (y0, y1) = extent
     mesh = _rectangle(extent, cells, cell_type)
+    numbering = _grid_numbering(mesh, extent, cells) if cell_type == "quadrilateral" else None
     x = mesh.geometry.x
     x[:, 0] += (y1 - x[:, 1]) * np.sin(np.pi * (x[:, 0] - x0) / (x1 - x0))
-    return from_dolfinx(mesh)
+    return from_dolfinx(mesh) if numbering is None else from_structured_dolfinx(mesh, numbering, cells)
 
 
 def file_mesh(path) -> MeshArrays:

@@ -443,8 +443,13 @@ def test_a_heavy_disk_in_pressure_balance_stays_at_rest_with_single_velocity_mix
     result = simulate(problem, stop_after_steps=500)
     assert result.status == "ok" and result.steps == 500
     assert np.abs(result.state.node_velocity).max() < 1e-12
-    # (p = (γ − 1)ρe − γp∞ loses a digit to cancellation with p∞ = 3)
-    np.testing.assert_allclose(result.state.material_pressure[:, problem.mixed.cells], 1.0, rtol=1e-11)
+    # Pressures stay balanced to the relaxation's tolerance: it acts only beyond
+    # 10 × interface_tolerance × the bulk modulus ρc² (1.4 in the gas), and its volume split
+    # moves by that much (measured: 1.1e-11 .. 1.3e-11 after 400-800 steps).
+    state, cells = result.state, problem.mixed.cells
+    bulk = np.min(state.material_density[:, cells] * state.material_sound_speed[:, cells] ** 2)
+    tolerance = 10 * problem.scene.numerics.interface_tolerance * bulk
+    np.testing.assert_allclose(state.material_pressure[:, cells], 1.0, rtol=0, atol=tolerance)
 
 
 def test_cells_csv_gives_each_material_of_a_mixed_cell_its_plic_part(tmp_path):

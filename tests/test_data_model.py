@@ -113,3 +113,52 @@ def test_quadrilateral_two_corner_kernel_equals_the_textbook_corner_sums():
                np.hypot(x[3][0] + x[0][0] - x[1][0] - x[2][0], x[3][1] + x[0][1] - x[1][1] - x[2][1])]
     np.testing.assert_allclose(mesh.cell_type.length_scale(area, x, gradient),
                                area / (0.5 * np.maximum(*medians)), rtol=1e-14)
+
+
+def test_a_rectangle_numbered_as_a_grid_reads_its_corners_from_views_and_maps_back_to_dolfinx(tmp_path):
+    """A rectangle of quadrilaterals is numbered row by row (Corners' strided views): its
+    corner combinations and scatters equal the indexed ones on the same cells, its nodes and
+    cells map back to DOLFINx's, and the VTX series writes each field at its own node and
+    cell (a linear velocity and a density linear in the centroid come back at the DOLFINx
+    dof coordinates)."""
+    from ale_xfem.io2d import VTXSeries
+    from ale_xfem.mesh import Corners, QuadCorners
+    from ale_xfem.run import simulate
+
+    mesh = rectangle_mesh([[0.0, 2.0], [0.0, 1.0]], [7, 5], "quadrilateral")
+    assert mesh.grid == (7, 5)
+    indexed = Corners(mesh.cell_nodes, mesh.n_nodes)  # the same cells through index arrays
+    rng = np.random.default_rng(5)
+    field = rng.normal(size=(2, mesh.n_nodes))
+    from_views, gathered = mesh.corners.quad_corners(field), QuadCorners.gathered(indexed.gather(field))
+    for name in QuadCorners.__slots__:
+        np.testing.assert_array_equal(getattr(from_views, name), getattr(gathered, name))
+    rows = rng.normal(size=(4, mesh.n_cells))
+    np.testing.assert_allclose(mesh.corners.scatter_rows(rows, np.empty(mesh.n_nodes)),
+                               indexed.scatter_rows(rows, np.empty(mesh.n_nodes)), atol=1e-15)
+    np.testing.assert_allclose(mesh.corners.scatter(list(rows)), indexed.scatter(list(rows)), atol=1e-15)
+    x = mesh.dolfinx_mesh.geometry.x
+    np.testing.assert_array_equal(x[mesh.dolfinx_node, :2].T, mesh.node_position)
+    dolfinx_cells = np.asarray(mesh.dolfinx_mesh.geometry.dofmaps[0])[mesh.dolfinx_cell]
+    np.testing.assert_array_equal(np.sort(dolfinx_cells, axis=1), np.sort(mesh.dolfinx_node[mesh.cell_nodes], axis=1))
+
+    from ale_xfem.problem import build_problem
+    from ale_xfem.scene import load_scene, resolve_scene_path
+
+    problem = build_problem(load_scene(resolve_scene_path("noh"), ["mesh.cells=[6,4]"]))
+    state = simulate(problem, stop_after_steps=3).state
+    position = state.node_position
+    state.node_velocity[:] = np.stack([position[0], 2.0 * position[1]])
+    series = VTXSeries(problem, tmp_path, frames=1)
+    series.write(state, problem)
+    series.close()
+    dofs = series.velocity.function_space.tabulate_dof_coordinates()[:, :2]
+    np.testing.assert_allclose(series.velocity.x.array.reshape(-1, 2), dofs * [1.0, 2.0], atol=1e-14)
+    density = series.fields["density"]
+    midpoint = density.function_space.tabulate_dof_coordinates()[:, :2]  # DG0: the cell midpoints
+    ours = problem.mesh.cell_centroids(position)
+    cell_at_dof = np.argmin(np.linalg.norm(midpoint[:, None, :] - ours[None, :, :], axis=2), axis=1)
+    np.testing.assert_allclose(midpoint, ours[cell_at_dof], atol=1e-14)
+    expected = state.material_mass.sum(axis=0) / problem.mesh.cell_volumes(position)
+    np.testing.assert_allclose(density.x.array, expected[cell_at_dof], rtol=1e-14)
+    assert np.ptp(expected) > 0.1  # Noh's cells differ
