@@ -73,7 +73,6 @@ class Corners:
         diagonals only); on a grid straight from strided views, without gathers."""
         if self.grid is None:
             return QuadCorners.gathered(self.gather(node_values), hourglass)
-        nx, ny = self.grid
         across02, across13, sums = [], [], []
         for component in node_values:
             v0, v1, v2, v3 = self._views(component)
@@ -126,7 +125,6 @@ class Corners:
             else:
                 out += np.bincount(index, weights=values, minlength=self.n_nodes)
         return out
-
 
     def scatter_rows(self, rows: np.ndarray, out: np.ndarray) -> np.ndarray:
         """Sum a (k, n_cells) block of corner values (row i: corner i) onto ``out``
@@ -270,15 +268,16 @@ class QuadCorners:
         across02, across13 = [a - c for a, c in zip(v0, v2)], [b - d for b, d in zip(v1, v3)]
         if not hourglass:
             return cls(across02, across13, None)
-        hourglass = []
+        sums = []
         for a, b, c, d in zip(v0, v1, v2, v3):
             total = a + c
             total -= b
             total -= d
-            hourglass.append(total)
-        return cls(across02, across13, hourglass)
+            sums.append(total)
+        return cls(across02, across13, sums)
 
     def plus(self, other: "QuadCorners") -> "QuadCorners":
+        """self + other (those of the sum of the two nodal fields)."""
         def combine(mine, theirs):
             return [np.add(a, b) for a, b in zip(mine, theirs)]
         return QuadCorners(combine(self.across02, other.across02), combine(self.across13, other.across13),
