@@ -85,6 +85,23 @@ class Corners:
                 sums.append(total.reshape(-1))
         return QuadCorners(across02, across13, sums if hourglass else None)
 
+    def node_extremes(self, cell_values, low_start, high_start):
+        """The least and greatest of ``cell_values`` (n_cells,) over the cells around each
+        node (nodes of no cell keep the start values)."""
+        low = np.full(self.n_nodes, low_start, dtype=cell_values.dtype)
+        high = np.full(self.n_nodes, high_start, dtype=cell_values.dtype)
+        if self.grid is not None:
+            nx, ny = self.grid
+            values = cell_values.reshape(ny, nx)
+            for low_view, high_view in zip(self._views(low), self._views(high)):
+                np.minimum(low_view, values, out=low_view)
+                np.maximum(high_view, values, out=high_view)
+            return low, high
+        for index in self.index:
+            np.minimum.at(low, index, cell_values)
+            np.maximum.at(high, index, cell_values)
+        return low, high
+
     def scatter(self, corner_values) -> np.ndarray:
         """Sum per-corner values (a sequence over corners of (n_cells,) arrays) onto nodes."""
         return self.scatter_scaled(list(corner_values), None)
@@ -156,26 +173,49 @@ def _scaled(coefficient, values, out):
         np.multiply(coefficient, values, out=out)
 
 
-def node_averaged_gradient(mesh, node_position, values, cells=None) -> np.ndarray:
+def cells_around(mesh, cells) -> np.ndarray:
+    """The cells sharing a node with ``cells`` (theirs included), in increasing order."""
+    touched = np.zeros(mesh.n_nodes, dtype=bool)
+    touched[mesh.cell_nodes[cells]] = True
+    corner = [c[0] for c in mesh.corners.gather(touched[None])]
+    return np.flatnonzero(np.logical_or.reduce(corner))
+
+
+def node_averaged_gradient(mesh, node_position, values, cells=None, around=None) -> np.ndarray:
     """The gradient in each cell (or in ``cells``) of cell fields averaged to the nodes by
     area: ∇v_K = (1/A_K) Σ_i v̄_i ∂A_K/∂x_i with v̄_i = Σ_K A_K v_K / Σ_K A_K over the cells
     around node i (exact for a linear field; Youngs' normals and the remap's slopes).
-    ``values`` (n_cells,) or (m, n_cells) → gradients (…, n, 2), the geometry done once."""
+    ``values`` (n_cells,) or (m, n_cells) → gradients (…, n, 2), the geometry done once.
+    With ``cells``, only the cells around their nodes are read (``around``: those cells,
+    cells_around(mesh, cells), when known): the same sums in the same order."""
     corners = mesh.corners
     k = mesh.cell_type.nodes_per_cell
     values = np.asarray(values)
     fields = values.reshape(-1, values.shape[-1])
-    area, gradient = mesh.cell_type.volume_and_gradient(corners.gather(node_position))
-    weight = corners.scatter([area] * k)
     if cells is None:
+        area, gradient = mesh.cell_type.volume_and_gradient(corners.gather(node_position))
+        weight = corners.scatter([area] * k)
         nodes, area_here = mesh.cell_nodes, area
+
+        def nodal_average(field):
+            return corners.scatter([field * area] * k) / weight
     else:
+        around = cells_around(mesh, cells) if around is None else around
+        index = np.ascontiguousarray(mesh.cell_nodes[around].T).ravel()  # corner by corner
+        area = mesh.cell_type.volume_and_gradient(
+            [[node_position[d, mesh.cell_nodes[around, i]] for d in range(node_position.shape[0])]
+             for i in range(k)])[0]
+        weight = np.bincount(index, np.tile(area, k), mesh.n_nodes)
+        weight[weight == 0.0] = 1.0  # nodes of no cell around: not read
+
+        def nodal_average(field):
+            return np.bincount(index, np.tile(field[around] * area, k), mesh.n_nodes) / weight
         nodes = mesh.cell_nodes[cells]
         here = [[node_position[d, nodes[:, i]] for d in range(node_position.shape[0])] for i in range(k)]
         area_here, gradient = mesh.cell_type.volume_and_gradient(here)
     grad = np.empty((fields.shape[0], nodes.shape[0], 2))
     for f, field in enumerate(fields):
-        nodal = corners.scatter([field * area] * k) / weight
+        nodal = nodal_average(field)
         corner_values = [nodal[nodes[:, i]] for i in range(k)]
         if isinstance(gradient, QuadGradient):  # Σ_i v̄_i g_i = g_0 (v̄_0 − v̄_2) + g_1 (v̄_1 − v̄_3)
             across02, across13 = corner_values[0] - corner_values[2], corner_values[1] - corner_values[3]

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ale_xfem.mesh import node_averaged_gradient
+from ale_xfem.mesh import cells_around, node_averaged_gradient
 from ale_xfem.shapes import clip_half_plane, clipped_area, polygon_area, polygon_centroid
 
 
@@ -42,11 +42,12 @@ class Reconstruction:
         return 0.5 * (self.start + self.end)
 
 
-def youngs_normals(mesh, node_position, fraction, cells=None) -> np.ndarray:
+def youngs_normals(mesh, node_position, fraction, cells=None, around=None) -> np.ndarray:
     """Unit normals pointing out of the material whose volume fraction per cell is
-    ``fraction`` — (n_cells, 2), or (len(cells), 2) for the cells given; (0, 0) where the
-    fraction is locally uniform.  ``fraction`` (m, n_cells): m materials at once, (m, …, 2)."""
-    grad = node_averaged_gradient(mesh, node_position, fraction, cells)
+    ``fraction`` — (n_cells, 2), or (len(cells), 2) for the cells given (only the cells
+    ``around`` their nodes are read); (0, 0) where the fraction is locally uniform.
+    ``fraction`` (m, n_cells): m materials at once, (m, …, 2)."""
+    grad = node_averaged_gradient(mesh, node_position, fraction, cells, around)
     size = np.linalg.norm(grad, axis=-1)[..., None]
     return np.divide(-grad, size, out=np.zeros_like(grad), where=size > 0)
 
@@ -60,7 +61,9 @@ def cut_offsets(vertices: np.ndarray, normal: np.ndarray, fraction: np.ndarray) 
     projection = np.sort(np.einsum("nmd,nd->nm", vertices, normal), axis=1)
     total = polygon_area(vertices)
     target = fraction * total
-    below = np.stack([clipped_area(vertices, normal, projection[:, j]) for j in range(k)], axis=1)
+    # the area below each vertex projection: the k cuts of every cell in one batch
+    below = clipped_area(np.repeat(vertices, k, axis=0), np.repeat(normal, k, axis=0),
+                         projection.ravel()).reshape(n, k)
     # the bracket [p_j, p_{j+1}] with below_j ≤ target ≤ below_{j+1}
     j = np.clip((below < target[:, None]).sum(axis=1) - 1, 0, k - 2)
     rows = np.arange(n)
@@ -103,16 +106,21 @@ def part_centroids(reconstruction: Reconstruction) -> tuple[np.ndarray, np.ndarr
     return polygon_centroid(reconstruction.alpha), polygon_centroid(reconstruction.beta)
 
 
-def material_fractions(problem, state, layout=None) -> np.ndarray:
-    """(n_materials, n_cells): each material's share of each cell's area."""
+def material_fractions(problem, state, layout=None, cells=None) -> np.ndarray:
+    """(n_materials, n_cells): each material's share of each cell's area (``cells``: of
+    those cells only, 0 elsewhere)."""
     layout = problem.layout if layout is None else layout
-    area = problem.mesh.cell_volumes(state.node_position)
-    fractions = np.zeros((len(problem.materials), area.size))
+    mesh = problem.mesh
+    cells = np.arange(mesh.n_cells) if cells is None else cells
+    nodes = mesh.cell_nodes[cells]
+    area = mesh.cell_type.volume_and_gradient(
+        [[state.node_position[d, nodes[:, i]] for d in range(2)] for i in range(nodes.shape[1])])[0]
+    fractions = np.zeros((len(problem.materials), mesh.n_cells))
     for slot in range(layout.cell_material.shape[0]):
-        material = layout.cell_material[slot]
+        material = layout.cell_material[slot, cells]
         here = material >= 0
         # (a material appears once per cell in a slot: no repeated index)
-        fractions[material[here], np.flatnonzero(here)] += state.material_volume[slot, here] / area[here]
+        fractions[material[here], cells[here]] += state.material_volume[slot, cells[here]] / area[here]
     return fractions
 
 
@@ -124,10 +132,11 @@ def reconstruct_state(problem, state, layout=None, mixed=None) -> Reconstruction
     layout = problem.layout if layout is None else layout
     mixed = problem.mixed if mixed is None else mixed
     mesh, cells = problem.mesh, mixed.cells
-    fractions = material_fractions(problem, state, layout)
+    around = cells_around(mesh, cells)  # all Youngs' normals read
+    fractions = material_fractions(problem, state, layout, around)
     alpha = layout.cell_material[0, cells]
-    materials = np.unique(alpha)  # each α material's normals, in one pass over the mesh
-    normals = youngs_normals(mesh, state.node_position, fractions[materials], cells)
+    materials = np.unique(alpha)  # each α material's normals, in one pass
+    normals = youngs_normals(mesh, state.node_position, fractions[materials], cells, around)
     normals = normals[np.searchsorted(materials, alpha), np.arange(cells.size)]
     vertices = np.moveaxis(state.node_position[:, mesh.cell_nodes[cells]], 0, -1)  # the mixed cells only
     area = polygon_area(vertices)

@@ -351,32 +351,25 @@ class Remapper2D:
         # slopes only in cells whose every node touches cells of their own material alone
         # (no slope next to another material or a mixed cell: nothing crosses Γ)
         tag = np.where(is_mixed, -1, material)
-        low_tag, high_tag = np.full(mesh.n_nodes, np.iinfo(np.int64).max), np.full(mesh.n_nodes, -2)
-        for i in range(k):
-            np.minimum.at(low_tag, mesh.cell_nodes[:, i], tag)
-            np.maximum.at(high_tag, mesh.cell_nodes[:, i], tag)
+        corners = mesh.corners
+        low_tag, high_tag = corners.node_extremes(tag, np.iinfo(np.int64).max, -2)
         inside = ~is_mixed
-        for i in range(k):
-            node = mesh.cell_nodes[:, i]
-            inside &= (low_tag[node] == tag) & (high_tag[node] == tag)
+        for low_i, high_i in zip(corners.gather(low_tag[None]), corners.gather(high_tag[None])):
+            inside &= (low_i[0] == tag) & (high_i[0] == tag)
         # corners relative to the centroid, component by component
         relative = [(cx - centre_x, cy - centre_y) for cx, cy in zip(corner_x, corner_y)]
         slopes = []
         gradients = node_averaged_gradient(mesh, x, np.stack([cell_rho, cell_eps]))
         for value, grad in zip((cell_rho, cell_eps), gradients):
             # Barth–Jespersen: the reconstruction at the corners within the node-neighbour range
-            high = np.full(mesh.n_nodes, -np.inf)
-            low = np.full(mesh.n_nodes, np.inf)
-            for i in range(k):
-                np.maximum.at(high, mesh.cell_nodes[:, i], value)
-                np.minimum.at(low, mesh.cell_nodes[:, i], value)
+            low, high = corners.node_extremes(value, np.inf, -np.inf)
             gx, gy = np.ascontiguousarray(grad[:, 0]), np.ascontiguousarray(grad[:, 1])
             limiter = np.ones(mesh.n_cells)
+            corner_low, corner_high = corners.gather(low[None]), corners.gather(high[None])
             for i in range(k):
-                node = mesh.cell_nodes[:, i]
                 delta = gx * relative[i][0]
                 delta += gy * relative[i][1]
-                room = np.where(delta > 0, high[node], low[node])
+                room = np.where(delta > 0, corner_high[i][0], corner_low[i][0])
                 room -= value
                 bound = np.divide(room, delta, out=np.ones(mesh.n_cells), where=delta != 0)
                 np.clip(bound, 0.0, 1.0, out=bound)
