@@ -220,10 +220,7 @@ class ExplicitWilkins:
                            out=(pressure[:1], sound_speed[:1]))
         if corner_velocity is None:
             corner_velocity = self.corner_velocities(node_velocity)
-        if self.quadrilaterals:  # dV/dt = Σ ∂V/∂x_i·u_i
-            volume_rate = gradient.dot(corner_velocity)
-        else:
-            volume_rate = corner_dot(gradient, corner_velocity)
+        volume_rate = corner_dot(gradient, corner_velocity)  # dV/dt = Σ ∂V/∂x_i·u_i
         velocity_jump = cell_type.velocity_jump(volume_rate, volume)
         mixed_viscosity = mixed_sound_speed = None
         if mixed_view is not None:
@@ -338,34 +335,26 @@ class ExplicitWilkins:
         u, no new gather).  When ∂V/∂x_i is constant (intervals) the stresses are summed
         first and the corner velocities are gathered once."""
         gradients = [e.volume_gradient for e in evaluations]
-        if self.quadrilaterals:
-            corner_velocity = corner_sum if corner_sum is not None else self.corner_velocities(velocity_sum)
-            work, hourglass_work = None, {}
-            for evaluation in evaluations:
-                term = evaluation.volume_gradient.dot(corner_velocity)
-                term *= evaluation.stress
-                forces = evaluation.hourglass_force
-                if forces is not None:  # their work heats the cell too
-                    # the predicted state reuses the start's hourglass forces
-                    if id(forces) not in hourglass_work:
-                        hourglass_work[id(forces)] = forces.dot(corner_velocity)
-                    term += hourglass_work[id(forces)]
-                work = term if work is None else np.add(work, term, out=work)
-            work *= scale
-            return work
-        gather = self.corners.gather(velocity_sum)
+        if corner_sum is None:
+            corner_sum = self.corner_velocities(velocity_sum)
         if len(evaluations) > 1 and all(constant_gradient(g) for g in gradients) \
                 and all(g == gradients[0] for g in gradients):
             stress = evaluations[0].stress + evaluations[1].stress
             for extra in evaluations[2:]:
                 stress += extra.stress
-            work = corner_dot(gradients[0], gather)
+            work = corner_dot(gradients[0], corner_sum)
             work *= stress
         else:
-            work = None
+            work, hourglass_work = None, {}
             for evaluation in evaluations:
-                term = corner_dot(evaluation.volume_gradient, gather)
+                term = corner_dot(evaluation.volume_gradient, corner_sum)
                 term *= evaluation.stress
+                forces = evaluation.hourglass_force
+                if forces is not None:  # their work heats the cell too
+                    # the predicted state reuses the start's hourglass forces
+                    if id(forces) not in hourglass_work:
+                        hourglass_work[id(forces)] = forces.dot(corner_sum)
+                    term += hourglass_work[id(forces)]
                 work = term if work is None else np.add(work, term, out=work)
         work *= scale
         return work

@@ -253,9 +253,11 @@ def constant_gradient(gradient) -> bool:
 
 def corner_dot(gradient, corner_values):
     """Σ_i ∂V/∂x_i · v_i per cell, for [corner][component] lists (gradient entries may be
-    scalars ±1)."""
+    scalars ±1); for quadrilaterals the values may also be given as their QuadCorners."""
     if isinstance(gradient, QuadGradient):
-        return gradient.dot(QuadCorners.gathered(corner_values))
+        if not isinstance(corner_values, QuadCorners):
+            corner_values = QuadCorners.gathered(corner_values)
+        return gradient.dot(corner_values)
     if len(gradient) == 2 and gradient[0] == [-1.0] and gradient[1] == [1.0]:
         return corner_values[1][0] - corner_values[0][0]  # interval: v_right − v_left
     total = None

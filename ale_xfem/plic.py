@@ -114,7 +114,7 @@ def material_fractions(problem, state, layout=None, cells=None) -> np.ndarray:
     cells = np.arange(mesh.n_cells) if cells is None else cells
     nodes = mesh.cell_nodes[cells]
     area = mesh.cell_type.volume_and_gradient(
-        [[state.node_position[d, nodes[:, i]] for d in range(2)] for i in range(nodes.shape[1])])[0]
+        [[state.node_position[d, nodes[:, i]] for d in range(mesh.dimension)] for i in range(nodes.shape[1])])[0]
     fractions = np.zeros((len(problem.materials), mesh.n_cells))
     for slot in range(layout.cell_material.shape[0]):
         material = layout.cell_material[slot, cells]
