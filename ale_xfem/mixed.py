@@ -92,6 +92,9 @@ class MixedCells:
         self.left_groups = MaterialGroups(self.material_left)
         self.right_groups = MaterialGroups(self.material_right)
         self.count = self.cells.size
+        # the densities each side's equation of state allows (its compression limit)
+        self.max_density_left = self.left_groups.max_density(self.materials)
+        self.max_density_right = self.right_groups.max_density(self.materials)
 
     # -- thermodynamics along a trapezoidal adiabat ---------------------------------------
 
@@ -108,8 +111,8 @@ class MixedCells:
         """Corrector: the volume V_α ∈ (0, total) at which both materials' pressures balance
         (bracketed Newton, vectorised).  state0 = (m_α, m_β, V_α0, V_β0, e_α0, e_β0)."""
         m_a, m_b, va0, vb0, ea0, eb0 = state0
-        limit_a = m_a / self.left_groups.max_density(self.materials)
-        limit_b = m_b / self.right_groups.max_density(self.materials)
+        limit_a = m_a / self.max_density_left
+        limit_b = m_b / self.max_density_right
         lo = np.maximum(1e-12 * total, limit_a * (1 + 1e-9))
         hi = np.minimum((1 - 1e-12) * total, total - limit_b * (1 + 1e-9))
         if np.any(lo >= hi):
@@ -177,7 +180,8 @@ class MixedCells:
                     self._record(iteration)
                 return pi_new, va_new, vb, details
             # Corrector: redistribute the total deformation until the pressures balance.
-            va_new, balanced, details, _ = self._split(total, state0, work_new, va + (total - va - vb) * va / (va + vb))
+            # starting from the predictor's own split V_α^k + (π − p_α)/D_α (it sums to V(π))
+            va_new, balanced, details, _ = self._split(total, state0, work_new, va + (pi_new - pa) / da)
             scale = np.maximum(np.abs(pi_new), np.minimum(details[4] * details[6], details[5] * details[7]))
             converged = np.abs(balanced - pi_new) <= self.tolerance * scale
             # With a stiff material against a soft one (water at 1e9 Pa against air at
