@@ -48,13 +48,8 @@ class RemapResult:
 
 def _minmod(a, b, out=None):
     """minmod(a, b): the one of smaller magnitude when they have the same sign, else 0;
-    as max(min(a, b), 0) + min(max(a, b), 0), four passes."""
-    low = np.minimum(a, b, out=out)
-    np.maximum(low, 0.0, out=low)
-    high = np.maximum(a, b)
-    np.minimum(high, 0.0, out=high)
-    low += high
-    return low
+    as a clipped to the interval between 0 and b (three passes, no arithmetic)."""
+    return np.clip(a, np.minimum(b, 0.0), np.maximum(b, 0.0), out=out)
 
 
 def _limited_slopes(value, inverse_spacing, one_material, bound):
@@ -62,13 +57,17 @@ def _limited_slopes(value, inverse_spacing, one_material, bound):
     clipped to ±bound; zero in the first and last piece and — ``one_material[k]``: pieces
     k and k + 1 hold the same material; None: all do — next to a piece of another
     material, so no information crosses Γ."""
-    slope = np.zeros_like(value)
     if value.size < 3:
-        return slope
+        return np.zeros_like(value)
+    slope = np.empty_like(value)
+    slope[0] = slope[-1] = 0.0
     gradient = np.diff(value)
     gradient *= inverse_spacing
-    inner = _minmod(gradient[:-1], gradient[1:], out=slope[1:-1])
-    np.clip(inner, -bound[1:-1], bound[1:-1], out=inner)
+    # minmod(g_left, g_right) clipped to ±bound in one clip: g_left held between
+    # 0 and g_right, g_right first held within ±bound
+    right, bound = gradient[1:], bound[1:-1]
+    np.clip(gradient[:-1], np.clip(right, -bound, 0.0), np.clip(right, 0.0, bound), out=slope[1:-1])
+    inner = slope[1:-1]
     if one_material is not None:
         inner[~(one_material[:-1] & one_material[1:])] = 0.0
     return slope
