@@ -655,7 +655,9 @@ class Remapper:
             result = remap_1d(*arguments, condensed=condensed, heat=self.heat)
             self.general_remaps += 1
         self.corner_mass = result.corner_mass
-        new_layout = MaterialLayout(result.cell_material, len(self.materials))
+        # the layout changes only when a material enters or leaves a cell
+        same = np.array_equal(result.cell_material, layout.cell_material)
+        new_layout = layout if same else MaterialLayout(result.cell_material, len(self.materials))
         density = density_of(result.material_mass, result.material_volume)
         pressure, sound_speed = thermodynamics(self.materials, new_layout, density, result.material_energy)
         new_mixed, interface_pressure, new_interface_velocity = None, None, None

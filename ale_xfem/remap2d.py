@@ -270,7 +270,9 @@ class Remapper2D:
             slot_energy[slot, use] = energy[chosen[use], cells[use]] / slot_mass[slot, use]
         if np.any(slot_mass[cell_material >= 0] <= 0):
             raise RemapFailure("a material's mass became ≤ 0 in the remap (a node moved too far)")
-        new_layout = MaterialLayout(cell_material, n_materials)
+        # the layout changes only when a material enters or leaves a cell
+        same = np.array_equal(cell_material, layout.cell_material)
+        new_layout = layout if same else MaterialLayout(cell_material, n_materials)
         density = density_of(slot_mass, slot_volume)
         pressure, sound_speed = thermodynamics(self.materials, new_layout, density, slot_energy)
         new_mixed, interface_pressure, interface_velocity = None, None, None

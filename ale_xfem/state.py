@@ -102,8 +102,14 @@ class State:
 
 def density_of(mass, volume):
     """ρ = m / V per slot, 0 in empty slots (V = 0)."""
-    density = np.zeros_like(mass)
-    np.divide(mass, volume, out=density, where=volume > 0)
+    density = np.empty_like(mass)
+    for m, v, rho in zip(mass, volume, density):  # slot by slot
+        if v.min() > 0.0:  # every cell holds this slot: one division
+            np.divide(m, v, out=rho)
+        else:  # a sparse slot (the mixed cells' second materials)
+            rho.fill(0.0)
+            filled = np.flatnonzero(v > 0.0)
+            rho[filled] = m[filled] / v[filled]
     return density
 
 
@@ -119,13 +125,10 @@ def thermodynamics(materials, layout: MaterialLayout, density, energy, out=None)
             return pressure, sound_speed
         out[0][...], out[1][...] = pressure, sound_speed
         return out
-    if out is None:
-        pressure, sound_speed = np.zeros_like(density), np.zeros_like(density)
-    else:
-        pressure, sound_speed = out
-        if not layout.occupied_all:
-            pressure.fill(0.0)
-            sound_speed.fill(0.0)
+    pressure, sound_speed = (np.empty_like(density), np.empty_like(density)) if out is None else out
+    if not layout.occupied_all:  # zero the empty slots (all of slot 0 is written when it is full)
+        for array in (pressure, sound_speed):
+            (array[1:] if layout.first_occupied else array).fill(0.0)
     rho_flat, e_flat = density.reshape(-1), energy.reshape(-1)
     p_flat, c_flat = pressure.reshape(-1), sound_speed.reshape(-1)
     for material, where in layout.groups:
