@@ -18,8 +18,9 @@ A mixed cell K = [x_a, x_b] holds material α on the left (volume V_α) and β o
 - **Solve** (§3): with π = p_Γ^{n+1}, the cell volume at n+1 is affine in π,
   V(π) = A + Bπ (B > 0: a higher interface pressure pushes a and b apart).
   *Predictor*: each material's pressure linearised about the current iterate along its
-  trapezoidal adiabat, dp = D_α dV_α, gives a linear system for π and the total deformation
-  V(π) of every mixed cell.  *Corrector*: at that total volume the deformation is
+  trapezoidal adiabat, dp = D_α dV_α + E_α dπ (E_α: through the work pressure of its energy
+  update, which depends on π), gives a linear system for π and the total deformation V(π)
+  of every mixed cell — a Newton step of the coupled system.  *Corrector*: at that total volume the deformation is
   redistributed between the materials with the full equations of state and the energy
   update, until their pressures balance (a bracketed Newton iteration per cell on the
   admissible interval of V_α).  Repeated, relinearised, until the corrector changes the
@@ -99,13 +100,22 @@ class MixedCells:
     # -- thermodynamics along a trapezoidal adiabat ---------------------------------------
 
     def _adiabat(self, groups, mass, volume, energy0, volume0, work_pressure):
-        """Pressure p and dp/dV of one material at volume V when its energy follows
-        e = e0 − W (V − V0)/m (W: the work pressure of the step)."""
-        energy = energy0 - work_pressure * (volume - volume0) / mass
+        """Pressure p, dp/dV and ∂p/∂W (at fixed V) of one material at volume V when its
+        energy follows e = e0 − W (V − V0)/m (W: the work pressure of the step)."""
+        specific_change = (volume - volume0) / mass
+        energy = energy0 - work_pressure * specific_change
         rho = mass / volume
         p, dp_drho, dp_de, c2 = groups.eos_values(self.materials, rho, energy)
         dp_dv = -dp_drho * rho / volume - dp_de * work_pressure / mass
-        return p, dp_dv, energy, rho, c2
+        dp_dwork = -dp_de * specific_change
+        return p, dp_dv, energy, rho, c2, dp_dwork
+
+    @staticmethod
+    def _with_work_coupling(p, dp_dv, dp_dpi, pi):
+        """The linearised law p + D (V − V^k) + E (π − π^k) = π as p' + D' (V − V^k) = π."""
+        coupling = np.clip(dp_dpi, -0.5, 0.5)
+        keep = 1.0 - coupling
+        return (p - coupling * pi) / keep, dp_dv / keep
 
     def _split(self, total, state0, work_pressure, guess):
         """Corrector: the volume V_α ∈ (0, total) at which both materials' pressures balance
@@ -121,15 +131,15 @@ class MixedCells:
                                    "cannot hold both materials below their compression limits")
         v = np.clip(guess, lo, hi)
         for iteration in range(1, 101):
-            pa, da, ea, rho_a, c2a = self._adiabat(self.left_groups, m_a, v, ea0, va0, work_pressure)
-            pb, db, eb, rho_b, c2b = self._adiabat(self.right_groups, m_b, total - v, eb0, vb0, work_pressure)
+            pa, da, ea, rho_a, c2a, wa = self._adiabat(self.left_groups, m_a, v, ea0, va0, work_pressure)
+            pb, db, eb, rho_b, c2b, wb = self._adiabat(self.right_groups, m_b, total - v, eb0, vb0, work_pressure)
             h = pa - pb  # decreasing in V_α
             slope = da + db
             # balanced: the pressures agree far below the solver tolerance (|slope|·V is
             # the cell's bulk modulus); such cells keep their volume
             balanced = np.abs(h) <= 1e-3 * self.tolerance * np.abs(slope) * total
             if np.all(balanced):  # the values just computed are those of the result
-                self.last_slopes = (da, db)
+                self.last_slopes = (da, db, wa, wb)
                 return v, 0.5 * (pa + pb), (ea, eb, pa, pb, rho_a, rho_b, c2a, c2b), iteration
             lo = np.where(h > 0, v, lo)
             hi = np.where(h <= 0, v, hi)
@@ -141,9 +151,9 @@ class MixedCells:
             # or round-off bounds what Newton can still change (a few ulps of the volume)
             if np.all(balanced | (change <= 8e-16 * total) | (hi - lo <= 8e-16 * total)):
                 break
-        pa, da, ea, rho_a, c2a = self._adiabat(self.left_groups, m_a, v, ea0, va0, work_pressure)
-        pb, db, eb, rho_b, c2b = self._adiabat(self.right_groups, m_b, total - v, eb0, vb0, work_pressure)
-        self.last_slopes = (da, db)
+        pa, da, ea, rho_a, c2a, wa = self._adiabat(self.left_groups, m_a, v, ea0, va0, work_pressure)
+        pb, db, eb, rho_b, c2b, wb = self._adiabat(self.right_groups, m_b, total - v, eb0, vb0, work_pressure)
+        self.last_slopes = (da, db, wa, wb)
         return v, 0.5 * (pa + pb), (ea, eb, pa, pb, rho_a, rho_b, c2a, c2b), iteration
 
     def solve(self, state0, pressure0, volume_affine, work_affine, record: bool = True,
@@ -161,10 +171,19 @@ class MixedCells:
         for iteration in range(1, self.max_iterations + 1):
             work = w0 + w1 * pi
             if previous is None:
-                pa, da, *_ = self._adiabat(self.left_groups, m_a, va, ea0, va0, work)
-                pb, db, *_ = self._adiabat(self.right_groups, m_b, vb, eb0, vb0, work)
+                pa, da, *_, wa = self._adiabat(self.left_groups, m_a, va, ea0, va0, work)
+                pb, db, *_, wb = self._adiabat(self.right_groups, m_b, vb, eb0, vb0, work)
             else:  # the corrector just evaluated both materials there, with this work
-                pa, pb, da, db = previous
+                pa, pb, da, db, wa, wb = previous
+            # Each material's law linearised about the iterate, in V_α and in π through the
+            # work pressure W = w0 + w1 π of its energy (E_α = w1 ∂p_α/∂W; leaving it out made
+            # the iteration converge only linearly, by a factor ~ΔV/V per iteration):
+            #   p_α ≈ p_α^k + D_α (V_α − V_α^k) + E_α (π − π^k),
+            # which, with p_α = π, is the law p_α' + D_α' (V_α − V_α^k) of
+            # p_α' = (p_α^k − E_α π^k)/(1 − E_α), D_α' = D_α/(1 − E_α).  E_α is held within
+            # ±½ (a preconditioner: the converged state is the same for any E_α).
+            pa, da = self._with_work_coupling(pa, da, wa * w1, pi)
+            pb, db = self._with_work_coupling(pb, db, wb * w1, pi)
             # Predictor: V_α = V_α^k + (π − p_α)/D_α, V_β likewise, V_α + V_β = A + Bπ.
             if predictor is None:
                 pi_new = (a - va - vb + pa / da + pb / db) / (1.0 / da + 1.0 / db - b)
@@ -201,8 +220,8 @@ class MixedCells:
 
     def _state_at(self, state0, va, vb, work):
         m_a, m_b, va0, vb0, ea0, eb0 = state0
-        pa, _, ea, rho_a, c2a = self._adiabat(self.left_groups, m_a, va, ea0, va0, work)
-        pb, _, eb, rho_b, c2b = self._adiabat(self.right_groups, m_b, vb, eb0, vb0, work)
+        pa, _, ea, rho_a, c2a, _ = self._adiabat(self.left_groups, m_a, va, ea0, va0, work)
+        pb, _, eb, rho_b, c2b, _ = self._adiabat(self.right_groups, m_b, vb, eb0, vb0, work)
         return ea, eb, pa, pb, rho_a, rho_b, c2a, c2b
 
     def _record(self, iterations):
