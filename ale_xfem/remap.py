@@ -350,8 +350,11 @@ def deposit_kinetic_loss(loss, corner_mass, node_mass, left_node, right_node, ce
     the discrete kinetic energy lost.  In an enriched mixed cell a corner belongs to its
     node's internal material; a single-velocity mixed cell shares it by mass.
     ``in_order``: cell j lies between nodes j and j + 1 (slices instead of gathers)."""
-    per_mass = np.zeros_like(loss)
-    np.divide(loss, node_mass, out=per_mass, where=node_mass > 0)
+    if node_mass.min() > 0:  # every node keeps mass (always in the swept form)
+        per_mass = loss / node_mass
+    else:
+        per_mass = np.zeros_like(loss)
+        np.divide(loss, node_mass, out=per_mass, where=node_mass > 0)
     if in_order:
         left, right = per_mass[:-1] * corner_mass[0], per_mass[1:] * corner_mass[1]
     else:

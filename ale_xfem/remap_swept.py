@@ -87,13 +87,15 @@ def remap_1d_swept(order_of_cells, cell_left_node, cell_right_node, node_positio
                           material_mass[1, mixed_cells], material_energy[1, mixed_cells], interface_velocity)
         else:  # one slot: no mixed cell yet
             mixed_data = (np.zeros(0), np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0), np.zeros(0))
-        slot_material = np.full((2, n), -1, dtype=np.int64)
+        slot_material = np.empty((2, n), dtype=np.int64)
         slot_material[0] = m0
+        slot_material[1].fill(-1)
         if new_mass.shape[0] == 1:  # far-moving nodes only: the kernel gave one slot
             new_mass = np.vstack([new_mass, np.zeros(n)])
             new_energy = np.vstack([new_energy, np.zeros(n)])
-        new_volume = np.zeros((2, n))
-        new_volume[0] = X[1:] - X[:-1]
+        new_volume = np.empty((2, n))
+        np.subtract(X[1:], X[:-1], out=new_volume[0])
+        new_volume[1].fill(0.0)
         for taken, window in _windows(special, n):
             local = slice(window[0], window[1])
             inside = (mixed_j >= window[0]) & (mixed_j < window[1])
@@ -193,8 +195,9 @@ def _rank(cells, n_cells):
 
 def _specific(energy, mass, taken_cells):
     """Specific energies: slot 0 everywhere, slot 1 only where the windows put material."""
-    specific = np.zeros_like(energy)
-    specific[0] = energy[0] / mass[0]
+    specific = np.empty_like(energy)
+    np.divide(energy[0], mass[0], out=specific[0])
+    specific[1].fill(0.0)
     j = np.concatenate(taken_cells)
     present = mass[1, j] > 0
     specific[1, j[present]] = energy[1, j[present]] / mass[1, j[present]]
