@@ -94,19 +94,45 @@ def phase_times(cells: int, steps: int, overrides=(), scene: str = "sod-two-gamm
     return best
 
 
-def run_phase_bench(sizes=(1_000, 100_000), out=print) -> list[dict]:
-    out("time per step by phase (ms, best of 3 runs), 1D two-gamma tube, the interface strictly inside a cell")
-    out(f"{'cells':>8} {'case':<42} {'lagrange':>9} {'mixed':>9} {'remap':>9} {'total':>9} {'ratio':>7}")
+def _interleaved(cases, rounds: int):
+    """Time each case once per round, the cases one after the other within a round, so
+    that a ratio is taken between runs made under the same conditions (this machine's speed
+    drifts by ±10 % over minutes).  ``cases``: callables returning phase_times dicts.
+    Returns, per case, its rounds' dicts."""
+    runs = [[] for _ in cases]
+    for _ in range(rounds):
+        for k, case in enumerate(cases):
+            runs[k].append(case())
+    return runs
+
+
+def _fastest(runs):
+    return min(runs, key=lambda t: t["total"])
+
+
+def _ratios(runs, reference_runs, key="total"):
+    """Median and range of the round-by-round ratios of runs[key] to the reference's total."""
+    ratios = sorted(t[key] / r["total"] for t, r in zip(runs, reference_runs))
+    return ratios[len(ratios) // 2], ratios[0], ratios[-1]
+
+
+def run_phase_bench(sizes=(1_000, 100_000), out=print, rounds: int = 3) -> list[dict]:
+    out(f"time per step by phase (ms, fastest of {rounds} rounds), 1D two-gamma tube, the interface strictly "
+        "inside a cell; ratio to the pure run: median of the rounds' (range)")
+    out(f"{'cells':>8} {'case':<42} {'lagrange':>9} {'mixed':>9} {'remap':>9} {'total':>9} {'ratio':>7} "
+        f"{'range':>11}")
     rows = []
     for cells in sizes:
         steps = steps_for(cells) // 4 if cells <= 10_000 else 50
-        reference = None
-        for label, scene, overrides in PHASE_CASES:
-            t = phase_times(cells, steps, overrides, scene)
-            reference = reference or t["total"]
-            rows.append({"cells": cells, "case": label, **t, "ratio": t["total"] / reference})
+        cases = [lambda overrides=overrides, scene=scene: phase_times(cells, steps, overrides, scene, repeats=1)
+                 for _, scene, overrides in PHASE_CASES]
+        runs = _interleaved(cases, rounds)
+        for (label, _, _), case_runs in zip(PHASE_CASES, runs):
+            t = _fastest(case_runs)
+            ratio, low, high = _ratios(case_runs, runs[0])
+            rows.append({"cells": cells, "case": label, **t, "ratio": ratio, "ratio_range": (low, high)})
             out(f"{cells:>8d} {label:<42} {1e3 * t['lagrange']:>9.3f} {1e3 * t['mixed_cell_solve']:>9.3f} "
-                f"{1e3 * t['remap']:>9.3f} {1e3 * t['total']:>9.3f} {t['total'] / reference:>7.2f}")
+                f"{1e3 * t['remap']:>9.3f} {1e3 * t['total']:>9.3f} {ratio:>7.2f} {low:>5.2f}–{high:<5.2f}")
     return rows
 
 
@@ -117,17 +143,21 @@ PHASE_CASES_2D = (
 )
 
 
-def run_phase_bench_2d(side: int = 200, steps: int = 10, out=print) -> list[dict]:
+def run_phase_bench_2d(side: int = 200, steps: int = 10, out=print, rounds: int = 3) -> list[dict]:
     """The 2D remap against the Lagrange step: the rotated two-material tube (its interface
     crossing the domain, single-velocity mixed cells) on side × side quadrilaterals."""
-    out(f"time per step by phase (ms, best of 3 runs of {steps} steps), 2D rotated two-material tube, "
-        f"{side} × {side} quadrilaterals")
-    out(f"{'case':<44} {'lagrange':>9} {'remap':>9} {'total':>9} {'remap / Lagrangian step':>24}")
-    rows, reference = [], None
-    for label, overrides in PHASE_CASES_2D:
-        t = phase_times(side, steps, [f"mesh.cells=[{side},{side}]", *overrides], "rotated-tube")
-        reference = reference or t["total"]
-        rows.append({"case": label, **t})
+    out(f"time per step by phase (ms, fastest of {rounds} rounds of {steps} steps), 2D rotated two-material "
+        f"tube, {side} × {side} quadrilaterals; remap / Lagrangian step: median of the rounds' (range)")
+    out(f"{'case':<44} {'lagrange':>9} {'remap':>9} {'total':>9} {'remap / Lagrangian step':>24} {'range':>11}")
+    cases = [lambda overrides=overrides: phase_times(side, steps, [f"mesh.cells=[{side},{side}]", *overrides],
+                                                     "rotated-tube", repeats=1)
+             for _, overrides in PHASE_CASES_2D]
+    runs = _interleaved(cases, rounds)
+    rows = []
+    for (label, _), case_runs in zip(PHASE_CASES_2D, runs):
+        t = _fastest(case_runs)
+        ratio, low, high = _ratios(case_runs, runs[0], key="remap")
+        rows.append({"case": label, **t, "remap_ratio": ratio, "remap_ratio_range": (low, high)})
         out(f"{label:<44} {1e3 * t['lagrange']:>9.2f} {1e3 * t['remap']:>9.2f} {1e3 * t['total']:>9.2f} "
-            f"{t['remap'] / reference:>24.2f}")
+            f"{ratio:>24.2f} {low:>5.2f}–{high:<5.2f}")
     return rows

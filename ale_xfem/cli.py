@@ -70,7 +70,8 @@ def _parser() -> argparse.ArgumentParser:
                             "two-material tube, 200 × 200 (or --cells N: N × N)")
     bench.add_argument("--phases", action="store_true",
                        help="time per step by phase (explicit, mixed-cell solve, remap) with and "
-                            "without an enriched interface, at 1000 and 100000 cells (or --cells)")
+                            "without an enriched interface, at 1000 and 100000 cells (or --cells); the cases "
+                            "run in turn in three rounds, ratios are the median of the rounds'")
     bench.add_argument("--peers", action="store_true",
                        help="Sod's tube: PyClaw's second-order solver against our Lagrangian and enriched "
                             "runs, 100 ... 3200 cells (`make bench-peers` installs PyClaw)")

@@ -105,6 +105,20 @@ def test_bench_prints_zone_cycles_per_second(capsys):
     assert all(float(r[-1]) > 0 for r in rows)
 
 
+def test_phase_ratios_pair_runs_of_the_same_round():
+    """A machine that slows down between rounds must not bias the ratios: each round's case
+    is divided by the same round's reference (here the true ratio is 1.5 in every round)."""
+    from ale_xfem.bench import _fastest, _interleaved, _ratios
+
+    clock = iter(range(100))
+    speed = [1.0, 1.0, 1.6, 1.6, 1.2, 1.2]  # the machine's pace, one entry per timed run
+    cases = [lambda: {"total": 1.0 * speed[next(clock)]}, lambda: {"total": 1.5 * speed[next(clock)]}]
+    runs = _interleaved(cases, rounds=3)
+    assert [t["total"] for t in runs[0]] == [1.0, 1.6, 1.2]
+    assert _ratios(runs[1], runs[0]) == pytest.approx((1.5, 1.5, 1.5))
+    assert _fastest(runs[1])["total"] == 1.5
+
+
 def test_bench_rejects_bad_sizes(capsys):
     assert main(["bench", "--cells", "10,x"]) == 2
 
