@@ -20,11 +20,12 @@ A mixed cell K = [x_a, x_b] holds material α on the left (volume V_α) and β o
   *Predictor*: each material's pressure linearised about the current iterate along its
   trapezoidal adiabat, dp = D_α dV_α + E_α dπ (E_α: through the work pressure of its energy
   update, which depends on π), gives a linear system for π and the total deformation V(π)
-  of every mixed cell — a Newton step of the coupled system.  *Corrector*: at that total volume the deformation is
-  redistributed between the materials with the full equations of state and the energy
-  update, until their pressures balance (a bracketed Newton iteration per cell on the
-  admissible interval of V_α).  Repeated, relinearised, until the corrector changes the
-  pressure by less than ``interface_tolerance`` (relative to the bulk modulus ρc²).
+  of every mixed cell — a Newton step of the coupled system.  *Corrector*: at that total
+  volume the deformation is redistributed between the materials with the full equations
+  of state and the energy update, until their pressures balance (a bracketed Newton
+  iteration per cell on the admissible interval of V_α).  Repeated, relinearised, until
+  the corrector changes the pressure by less than ``interface_tolerance`` (relative to the
+  bulk modulus ρc²).
   ``solver = "linearised"`` stops after one predictor (the law dp = ρc² dρ/ρ alone),
   which the paper reports unstable when a shock crosses Γ.
 - **Pressure relaxation** at the start of a step: the same solve at fixed cell volume
@@ -199,7 +200,7 @@ class MixedCells:
                     self._record(iteration)
                 return pi_new, va_new, vb, details
             # Corrector: redistribute the total deformation until the pressures balance.
-            # starting from the predictor's own split V_α^k + (π − p_α)/D_α (it sums to V(π))
+            # starting from the predictor's own split V_α^k + (π − p_α')/D_α' (it sums to V(π))
             va_new, balanced, details, _ = self._split(total, state0, work_new, va + (pi_new - pa) / da)
             scale = np.maximum(np.abs(pi_new), np.minimum(details[4] * details[6], details[5] * details[7]))
             converged = np.abs(balanced - pi_new) <= self.tolerance * scale
