@@ -572,7 +572,7 @@ class Remapper:
     def _remap_windows(self, state, layout, mixed, target, windows):
         """Remap only the cells between sorted nodes (first, last) of each window; the
         window's end nodes stay, and their parts outside the window are untouched."""
-        from ale_xfem.state import MaterialLayout, density_of, thermodynamics
+        from ale_xfem.state import density_of, thermodynamics
 
         arrays = {k: getattr(state, k).copy() for k in (
             "material_mass", "material_energy", "material_volume", "node_velocity")}
@@ -637,7 +637,7 @@ class Remapper:
     def _remap_all(self, state, layout, mixed):
         from ale_xfem.remap_swept import remap_1d_swept
 
-        from ale_xfem.state import MaterialLayout, density_of, thermodynamics
+        from ale_xfem.state import density_of, thermodynamics
 
         cells = mixed.cells if mixed is not None else np.zeros(0, dtype=np.int64)
         interface_velocity = (state.interface_velocity if mixed is not None
@@ -658,9 +658,7 @@ class Remapper:
             result = remap_1d(*arguments, condensed=condensed, heat=self.heat)
             self.general_remaps += 1
         self.corner_mass = result.corner_mass
-        # the layout changes only when a material enters or leaves a cell
-        same = np.array_equal(result.cell_material, layout.cell_material)
-        new_layout = layout if same else MaterialLayout(result.cell_material, len(self.materials))
+        new_layout = layout.updated(result.cell_material)
         density = density_of(result.material_mass, result.material_volume)
         pressure, sound_speed = thermodynamics(self.materials, new_layout, density, result.material_energy)
         new_mixed, interface_pressure, new_interface_velocity = None, None, None

@@ -43,7 +43,7 @@ from ale_xfem.mesh import mesh_edges, node_averaged_gradient
 from ale_xfem.mixed import MixedCells
 from ale_xfem.remap import RemapFailure
 from ale_xfem.shapes import corner_centroid, intersection_area, polygon_area
-from ale_xfem.state import MaterialLayout, density_of, thermodynamics
+from ale_xfem.state import density_of, thermodynamics
 
 # A material below this fraction of its cell's area leaves the cell (its mass and energy go
 # to the cell's other material: total mass exact, each material's within such traces).
@@ -270,9 +270,7 @@ class Remapper2D:
             slot_energy[slot, use] = energy[chosen[use], cells[use]] / slot_mass[slot, use]
         if np.any(slot_mass[cell_material >= 0] <= 0):
             raise RemapFailure("a material's mass became ≤ 0 in the remap (a node moved too far)")
-        # the layout changes only when a material enters or leaves a cell
-        same = np.array_equal(cell_material, layout.cell_material)
-        new_layout = layout if same else MaterialLayout(cell_material, n_materials)
+        new_layout = layout.updated(cell_material)
         density = density_of(slot_mass, slot_volume)
         pressure, sound_speed = thermodynamics(self.materials, new_layout, density, slot_energy)
         new_mixed, interface_pressure, interface_velocity = None, None, None

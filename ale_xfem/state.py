@@ -65,6 +65,13 @@ class MaterialLayout:
     def slots(self) -> int:
         return self.cell_material.shape[0]
 
+    def updated(self, cell_material: np.ndarray) -> "MaterialLayout":
+        """The layout of ``cell_material``: this one when no material entered or left a
+        cell (a remap of pure regions), else a new one."""
+        if np.array_equal(cell_material, self.cell_material):
+            return self
+        return MaterialLayout(cell_material, self.n_materials)
+
     def first_slot(self) -> "MaterialLayout":
         """The layout of slot 0 alone (the explicit loop's view of a mixed layout)."""
         if self.slots == 1:
