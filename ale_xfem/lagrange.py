@@ -157,6 +157,10 @@ class ExplicitWilkins:
         self.quadrilaterals = mesh.cell_type.name == "quadrilateral"
         self.hourglass = numerics.hourglass if self.quadrilaterals else 0.0
         self.mixed_seconds, self.mixed_calls = 0.0, 0  # time in the implicit interface solve
+        # The state a step ends with starts the next step (no remap of the whole state in
+        # between, which relaxes the state it makes): its mixed cells are relaxed before its
+        # forces are evaluated (_relaxed).  simulate() sets it from the mesh motion.
+        self.relax_end_state = True
         self.assembled_predictor = None  # set by use_assembled_predictor()
 
     def use_assembled_predictor(self) -> None:
@@ -494,17 +498,44 @@ class ExplicitWilkins:
     def relax_mixed_cells(self, state: State, in_place: bool = False):
         """Pressure relaxation of the mixed cells at the start of a step (paper §3): only
         where the materials' pressures differ beyond the solver tolerance.  ``in_place``:
-        change the state's arrays (a state just made by the remap) instead of copying."""
+        change the state's arrays (a state just made by the remap) instead of copying.
+        (A step relaxes the state it ends with already, before evaluating its forces —
+        :meth:`_relaxed` — so this finds work only in states made elsewhere.)"""
         cells = self.mixed.cells
         pa, pb = state.material_pressure[0, cells], state.material_pressure[1, cells]
-        bulk = np.minimum(state.material_density[0, cells] * state.material_sound_speed[0, cells] ** 2,
-                          state.material_density[1, cells] * state.material_sound_speed[1, cells] ** 2)
-        scale = np.maximum(np.maximum(np.abs(pa), np.abs(pb)), bulk)
-        if np.all(np.abs(pa - pb) <= 10.0 * self.mixed.tolerance * scale):
+        c2a, c2b = state.material_sound_speed[0, cells] ** 2, state.material_sound_speed[1, cells] ** 2
+        if self._balanced(pa, pb, state.material_density[0, cells] * c2a, state.material_density[1, cells] * c2b):
             return state, False
         volume = state.material_volume[0, cells] + state.material_volume[1, cells]
-        _, va, vb, details = self.mixed.relax(volume, self._mixed_start(state), 0.5 * (pa + pb))
+        _, va, vb, details = self._relax(volume, self._mixed_start(state), 0.5 * (pa + pb))
         return with_mixed_state(state, cells, va, vb, details, state.interface_velocity, in_place), True
+
+    def _balanced(self, pa, pb, bulk_a, bulk_b) -> bool:
+        """Whether the materials' pressures agree within what the relaxation leaves alone:
+        10 × interface_tolerance relative to the larger pressure or the smaller ρc²."""
+        scale = np.maximum(np.maximum(np.abs(pa), np.abs(pb)), np.minimum(bulk_a, bulk_b))
+        return bool(np.all(np.abs(pa - pb) <= 10.0 * self.mixed.tolerance * scale))
+
+    def _relax(self, volume, start, guess):
+        try:
+            return self.mixed.relax(volume, start, guess)
+        except MixedCellFailure as failure:
+            raise Breakdown("pressure relaxation", -1, float("nan"), [0.0], str(failure)) from None
+
+    def _relaxed(self, state, va, vb, details):
+        """The relaxation that starts the next step, done on the mixed cells' new volumes,
+        energies and pressures before the step evaluates the forces of its new state: that
+        evaluation then serves the next step as it is (relaxing the finished state instead
+        would change its pressures and call for a second evaluation of every cell).  The
+        same solve on the same values as :meth:`relax_mixed_cells` would do."""
+        ea, eb, pa, pb, rho_a, rho_b, c2a, c2b = details
+        if not (self.mixed.relaxation and self.relax_end_state) or self._balanced(pa, pb, rho_a * c2a,
+                                                                                  rho_b * c2b):
+            return va, vb, details
+        cells = self.mixed.cells
+        start = (state.material_mass[0, cells], state.material_mass[1, cells], va, vb, ea, eb)
+        _, va, vb, details = self._relax(va + vb, start, 0.5 * (pa + pb))
+        return va, vb, details
 
     def _solve_mixed_cells(self, state, first, predicted, mean_force, dt, dt_over_node_mass):
         """The implicit interface solve; adds the mixed cells' n+1 stress to mean_force."""
@@ -604,9 +635,11 @@ class ExplicitWilkins:
     def _finish_mixed(self, state, solution, x_new, u_new, e_new, dt):
         """Assemble the new state: pure cells from the explicit update, mixed cells from the
         interface solve; every (S, n_cells) array is allocated once."""
-        va, vb, (ea, eb, pa, pb, rho_a, rho_b, c2a, c2b) = solution
+        va, vb, details = solution
         cells = self.mixed.cells
         vb = self._mixed_volumes(x_new) - va  # the geometric cell volume takes the round-off
+        interface_velocity = self._interface_velocity(state, x_new, va, dt)  # Γ's motion in the step
+        va, vb, (ea, eb, pa, pb, rho_a, rho_b, c2a, c2b) = self._relaxed(state, va, vb, details)
         energy = e_new  # slot 0 from the explicit update
         energy[1].fill(0.0)
         energy[0, cells], energy[1, cells] = ea, eb
@@ -622,7 +655,7 @@ class ExplicitWilkins:
             time=state.time + dt, node_position=x_new, node_velocity=u_new, material_energy=energy,
             material_volume=volume, material_density=density, material_pressure=pressure,
             material_sound_speed=sound_speed, interface_pressure=interface_pressure,
-            interface_velocity=self._interface_velocity(state, x_new, va, dt))
+            interface_velocity=interface_velocity)
         return new_state, final
 
     def _interface_velocity(self, state, x_new, va, dt):

@@ -107,6 +107,7 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
     # A remap of the whole state after every step evaluates the remapped state's forces:
     # the step then leaves out those of the Lagrangian state.
     remap_all = remapper is not None and remapper.motion != "interface"
+    stepper.relax_end_state = not remap_all  # a full remap relaxes the state it makes instead
     clock = time.perf_counter()
     if problem.setup_failure:
         status, diagnostic = "failed", f"step 0, t = 0: {problem.setup_failure}"
