@@ -671,7 +671,10 @@ class ExplicitWilkins:
         """The new state as the remap reads it (no force evaluation): volumes from the
         positions, the mixed cells' volumes and energies from the interface solve.  The
         remap's own evaluation then checks what it derives (density, EOS, stress)."""
-        volume = self.mesh.cell_type.volume_and_gradient(self.corners.gather(x_new))[0]
+        if self.quadrilaterals:  # from the diagonals, read as the explicit loop reads them
+            volume = QuadGradient(self.corners.quad_corners(x_new, hourglass=False)).area
+        else:
+            volume = self.mesh.cell_type.volume_and_gradient(self.corners.gather(x_new))[0]
         interface = {}
         if self.mixed is None:
             volumes = volume[None, :]
