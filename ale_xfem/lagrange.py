@@ -671,10 +671,7 @@ class ExplicitWilkins:
         """The new state as the remap reads it (no force evaluation): volumes from the
         positions, the mixed cells' volumes and energies from the interface solve.  The
         remap's own evaluation then checks what it derives (density, EOS, stress)."""
-        if self.quadrilaterals:  # from the diagonals, read as the explicit loop reads them
-            volume = QuadGradient(self.corners.quad_corners(x_new, hourglass=False)).area
-        else:
-            volume = self.mesh.cell_type.volume_and_gradient(self.corners.gather(x_new))[0]
+        volume = self.mesh.cell_volumes(x_new)
         interface = {}
         if self.mixed is None:
             volumes = volume[None, :]

@@ -540,7 +540,11 @@ class MeshArrays:
         return self.cell_type.dimension
 
     def cell_volumes(self, node_position=None):
+        """Cell volumes (areas in 2D); quadrilaterals from their diagonals, read as the
+        explicit loop reads them (grid views, no gather)."""
         x = self.node_position if node_position is None else node_position
+        if self.cell_type.name == "quadrilateral":
+            return QuadGradient(self.corners.quad_corners(x, hourglass=False)).area
         return self.cell_type.volume_and_gradient(self.corners.gather(x))[0]
 
     def cell_vertex_positions(self, node_position=None):
