@@ -26,7 +26,7 @@ import numpy as np
 
 from ale_xfem.mesh import MeshArrays, QuadGradient, QuadHourglass, constant_gradient, corner_dot
 from ale_xfem.mixed import MixedCellFailure, MixedCells, with_mixed_state
-from ale_xfem.state import MaterialLayout, State, thermodynamics
+from ale_xfem.state import MaterialLayout, State, TwoSlotArrays, thermodynamics
 
 
 class _AssembledPredictor:
@@ -46,15 +46,6 @@ class _AssembledPredictor:
 
         self.cells = cells
         self.predictor = MixedCellPredictor(self.mesh, cells, self.forms)
-
-
-def _two_slots(row0, mixed_cells, row1_mixed):
-    """A (2, n_cells) array: row 0 given, row 1 zero but at the mixed cells."""
-    out = np.empty((2, row0.size))
-    out[0] = row0
-    out[1].fill(0.0)
-    out[1, mixed_cells] = row1_mixed
-    return out
 
 
 class Breakdown(RuntimeError):
@@ -162,6 +153,8 @@ class ExplicitWilkins:
         # forces are evaluated (_relaxed).  simulate() sets it from the mesh motion.
         self.relax_end_state = True
         self.assembled_predictor = None  # set by use_assembled_predictor()
+        # the (2, n_cells) arrays of the states the step makes (slot 1: the mixed cells')
+        self.two_slots = TwoSlotArrays(mesh.n_cells)
 
     def use_assembled_predictor(self) -> None:
         """Solve the predictor as the FE system assembled from UFL forms with PETSc."""
@@ -214,9 +207,10 @@ class ExplicitWilkins:
         if known is not None:
             density, pressure, sound_speed = known
         else:
-            density, pressure, sound_speed = (np.empty((slots, volume.size)) for _ in range(3))
-            for array in (density, pressure, sound_speed):
-                array[1:].fill(0.0)
+            if slots == 2:
+                density, pressure, sound_speed = (self.two_slots.take(self.mixed.cells) for _ in range(3))
+            else:
+                density, pressure, sound_speed = (np.empty((1, volume.size)) for _ in range(3))
             np.divide(mass0, volume, out=density[:1])
             if mixed_view is not None:  # slot 0 of a mixed cell is its α part
                 density[0, cells] = mass0[0, cells] / mixed_view.volume_left
@@ -439,7 +433,8 @@ class ExplicitWilkins:
         half_dt_over_mass *= 0.5  # F̄ = ½ (F^n + F*)
         # With mixed cells the new energies fill slot 0 of a two-slot array (slot 1: the
         # mixed cells' second materials, set by the interface solve).
-        e_new = np.empty((energy.shape[0] if self.mixed is not None else 1, energy.shape[1]))
+        e_new = (np.empty((1, energy.shape[1])) if self.mixed is None
+                 else self.two_slots.take(self.mixed.cells))
         corner_velocity = corner_sum = None
         if self.quadrilaterals:
             corner_velocity = self.corner_velocities(u_new)
@@ -641,13 +636,13 @@ class ExplicitWilkins:
         interface_velocity = self._interface_velocity(state, x_new, va, dt)  # Γ's motion in the step
         va, vb, (ea, eb, pa, pb, rho_a, rho_b, c2a, c2b) = self._relaxed(state, va, vb, details)
         energy = e_new  # slot 0 from the explicit update
-        energy[1].fill(0.0)
         energy[0, cells], energy[1, cells] = ea, eb
         interface_pressure = 0.5 * (pa + pb)
         view = MixedView(va, vb, state.material_mass[1, cells], eb, interface_pressure)
         final = self.evaluate(x_new, u_new, state.material_mass, energy, view, slots=2)
-        volume = _two_slots(final.volume, cells, vb)
-        volume[0, cells] = va
+        volume = self.two_slots.take(cells)
+        volume[0] = final.volume
+        volume[0, cells], volume[1, cells] = va, vb
         density, pressure, sound_speed = final.density, final.pressure, final.sound_speed
         density[1, cells], pressure[1, cells] = rho_b, pb
         sound_speed[1, cells] = np.sqrt(np.maximum(c2b, 0.0))
@@ -678,10 +673,10 @@ class ExplicitWilkins:
         else:
             cells = self.mixed.cells
             va, vb, details = solution
-            e_new[1].fill(0.0)
             e_new[0, cells], e_new[1, cells] = details[0], details[1]
-            volumes = _two_slots(volume, cells, volume[cells] - va)
-            volumes[0, cells] = va
+            volumes = self.two_slots.take(cells)
+            volumes[0] = volume
+            volumes[0, cells], volumes[1, cells] = va, volume[cells] - va
             interface = dict(interface_pressure=0.5 * (details[2] + details[3]),
                              interface_velocity=self._interface_velocity(state, x_new, va, dt))
         occupied = volumes[:, self.mixed.cells] if self.mixed is not None else volume

@@ -313,3 +313,69 @@ def test_a_failed_initial_relaxation_is_reported_as_a_breakdown(tmp_path, monkey
     assert summary["status"] == "failed" and summary["steps"] == 0
     assert summary["diagnostic"].startswith("step 0, t = 0: initial pressure relaxation: mixed cell 201")
     assert (out / "profile.csv").exists()
+
+
+def test_two_slot_arrays_hand_out_again_only_memory_nothing_refers_to():
+    """A (2, n) array's memory comes back only once no array or view uses it, and then
+    with slot 1 zero everywhere but at the cells it is taken for."""
+    from ale_xfem.state import TwoSlotArrays
+
+    arrays = TwoSlotArrays(8)
+    first = arrays.take(np.array([2, 5]))
+    assert np.all(first[1] == 0.0)
+    first[0], first[1, [2, 5]] = 3.0, 7.0
+    kept = first[1]  # a view outlives the array it was taken from
+    del first
+    second = arrays.take(np.array([1]))
+    assert not np.shares_memory(second, kept)
+    np.testing.assert_array_equal(kept, [0, 0, 7, 0, 0, 7, 0, 0])
+    second[1, 1] = 4.0
+    buffer = kept.base.base
+    del kept
+    third = arrays.take(np.array([4]))
+    assert third.base is buffer  # the memory nothing referred to any more
+    assert np.all(third[1] == 0.0)  # the old mixed cells' entries zeroed
+    del second
+    fourth = arrays.take(np.array([0]))
+    assert np.all(fourth[1] == 0.0)
+
+
+@pytest.mark.parametrize("overrides", [
+    ["mesh.cells=200", "mesh.motion=interface"],
+    ["mesh.cells=200", "mesh.motion=eulerian", "t_end=0.1"],
+    ["mesh.cells=200", "interface.model=single_velocity"],
+])
+def test_recycled_slot_arrays_keep_slot_1_empty_off_the_mixed_cells(overrides, monkeypatch):
+    """The states the steps make reuse the memory of those the run dropped (a few buffers
+    for hundreds of steps), and every such state's second slot is zero in every cell that
+    is not mixed — also after local remaps (nodes following the interface) and after the
+    interface has moved to other cells (Eulerian mesh, where the step's states are those
+    handed to the remap)."""
+    problem = build_problem(load_scene(resolve_scene_path("sod-two-gamma-enriched"), overrides))
+    start = problem.mixed.cells.copy()
+    buffers, seen = set(), []
+    step = ExplicitWilkins.step
+
+    def checked_step(self, *args, **kwargs):
+        result = step(self, *args, **kwargs)
+        state = result[0]
+        pure = np.ones(state.material_mass.shape[1], dtype=bool)
+        pure[self.mixed.cells] = False
+        seen.append(self.mixed.cells.copy())
+        for name in ("material_energy", "material_volume", "material_density", "material_pressure",
+                     "material_sound_speed"):
+            values = getattr(state, name)
+            if values is not None:
+                assert np.all(values[1, pure] == 0.0), name
+                assert isinstance(values.base, bytearray)
+                buffers.add(id(values.base))
+        return result
+
+    monkeypatch.setattr(ExplicitWilkins, "step", checked_step)
+    result = simulate(problem)
+    assert result.status == "ok" and result.steps > 100
+    assert 0 < len(buffers) <= 20
+    if "mesh.motion=interface" in overrides:
+        assert result.phase_seconds["local_remaps"] > 0
+    if "mesh.motion=eulerian" in overrides:  # the interface left its first cell
+        assert any(not np.array_equal(cells, start) for cells in seen)
