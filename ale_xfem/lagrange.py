@@ -210,12 +210,15 @@ class ExplicitWilkins:
             if slots == 2:
                 density, pressure, sound_speed = (self.two_slots.take(self.mixed.cells) for _ in range(3))
             else:
-                density, pressure, sound_speed = (np.empty((1, volume.size)) for _ in range(3))
+                density = np.empty((1, volume.size))
             np.divide(mass0, volume, out=density[:1])
             if mixed_view is not None:  # slot 0 of a mixed cell is its α part
                 density[0, cells] = mass0[0, cells] / mixed_view.volume_left
-            thermodynamics(self.materials, self.pure_layout, density[:1], energy0,
-                           out=(pressure[:1], sound_speed[:1]))
+            if slots == 2:
+                thermodynamics(self.materials, self.pure_layout, density[:1], energy0,
+                               out=(pressure[:1], sound_speed[:1]))
+            else:  # the arrays the equation of state returns, not copies of them
+                pressure, sound_speed = thermodynamics(self.materials, self.pure_layout, density, energy0)
         if corner_velocity is None:
             corner_velocity = self.corner_velocities(node_velocity)
         volume_rate = corner_dot(gradient, corner_velocity)  # dV/dt = Σ ∂V/∂x_i·u_i
