@@ -512,7 +512,7 @@ class ExplicitWilkins:
         """Whether the materials' pressures agree within what the relaxation leaves alone:
         10 × interface_tolerance relative to the larger pressure or the smaller ρc²."""
         scale = np.maximum(np.maximum(np.abs(pa), np.abs(pb)), np.minimum(bulk_a, bulk_b))
-        return bool(np.all(np.abs(pa - pb) <= 10.0 * self.mixed.tolerance * scale))
+        return bool((np.abs(pa - pb) <= 10.0 * self.mixed.tolerance * scale).all())
 
     def _relax(self, volume, start, guess):
         try:

@@ -18,7 +18,7 @@ Units are the scene's (any consistent set: SI for solids, dimensionless for Toro
 from __future__ import annotations
 
 import weakref
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, fields
 
 import numpy as np
 
@@ -105,7 +105,18 @@ class State:
     interface_velocity: np.ndarray | None = None
 
     def evolved(self, **changes) -> "State":
-        return replace(self, **changes)
+        """A copy with ``changes`` (field names) replaced: dataclasses.replace without its
+        re-run of __init__ (40 µs, a step makes one)."""
+        unknown = changes.keys() - _STATE_FIELDS
+        if unknown:
+            raise TypeError(f"State has no field {sorted(unknown)[0]!r}")
+        new = object.__new__(State)
+        new.__dict__.update(self.__dict__)
+        new.__dict__.update(changes)
+        return new
+
+
+_STATE_FIELDS = frozenset(field.name for field in fields(State))
 
 
 class TwoSlotArrays:
