@@ -127,17 +127,29 @@ class TwoSlotArrays:
     dropped is handed out again instead, with only the slot-1 entries it held zeroed.
     Safety rests on numpy, not on bookkeeping: the arrays are made over buffers this object
     owns, so every view of one refers to that array itself (numpy does not look past it to
-    a base that is not an array), and the array is finalised only when no state,
-    evaluation or view uses its memory any more; only then does its buffer come back.
-    The holder of an array writes slot 1 only at the cells it was taken for."""
+    a base that is not an array), and the array is freed only when no state, evaluation or
+    view uses its memory any more; only then does a weak reference's callback take its
+    buffer back.  The holder of an array writes slot 1 only at the cells it was taken for."""
+
+    # Below this many cells a new array's row of zeros costs less than the bookkeeping of a
+    # recycled one (measured: 2 µs against 4 at 10³ cells, 4.6 against 4 at 10⁴, 30 against
+    # 4 at 10⁵), and new arrays are made.
+    RECYCLE_FROM = 10_000
 
     def __init__(self, n_cells: int):
         self.n_cells = n_cells
         self.free = []  # (buffer, the cells whose slot 1 it may hold nonzero)
+        # id of a weak reference to an array handed out → (the reference, which must live
+        # for its callback to run; the array's buffer; its cells)
+        self.lent = {}
 
     def take(self, cells) -> np.ndarray:
         """A (2, n_cells) array: slot 0 undefined, slot 1 zero except at ``cells`` (the
         mixed cells, whose entries are undefined too)."""
+        if self.n_cells < self.RECYCLE_FROM:
+            array = np.empty((2, self.n_cells))
+            array[1].fill(0.0)
+            return array
         if self.free:
             buffer, written = self.free.pop()
             array = np.ndarray((2, self.n_cells), buffer=buffer)
@@ -146,9 +158,14 @@ class TwoSlotArrays:
             buffer = bytearray(2 * self.n_cells * np.dtype(float).itemsize)
             array = np.ndarray((2, self.n_cells), buffer=buffer)
             array[1].fill(0.0)
-        release = weakref.finalize(array, self.free.append, (buffer, np.array(cells, copy=True)))
-        release.atexit = False
+        reference = weakref.ref(array, self._returned)
+        self.lent[id(reference)] = (reference, buffer, np.array(cells, copy=True))
         return array
+
+    def _returned(self, reference):
+        """The array is gone, and with it every view of its memory: take the buffer back."""
+        _, buffer, cells = self.lent.pop(id(reference))
+        self.free.append((buffer, cells))
 
 
 def density_of(mass, volume):
