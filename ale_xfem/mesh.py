@@ -193,7 +193,11 @@ def node_averaged_gradient(mesh, node_position, values, cells=None, around=None)
     values = np.asarray(values)
     fields = values.reshape(-1, values.shape[-1])
     if cells is None:
-        area, gradient = mesh.cell_type.volume_and_gradient(corners.gather(node_position))
+        if mesh.cell_type.name == "quadrilateral":  # no gathers on a grid (quad_corners)
+            gradient = QuadGradient(corners.quad_corners(node_position, hourglass=False))
+            area = gradient.area
+        else:
+            area, gradient = mesh.cell_type.volume_and_gradient(corners.gather(node_position))
         weight = corners.scatter([area] * k)
         nodes, area_here = mesh.cell_nodes, area
 
@@ -216,12 +220,17 @@ def node_averaged_gradient(mesh, node_position, values, cells=None, around=None)
     grad = np.empty((fields.shape[0], nodes.shape[0], 2))
     for f, field in enumerate(fields):
         nodal = nodal_average(field)
-        corner_values = [nodal[nodes[:, i]] for i in range(k)]
         if isinstance(gradient, QuadGradient):  # Σ_i v̄_i g_i = g_0 (v̄_0 − v̄_2) + g_1 (v̄_1 − v̄_3)
-            across02, across13 = corner_values[0] - corner_values[2], corner_values[1] - corner_values[3]
+            if cells is None:  # every cell: the mesh's own corner combinations (grid views)
+                diagonals = corners.quad_corners(nodal[None], hourglass=False)
+                across02, across13 = diagonals.across02[0], diagonals.across13[0]
+            else:
+                v = [nodal[nodes[:, i]] for i in range(k)]
+                across02, across13 = v[0] - v[2], v[1] - v[3]
             (g0x, g0y), (g1x, g1y) = gradient.independent
             gx, gy = g0x * across02 + g1x * across13, g0y * across02 + g1y * across13
         else:
+            corner_values = [nodal[nodes[:, i]] for i in range(k)]
             gx = sum(v * g[0] for v, g in zip(corner_values, gradient))
             gy = sum(v * g[1] for v, g in zip(corner_values, gradient))
         grad[f, :, 0], grad[f, :, 1] = gx / area_here, gy / area_here
