@@ -14,7 +14,7 @@ Shapes (n_nodes, n_cells from the mesh; dim = mesh dimension; S = material slots
 
 Slot 1 is zero wherever a cell holds one material.  The (2, n_cells) arrays a Lagrange
 step makes come from :class:`TwoSlotArrays`, which reuses the memory of the states a run
-has dropped; a state is never changed once made (``evolved`` copies).
+has dropped; a state is not changed once handed on (``evolved`` makes a new one).
 
 Units are the scene's (any consistent set: SI for solids, dimensionless for Toro's tests).
 """
