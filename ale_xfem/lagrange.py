@@ -207,14 +207,12 @@ class ExplicitWilkins:
         if known is not None:
             density, pressure, sound_speed = known
         else:
-            if slots == 2:
-                density, pressure, sound_speed = (self.two_slots.take(self.mixed.cells) for _ in range(3))
-            else:
-                density = np.empty((1, volume.size))
+            density = self.two_slots.take(self.mixed.cells) if slots == 2 else np.empty((1, volume.size))
             np.divide(mass0, volume, out=density[:1])
             if mixed_view is not None:  # slot 0 of a mixed cell is its α part
                 density[0, cells] = mass0[0, cells] / mixed_view.volume_left
-            if slots == 2:
+            if slots == 2:  # into slot 0 of two-slot arrays
+                pressure, sound_speed = (self.two_slots.take(self.mixed.cells) for _ in range(2))
                 thermodynamics(self.materials, self.pure_layout, density[:1], energy0,
                                out=(pressure[:1], sound_speed[:1]))
             else:  # the arrays the equation of state returns, not copies of them
