@@ -193,11 +193,7 @@ def node_averaged_gradient(mesh, node_position, values, cells=None, around=None)
     values = np.asarray(values)
     fields = values.reshape(-1, values.shape[-1])
     if cells is None:
-        if mesh.cell_type.name == "quadrilateral":  # no gathers on a grid (quad_corners)
-            gradient = QuadGradient(corners.quad_corners(node_position, hourglass=False))
-            area = gradient.area
-        else:
-            area, gradient = mesh.cell_type.volume_and_gradient(corners.gather(node_position))
+        area, gradient = mesh.cell_geometry(node_position)
         weight = corners.scatter([area] * k)
         nodes, area_here = mesh.cell_nodes, area
 
@@ -548,13 +544,18 @@ class MeshArrays:
     def dimension(self) -> int:
         return self.cell_type.dimension
 
-    def cell_volumes(self, node_position=None):
-        """Cell volumes (areas in 2D); quadrilaterals from their diagonals, read as the
-        explicit loop reads them (grid views, no gather)."""
+    def cell_geometry(self, node_position=None):
+        """(volumes, ∂V/∂x_i) of every cell; quadrilaterals from their diagonals, read as
+        the explicit loop reads them (grid views, no gather): a QuadGradient."""
         x = self.node_position if node_position is None else node_position
         if self.cell_type.name == "quadrilateral":
-            return QuadGradient(self.corners.quad_corners(x, hourglass=False)).area
-        return self.cell_type.volume_and_gradient(self.corners.gather(x))[0]
+            gradient = QuadGradient(self.corners.quad_corners(x, hourglass=False))
+            return gradient.area, gradient
+        return self.cell_type.volume_and_gradient(self.corners.gather(x))
+
+    def cell_volumes(self, node_position=None):
+        """Cell volumes (areas in 2D), as :meth:`cell_geometry` gives them."""
+        return self.cell_geometry(node_position)[0]
 
     def cell_vertex_positions(self, node_position=None):
         """(n_cells, nodes_per_cell, dim), for output and set-up (not per step)."""
