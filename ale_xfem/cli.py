@@ -1,4 +1,4 @@
-"""Command line: `ale-xfem run | list | bench`.
+"""Command line: `ale-xfem run | list | study | bench`.
 
 Exit codes: 0 success; 2 bad input (scene or arguments: one line on stderr, nothing runs);
 3 the simulation broke down (status "failed", diagnostic, last good state written).
@@ -52,7 +52,8 @@ def _parser() -> argparse.ArgumentParser:
     accuracy.add_argument("--out", type=Path, default=None, help="output folder (default: out/study-<name>)")
     stability = kinds.add_parser(
         "stability", help="the hard cases (Toro 1-5, LeBlanc, water-air, plate impact, slivers, long run, "
-                          "random Riemann problems): a pass/fail table")
+                          "random Riemann problems; in 2D Noh, Saltzman, the rotated tube, an interface "
+                          "through an Eulerian mesh, the shock on a disk): a pass/fail table")
     stability.add_argument("--cells", type=int, default=200, help="resolution of the suite (default 200)")
     stability.add_argument("--random", type=int, default=10, help="random Riemann problems (default 10)")
     stability.add_argument("--seed", type=int, default=1, help="seed of the random problems (default 1)")
@@ -77,11 +78,16 @@ def _parser() -> argparse.ArgumentParser:
                             "runs, 100 ... 3200 cells (`make bench-peers` installs PyClaw)")
     bench.add_argument("--out", type=Path, default=Path("out") / "bench-peers",
                        help="with --peers: output folder (default: out/bench-peers)")
+    # an unknown option is reported with the usage of the (sub)command it was given to
+    for command_parser in (run, commands.choices["list"], accuracy, stability, bench):
+        command_parser.set_defaults(command_parser=command_parser)
     return parser
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = _parser().parse_args(argv)
+    args, unknown = _parser().parse_known_args(argv)
+    if unknown:
+        args.command_parser.error(f"unrecognized arguments: {' '.join(unknown)}")
     if args.command == "list":
         return _list()
     if args.command == "bench":

@@ -138,3 +138,21 @@ def test_xt_writes_the_diagram_with_one_row_per_recorded_step(tmp_path):
     assert len(history.times) <= 51 and history.times[0] == 0.0  # thinned, from t = 0
     assert history.edges[0].size == 61 and history.densities[0].size == 60
     assert result.steps + 1 > len(history.times)  # every step observed, rows thinned
+
+
+@pytest.mark.parametrize("argv, command", [
+    (["run", "sod", "--bogus"], "ale-xfem run"),
+    (["study", "stability", "--output", "x"], "ale-xfem study stability"),
+    (["study", "accuracy", "sod", "--zz"], "ale-xfem study accuracy"),
+    (["bench", "--foo", "1"], "ale-xfem bench"),
+])
+def test_an_unknown_option_is_reported_with_the_usage_of_its_command(argv, command, capsys, tmp_path,
+                                                                      monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(SystemExit) as stop:
+        main(argv)
+    err = capsys.readouterr().err
+    assert stop.value.code == 2
+    assert f"usage: {command} " in err
+    assert err.strip().splitlines()[-1].startswith(f"{command}: error: unrecognized arguments:")
+    assert not any(tmp_path.iterdir())  # nothing ran, nothing written
