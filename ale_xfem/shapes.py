@@ -73,9 +73,14 @@ def polygon_centroid(vertices: np.ndarray) -> np.ndarray:
 
 def clip_half_plane(vertices: np.ndarray, normal: np.ndarray, offset: np.ndarray) -> np.ndarray:
     """The part of each polygon (n, m, 2) where x·normal ≤ offset (normal (n, 2) or (2,),
-    offset (n,) or scalar): one Sutherland–Hodgman pass.  Returns (n, m', 2), padded; an
-    empty result is m' copies of one point (zero area)."""
+    offset (n,) or scalar): one Sutherland–Hodgman pass.  Returns (n, m', 2), padded with
+    each polygon's last point; an empty result is m' copies of the origin (zero area).
+
+    Points are handled as complex numbers x + iy, a view of the same bytes: a point then
+    moves as one element in numpy's fancy indexing, several times faster than a row of two
+    floats, and t (b − a) with t real rounds as it does component by component."""
     n, m, _ = vertices.shape
+    vertices = np.ascontiguousarray(vertices, dtype=float)
     normal = np.broadcast_to(np.asarray(normal, dtype=float), (n, 2))
     offset = np.broadcast_to(np.asarray(offset, dtype=float), (n,))
     distance = np.einsum("nmd,nd->nm", vertices, normal) - offset[:, None]
@@ -85,20 +90,26 @@ def clip_half_plane(vertices: np.ndarray, normal: np.ndarray, offset: np.ndarray
     crossing = inside != inside[:, following]
     with np.errstate(invalid="ignore", divide="ignore"):
         t = np.where(crossing, d0 / (d0 - d1), 0.0)
-    cut = vertices + t[..., None] * (vertices[:, following] - vertices)
+    z = vertices.view(np.complex128)[..., 0]
+    cut = z[:, following] - z
+    cut *= t
+    cut += z
     # each edge emits its start if inside, then the crossing point if it crosses
-    points = np.stack([vertices, cut], axis=2).reshape(n, 2 * m, 2)
+    points = np.stack([z, cut], axis=2).reshape(n, 2 * m)
     emitted = np.stack([inside, crossing], axis=2).reshape(n, 2 * m)
-    count = emitted.sum(axis=1)
+    # the emitted points packed to the front of each row, in order (np.nonzero goes row by
+    # row), the rest of the row filled with the polygon's last point
+    row, column = np.nonzero(emitted)
+    count = np.bincount(row, minlength=n)
     width = max(int(count.max(initial=0)), 1)
-    order = np.argsort(~emitted, axis=1, kind="stable")[:, :width]
-    result = np.take_along_axis(points, order[..., None], axis=1)
-    # pad each polygon with its last emitted point
-    last = np.take_along_axis(result, np.maximum(count - 1, 0)[:, None, None], axis=1)
-    pad = np.arange(width)[None, :] >= count[:, None]
-    result = np.where(pad[..., None], last, result)
-    result[count == 0] = 0.0
-    return result
+    start = np.cumsum(count)
+    last = start - 1  # where each row's last point is in (row, column)
+    start -= count
+    result = np.zeros((n, width), dtype=np.complex128)
+    some = count > 0
+    result[some] = points[row[last[some]], column[last[some]]][:, None]
+    result[row, np.arange(row.size) - start[row]] = points[row, column]
+    return result.view(np.float64).reshape(n, width, 2)
 
 
 def clipped_area(vertices: np.ndarray, normal: np.ndarray, offset: np.ndarray) -> np.ndarray:

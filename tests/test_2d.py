@@ -119,6 +119,26 @@ def test_clipped_areas_without_the_polygon_equal_those_of_the_clipped_polygon():
                                shapes.polygon_area(shapes.clip_convex(subject, convex)), atol=1e-14)
 
 
+
+def test_clip_half_plane_gives_the_vertices_in_order_padded_with_the_last_and_empty_as_zeros():
+    """The unit square cut by x ≤ 0.25, by y ≤ x + 0.5 (a pentagon), kept whole and emptied,
+    in one call: each result's vertices in the square's order, the cut points where the
+    edges cross, shorter polygons padded with their last vertex, an empty one all zeros."""
+    square = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    vertices = np.tile(square, (4, 1, 1))
+    normal = np.array([[1.0, 0.0], [-1.0, 1.0], [1.0, 0.0], [1.0, 0.0]])
+    offset = np.array([0.25, 0.5, 2.0, -1.0])
+    clipped = shapes.clip_half_plane(vertices, normal, offset)
+    assert clipped.shape == (4, 5, 2)
+    expected = [
+        [[0.0, 0.0], [0.25, 0.0], [0.25, 1.0], [0.0, 1.0], [0.0, 1.0]],
+        [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.5, 1.0], [0.0, 0.5]],
+        [[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0], [0.0, 1.0]],
+        [[0.0, 0.0]] * 5,
+    ]
+    np.testing.assert_array_equal(clipped, np.array(expected))
+    np.testing.assert_allclose(shapes.polygon_area(clipped), [0.25, 0.875, 1.0, 0.0], atol=1e-15)
+
 def test_noh_converges_on_quadrilaterals():
     sizes = [20, 40, 80]
     errors = []
