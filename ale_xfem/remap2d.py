@@ -133,13 +133,14 @@ class Remapper2D:
         x, X = state.node_position, self.target(state.node_position)
         # per material dense arrays (n_materials, n_cells): volume, mass, internal energy
         volume, mass, energy = (np.zeros((n_materials, n_cells)) for _ in range(3))
-        cells = np.arange(n_cells)
         for slot in range(layout.cell_material.shape[0]):
-            here = layout.cell_material[slot] >= 0
-            m, c = layout.cell_material[slot, here], cells[here]
-            volume[m, c] += state.material_volume[slot, here]
-            mass[m, c] += state.material_mass[slot, here]
-            energy[m, c] += state.material_mass[slot, here] * state.material_energy[slot, here]
+            # (a material is in one slot of a cell at most: each entry is set once)
+            slot_energy = state.material_mass[slot] * state.material_energy[slot]
+            for m in range(n_materials):
+                here = layout.cell_material[slot] == m
+                np.add(volume[m], state.material_volume[slot], out=volume[m], where=here)
+                np.add(mass[m], state.material_mass[slot], out=mass[m], where=here)
+                np.add(energy[m], slot_energy, out=energy[m], where=here)
         old_cell_mass = mass.sum(axis=0)
 
         # -- the swept regions ------------------------------------------------------------
@@ -189,8 +190,9 @@ class Remapper2D:
         old_node_mass = corners.scatter([old_cell_mass / k] * k)
         cell_velocity = np.stack([sum(c[0] for c in corners.gather(u[d:d + 1])) / k for d in range(u.shape[0])])
         total_flux = flux_mass.sum(axis=0)
-        momentum_flux = total_flux * cell_velocity[:, donor]
-        kinetic_flux = 0.5 * total_flux * np.sum(cell_velocity[:, donor] ** 2, axis=0)
+        donor_velocity = cell_velocity[:, donor]
+        momentum_flux = total_flux * donor_velocity
+        kinetic_flux = 0.5 * total_flux * np.sum(donor_velocity ** 2, axis=0)
         change = np.stack([np.bincount(receiver, f, n_cells) - np.bincount(donor, f, n_cells) for f in momentum_flux])
         kinetic_change_cells = np.bincount(receiver, kinetic_flux, n_cells) - np.bincount(donor, kinetic_flux, n_cells)
         new_cell_mass = mass.sum(axis=0)
@@ -254,20 +256,22 @@ class Remapper2D:
             raise RemapFailure(f"cell {c}: three materials meet in one cell; refine the mesh")
         if np.any(count == 0):
             raise RemapFailure(f"cell {int(np.flatnonzero(count == 0)[0])}: no material left after the remap")
-        order = np.argsort(-np.where(present, volume, -1.0), axis=0, kind="stable")
         mixed_cells = np.flatnonzero(count == 2)
         slots = 2 if mixed_cells.size else 1
         cell_material = np.full((slots, n_cells), -1, dtype=np.int64)
-        cell_material[0] = order[0]  # the larger material
+        present_volume = np.where(present, volume, -1.0)
+        cell_material[0] = _first_largest(present_volume)  # the larger material
         if slots == 2:
-            cell_material[1] = np.where(count == 2, order[1], -1)
+            present_volume[cell_material[0], np.arange(n_cells)] = -np.inf
+            cell_material[1] = np.where(count == 2, _first_largest(present_volume), -1)
         slot_mass, slot_energy, slot_volume = (np.zeros((slots, n_cells)) for _ in range(3))
         for slot in range(slots):
-            chosen = cell_material[slot]
-            use = chosen >= 0
-            slot_mass[slot, use] = mass[chosen[use], cells[use]]
-            slot_volume[slot, use] = volume[chosen[use], cells[use]]
-            slot_energy[slot, use] = energy[chosen[use], cells[use]] / slot_mass[slot, use]
+            for m in range(n_materials):
+                here = cell_material[slot] == m
+                np.copyto(slot_mass[slot], mass[m], where=here)
+                np.copyto(slot_volume[slot], volume[m], where=here)
+                np.copyto(slot_energy[slot], energy[m], where=here)
+            np.divide(slot_energy[slot], slot_mass[slot], out=slot_energy[slot], where=cell_material[slot] >= 0)
         if np.any(slot_mass[cell_material >= 0] <= 0):
             raise RemapFailure("a material's mass became ≤ 0 in the remap (a node moved too far)")
         new_layout = layout.updated(cell_material)
@@ -388,3 +392,15 @@ class Remapper2D:
             correction += sy[source] * swept_y
             correction *= volume
             flux[m, where] += correction
+
+
+def _first_largest(values):
+    """Per column of values (n_materials, n_cells), the row of the largest (the first such
+    row where several are equal), over the rows in turn instead of np.argmax(axis=0) on a
+    strided axis."""
+    best, row = values[0].copy(), np.zeros(values.shape[1], dtype=np.int64)
+    for m in range(1, values.shape[0]):
+        larger = values[m] > best
+        row[larger] = m
+        np.maximum(best, values[m], out=best)
+    return row
