@@ -85,7 +85,7 @@ def clip_half_plane(vertices: np.ndarray, normal: np.ndarray, offset: np.ndarray
     offset = np.broadcast_to(np.asarray(offset, dtype=float), (n,))
     distance = np.einsum("nmd,nd->nm", vertices, normal) - offset[:, None]
     inside = distance <= 0.0
-    following = np.roll(np.arange(m), -1)
+    following = (np.arange(m) + 1) % m  # the next vertex
     d0, d1 = distance, distance[:, following]
     crossing = inside != inside[:, following]
     with np.errstate(invalid="ignore", divide="ignore"):
