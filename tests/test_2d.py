@@ -119,7 +119,6 @@ def test_clipped_areas_without_the_polygon_equal_those_of_the_clipped_polygon():
                                shapes.polygon_area(shapes.clip_convex(subject, convex)), atol=1e-14)
 
 
-
 def test_clip_half_plane_gives_the_vertices_in_order_padded_with_the_last_and_empty_as_zeros():
     """The unit square cut by x ≤ 0.25, by y ≤ x + 0.5 (a pentagon), kept whole and emptied,
     in one call: each result's vertices in the square's order, the cut points where the
@@ -138,6 +137,7 @@ def test_clip_half_plane_gives_the_vertices_in_order_padded_with_the_last_and_em
     ]
     np.testing.assert_array_equal(clipped, np.array(expected))
     np.testing.assert_allclose(shapes.polygon_area(clipped), [0.25, 0.875, 1.0, 0.0], atol=1e-15)
+
 
 def test_noh_converges_on_quadrilaterals():
     sizes = [20, 40, 80]
@@ -561,7 +561,6 @@ def test_a_heavy_disk_at_rest_stays_at_rest_through_the_eulerian_remap(tmp_path)
     np.testing.assert_array_equal(problem.mixed.cells, mixed_before)  # the disk has not moved
 
 
-
 def test_the_remap_puts_each_cells_largest_material_first_the_lower_one_on_a_tie():
     """remap2d._first_largest (the slot-0 material of a remapped cell) is np.argmax over the
     materials: the largest, the first of equal ones — on values with many ties."""
@@ -572,6 +571,7 @@ def test_the_remap_puts_each_cells_largest_material_first_the_lower_one_on_a_tie
         values = rng.integers(0, 3, size=(n_materials, 400)).astype(float)
         values[:, :3] = -np.inf  # columns of nothing: the first row, like argmax
         np.testing.assert_array_equal(_first_largest(values), np.argmax(values, axis=0))
+
 
 def test_2d_remap_edges_sweep_the_exact_change_of_every_cell_area():
     from ale_xfem.mesh import mesh_edges
