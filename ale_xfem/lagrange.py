@@ -590,9 +590,7 @@ class ExplicitWilkins:
         """Volumes of the mixed cells only (1D: x_b − x_a; 2D: their areas)."""
         if self.mixed.node_left is not None:
             return position[0, self.mixed.node_right] - position[0, self.mixed.node_left]
-        nodes = self.mesh.cell_nodes[self.mixed.cells]
-        corners = [[position[d, nodes[:, i]] for d in range(position.shape[0])] for i in range(nodes.shape[1])]
-        return self.mesh.cell_type.volume_and_gradient(corners)[0]
+        return self.mesh.cell_geometry(position, self.mixed.cells)[0]
 
     def _assembled_predictor(self, state, first, predicted, mean_force, dt, mobility_a, mobility_b, start):
         """The predictor as the assembled FE system of forms/mixed_cell.py: returns a

@@ -202,17 +202,14 @@ def node_averaged_gradient(mesh, node_position, values, cells=None, around=None)
     else:
         around = cells_around(mesh, cells) if around is None else around
         index = np.ascontiguousarray(mesh.cell_nodes[around].T).ravel()  # corner by corner
-        area = mesh.cell_type.volume_and_gradient(
-            [[node_position[d, mesh.cell_nodes[around, i]] for d in range(node_position.shape[0])]
-             for i in range(k)])[0]
+        area = mesh.cell_geometry(node_position, around)[0]
         weight = np.bincount(index, np.tile(area, k), mesh.n_nodes)
         weight[weight == 0.0] = 1.0  # nodes of no cell around: not read
 
         def nodal_average(field):
             return np.bincount(index, np.tile(field[around] * area, k), mesh.n_nodes) / weight
         nodes = mesh.cell_nodes[cells]
-        here = [[node_position[d, nodes[:, i]] for d in range(node_position.shape[0])] for i in range(k)]
-        area_here, gradient = mesh.cell_type.volume_and_gradient(here)
+        area_here, gradient = mesh.cell_geometry(node_position, cells)
     grad = np.empty((fields.shape[0], nodes.shape[0], 2))
     for f, field in enumerate(fields):
         nodal = nodal_average(field)
@@ -544,10 +541,15 @@ class MeshArrays:
     def dimension(self) -> int:
         return self.cell_type.dimension
 
-    def cell_geometry(self, node_position=None):
-        """(volumes, ∂V/∂x_i) of every cell; quadrilaterals from their diagonals, read as
-        the explicit loop reads them (grid views, no gather): a QuadGradient."""
+    def cell_geometry(self, node_position=None, cells=None):
+        """(volumes, ∂V/∂x_i) of every cell, or of ``cells`` only (their corners gathered);
+        quadrilaterals from their diagonals, read for every cell as the explicit loop reads
+        them (grid views, no gather): a QuadGradient."""
         x = self.node_position if node_position is None else node_position
+        if cells is not None:
+            nodes = self.cell_nodes[cells]
+            return self.cell_type.volume_and_gradient(
+                [[x[d, nodes[:, i]] for d in range(x.shape[0])] for i in range(nodes.shape[1])])
         if self.cell_type.name == "quadrilateral":
             gradient = QuadGradient(self.corners.quad_corners(x, hourglass=False))
             return gradient.area, gradient

@@ -112,9 +112,7 @@ def material_fractions(problem, state, layout=None, cells=None) -> np.ndarray:
     layout = problem.layout if layout is None else layout
     mesh = problem.mesh
     cells = np.arange(mesh.n_cells) if cells is None else cells
-    nodes = mesh.cell_nodes[cells]
-    area = mesh.cell_type.volume_and_gradient(
-        [[state.node_position[d, nodes[:, i]] for d in range(mesh.dimension)] for i in range(nodes.shape[1])])[0]
+    area = mesh.cell_geometry(state.node_position, cells)[0]
     fractions = np.zeros((len(problem.materials), mesh.n_cells))
     for slot in range(layout.cell_material.shape[0]):
         material = layout.cell_material[slot, cells]
