@@ -14,7 +14,7 @@ from ale_xfem.lagrange import Boundary
 from ale_xfem.mesh import MeshArrays, file_mesh, interval_mesh, rectangle_mesh, saltzman_mesh
 from ale_xfem.mixed import MixedCellFailure, MixedCells, with_mixed_state
 from ale_xfem.scene import Scene, SceneError
-from ale_xfem.state import Material, MaterialLayout, State, density_of, thermodynamics
+from ale_xfem.state import Material, MaterialLayout, State, density_of, ranked_materials, thermodynamics
 
 
 @dataclass
@@ -81,7 +81,7 @@ def build_problem(scene: Scene) -> Problem:
     # Slot 0 holds the material of a pure cell, and the left material α of a mixed cell;
     # slot 1 the right material β of a mixed cell.  Slivers are merged into the dominant
     # material of the cell (mass, energy and momentum conserved).
-    order = np.argsort(-per_material["volume"], axis=0, kind="stable")
+    order = ranked_materials(per_material["volume"])
     cell_material = np.full((slots, n_cells), -1, dtype=np.int64)
     cell_material[0] = order[0]
     total = {k: v.sum(axis=-2) for k, v in per_material.items()}
@@ -262,7 +262,7 @@ def _build_problem_2d(scene: Scene) -> Problem:
             velocity += speed * np.moveaxis(unit, -1, 0).transpose(0, 2, 1)
         corner_momentum += velocity * (region_mass / corners)
     # Slot 0: the cell's larger material; slot 1: the other one of a mixed cell.
-    order = np.argsort(-material_share, axis=0, kind="stable")
+    order = ranked_materials(material_share)
     mixed_cells = np.flatnonzero(count == 2)
     slots = 2 if mixed_cells.size else 1
     cell_material = np.full((slots, n_cells), -1, dtype=np.int64)

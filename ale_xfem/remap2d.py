@@ -43,7 +43,7 @@ from ale_xfem.mesh import mesh_edges, node_averaged_gradient
 from ale_xfem.mixed import MixedCells
 from ale_xfem.remap import RemapFailure
 from ale_xfem.shapes import corner_centroid, intersection_area, polygon_area
-from ale_xfem.state import density_of, thermodynamics
+from ale_xfem.state import density_of, ranked_materials, thermodynamics
 
 # A material below this fraction of its cell's area leaves the cell (its mass and energy go
 # to the cell's other material: total mass exact, each material's within such traces).
@@ -259,11 +259,10 @@ class Remapper2D:
         mixed_cells = np.flatnonzero(count == 2)
         slots = 2 if mixed_cells.size else 1
         cell_material = np.full((slots, n_cells), -1, dtype=np.int64)
-        present_volume = np.where(present, volume, -1.0)
-        cell_material[0] = _first_largest(present_volume)  # the larger material
+        ranked = ranked_materials(np.where(present, volume, -1.0), slots)
+        cell_material[0] = ranked[0]  # the larger material
         if slots == 2:
-            present_volume[cell_material[0], np.arange(n_cells)] = -np.inf
-            cell_material[1] = np.where(count == 2, _first_largest(present_volume), -1)
+            cell_material[1] = np.where(count == 2, ranked[1], -1)
         slot_mass, slot_energy, slot_volume = (np.zeros((slots, n_cells)) for _ in range(3))
         for slot in range(slots):
             for m in range(n_materials):
@@ -392,15 +391,3 @@ class Remapper2D:
             correction += sy[source] * swept_y
             correction *= volume
             flux[m, where] += correction
-
-
-def _first_largest(values):
-    """Per column of values (n_materials, n_cells), the row of the largest (the first such
-    row where several are equal), over the rows in turn instead of np.argmax(axis=0) on a
-    strided axis."""
-    best, row = values[0].copy(), np.zeros(values.shape[1], dtype=np.int64)
-    for m in range(1, values.shape[0]):
-        larger = values[m] > best
-        row[larger] = m
-        np.maximum(best, values[m], out=best)
-    return row

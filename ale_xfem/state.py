@@ -92,6 +92,27 @@ class MaterialLayout:
         return layout
 
 
+def ranked_materials(values, count: int = 2) -> np.ndarray:
+    """Per cell, the materials of its ``count`` largest ``values`` (n_materials, n_cells),
+    finite, e.g. volumes): (count, n_cells), the largest first and of equal values the
+    lower material first — np.argsort(-values, axis=0, kind="stable")[:count], without a
+    sort along the strided axis (a loop over the materials).  Slot 0 of a cell holds its
+    largest material, slot 1 of a mixed cell the next one."""
+    values = np.array(values, dtype=float)  # a copy: the ranked entries are masked
+    count = min(count, values.shape[0])
+    ranked = np.empty((count, values.shape[1]), dtype=np.int64)
+    for rank in range(count):
+        best, row = values[0].copy(), ranked[rank]
+        row.fill(0)
+        for m in range(1, values.shape[0]):
+            larger = values[m] > best
+            row[larger] = m
+            np.maximum(best, values[m], out=best)
+        if rank + 1 < count:
+            values[row, np.arange(values.shape[1])] = -np.inf
+    return ranked
+
+
 @dataclass(frozen=True)
 class State:
     time: float

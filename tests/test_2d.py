@@ -562,15 +562,18 @@ def test_a_heavy_disk_at_rest_stays_at_rest_through_the_eulerian_remap(tmp_path)
 
 
 def test_the_remap_puts_each_cells_largest_material_first_the_lower_one_on_a_tie():
-    """remap2d._first_largest (the slot-0 material of a remapped cell) is np.argmax over the
-    materials: the largest, the first of equal ones — on values with many ties."""
-    from ale_xfem.remap2d import _first_largest
+    """state.ranked_materials (the slot-0 material of a remapped or set-up cell) is np.argmax
+    over the materials: the largest, the first of equal ones — on values with many ties;
+    its second row (slot 1 of a mixed cell) the next in a stable sort."""
+    from ale_xfem.state import ranked_materials
 
     rng = np.random.default_rng(5)
     for n_materials in (1, 2, 3, 5):
         values = rng.integers(0, 3, size=(n_materials, 400)).astype(float)
+        np.testing.assert_array_equal(ranked_materials(values, 2)[1:],
+                                      np.argsort(-values, axis=0, kind="stable")[1:2])
         values[:, :3] = -np.inf  # columns of nothing: the first row, like argmax
-        np.testing.assert_array_equal(_first_largest(values), np.argmax(values, axis=0))
+        np.testing.assert_array_equal(ranked_materials(values, 1)[0], np.argmax(values, axis=0))
 
 
 def test_2d_remap_edges_sweep_the_exact_change_of_every_cell_area():
