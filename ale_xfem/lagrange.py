@@ -639,9 +639,7 @@ class ExplicitWilkins:
         interface_pressure = 0.5 * (pa + pb)
         view = MixedView(va, vb, state.material_mass[1, cells], eb, interface_pressure)
         final = self.evaluate(x_new, u_new, state.material_mass, energy, view, slots=2)
-        volume = self.two_slots.take(cells)
-        volume[0] = final.volume
-        volume[0, cells], volume[1, cells] = va, vb
+        volume = self._slot_volumes(final.volume, va, vb)
         density, pressure, sound_speed = final.density, final.pressure, final.sound_speed
         density[1, cells], pressure[1, cells] = rho_b, pb
         sound_speed[1, cells] = np.sqrt(np.maximum(c2b, 0.0))
@@ -651,6 +649,15 @@ class ExplicitWilkins:
             material_sound_speed=sound_speed, interface_pressure=interface_pressure,
             interface_velocity=interface_velocity)
         return new_state, final
+
+    def _slot_volumes(self, cell_volume, va, vb):
+        """The (2, n_cells) material volumes of a new state: each cell's volume in slot 0,
+        the mixed cells' split (V_α, V_β) in slots 0 and 1."""
+        cells = self.mixed.cells
+        volumes = self.two_slots.take(cells)
+        volumes[0] = cell_volume
+        volumes[0, cells], volumes[1, cells] = va, vb
+        return volumes
 
     def _interface_velocity(self, state, x_new, va, dt):
         """The mixed cells' interface velocity over the step: in 1D Γ's displacement / dt
@@ -673,9 +680,7 @@ class ExplicitWilkins:
             cells = self.mixed.cells
             va, vb, details = solution
             e_new[0, cells], e_new[1, cells] = details[0], details[1]
-            volumes = self.two_slots.take(cells)
-            volumes[0] = volume
-            volumes[0, cells], volumes[1, cells] = va, volume[cells] - va
+            volumes = self._slot_volumes(volume, va, volume[cells] - va)
             interface = dict(interface_pressure=0.5 * (details[2] + details[3]),
                              interface_velocity=self._interface_velocity(state, x_new, va, dt))
         occupied = volumes[:, self.mixed.cells] if self.mixed is not None else volume
