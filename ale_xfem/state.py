@@ -148,8 +148,9 @@ class TwoSlotArrays:
     """(2, n_cells) arrays for the states a run makes, slot 1 zero but at the mixed cells.
 
     Zeroing slot 1 of a new array is a pass over every cell, for a few mixed cells: five
-    arrays a step cost about 0.5 ms, 7 % of a 10⁵-cell step with one mixed cell.  The memory of an array the run has
-    dropped is handed out again instead, with only the slot-1 entries it held zeroed.
+    arrays a step cost about 0.5 ms, 7 % of a 10⁵-cell step with one mixed cell.  The
+    memory of an array the run has dropped is handed out again instead, with only the
+    slot-1 entries it held zeroed.
     Safety rests on numpy, not on bookkeeping: the arrays are made over buffers this object
     owns, so every view of one refers to that array itself (numpy does not look past it to
     a base that is not an array), and the array is freed only when no state, evaluation or
