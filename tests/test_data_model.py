@@ -133,6 +133,13 @@ def test_a_rectangle_numbered_as_a_grid_reads_its_corners_from_views_and_maps_ba
     from_views, gathered = mesh.corners.quad_corners(field), QuadCorners.gathered(indexed.gather(field))
     for name in QuadCorners.__slots__:
         np.testing.assert_array_equal(getattr(from_views, name), getattr(gathered, name))
+    for cells in ([1, 4], [6, 1], [1, 1]):  # a single column, row or cell: the ends of the slices
+        thin = rectangle_mesh([[0.0, 2.0], [0.0, 1.0]], cells, "quadrilateral")
+        thin_field = rng.normal(size=(2, thin.n_nodes))
+        from_views = thin.corners.quad_corners(thin_field)
+        gathered = QuadCorners.gathered(Corners(thin.cell_nodes, thin.n_nodes).gather(thin_field))
+        for name in QuadCorners.__slots__:
+            np.testing.assert_array_equal(getattr(from_views, name), getattr(gathered, name))
     rows = rng.normal(size=(4, mesh.n_cells))
     np.testing.assert_allclose(mesh.corners.scatter_rows(rows, np.empty(mesh.n_nodes)),
                                indexed.scatter_rows(rows, np.empty(mesh.n_nodes)), atol=1e-15)
