@@ -20,7 +20,8 @@ Per-corner arrays: a field gathered to the corners of the cells is a list over c
 lists over components of (n_cells,) arrays, ``values[i][d]``.  A corner whose node indices
 form a contiguous run (an interval mesh from DOLFINx: cell k has nodes k, k+1) is gathered
 as a view and scattered by a slice addition, which costs a fraction of an indexed gather;
-on a grid of quadrilaterals the same holds with 2D strided views.  Quadrilaterals use only
+on a grid of quadrilaterals the same holds with 2D strided views (and the corner
+combinations are formed on flat slices of the node field: see ``Corners.quad_corners``).  Quadrilaterals use only
 the combinations v_0 − v_2, v_1 − v_3 and v_0 − v_1 + v_2 − v_3 of their corner values
 (QuadCorners): two independent corner gradients (QuadGradient) and the hourglass mode.
 """
