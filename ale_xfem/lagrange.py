@@ -297,7 +297,28 @@ class ExplicitWilkins:
                                          evaluation.length[cells]))
         return self.numerics.cfl * dt
 
+    def limiting_cell(self, evaluation: ForceEvaluation, position) -> str:
+        """The cell whose CFL limit sets the time step, described for a diagnostic: its
+        index, centroid, CFL length, sound speed and velocity jump."""
+        times = self._cfl_times(evaluation.sound_speed[0], evaluation.velocity_jump, evaluation.length)
+        sound_speed = evaluation.sound_speed[0]
+        if evaluation.mixed_sound_speed is not None:
+            cells = self.mixed.cells
+            sound_speed = sound_speed.copy()
+            sound_speed[cells] = evaluation.mixed_sound_speed
+            times[cells] = np.minimum(times[cells], self._cfl_times(
+                evaluation.mixed_sound_speed, evaluation.velocity_jump[cells], evaluation.length[cells]))
+        cell = int(np.argmin(times))
+        where = ", ".join(f"{v:.6g}" for v in np.atleast_1d(self.mesh.cell_centroids(position)[cell]))
+        return (f"cell {cell} (x = {where}) sets it: length {evaluation.length[cell]:.3g}, "
+                f"sound speed {sound_speed[cell]:.3g}, velocity jump {evaluation.velocity_jump[cell]:.3g}")
+
     def _cfl_limit(self, c, velocity_jump, length) -> float:
+        with np.errstate(divide="ignore"):
+            return float(np.min(self._cfl_times(c, velocity_jump, length)))
+
+    def _cfl_times(self, c, velocity_jump, length):
+        """Each cell's time step limit L / signal speed (before the CFL number)."""
         if self.artificial_viscosity:
             q_speed = np.minimum(velocity_jump, 0.0)
             q_speed *= -2.0 * self.numerics.q_quadratic
@@ -312,7 +333,7 @@ class ExplicitWilkins:
         # pushed by a piston has c ≈ 0: the velocity jump is then the only signal).
         signal = np.maximum(signal, np.abs(velocity_jump))
         with np.errstate(divide="ignore"):
-            return float(np.min(length / signal))
+            return length / signal
 
     # -- the step -----------------------------------------------------------------------
 

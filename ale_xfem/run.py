@@ -78,6 +78,11 @@ def make_stepper(problem: Problem) -> ExplicitWilkins:
     return stepper
 
 
+# Steps in a row at a time step too small to reach t_end within numerics.max_steps before a
+# run is stopped as failed (a cell collapsing: dt → 0)
+STALLED_STEPS = 1000
+
+
 def simulate(problem: Problem, progress: Progress | None = None, t_end: float | None = None,
              stop_after_steps: int | None = None, observe=None) -> RunResult:
     """Run to t_end (the scene's by default).  ``stop_after_steps`` ends the run early as a
@@ -103,7 +108,8 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
     growth = problem.scene.numerics.dt_growth
     evaluation = stepper.evaluate_state(state)
     dt_previous, dt_min, dt_max = np.inf, np.inf, 0.0
-    steps, status, diagnostic = 0, "ok", ""
+    steps, status, diagnostic, stalled = 0, "ok", "", 0
+    watch_stall = stop_after_steps is None or stop_after_steps > max_steps
     # A remap of the whole state after every step evaluates the remapped state's forces:
     # the step then leaves out those of the Lagrangian state.
     remap_all = remapper is not None and remapper.motion != "interface"
@@ -125,6 +131,17 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
         if not dt > 0.0 or not np.isfinite(dt):
             status = "failed"
             diagnostic = f"step {steps + 1}, t = {state.time:.6g}: time step dt = {dt:.3g}, must be > 0"
+            break
+        # A collapsing cell drives dt towards 0: the run would crawl on to max_steps.  It is
+        # stopped once dt has stayed too small to reach t_end within max_steps for
+        # STALLED_STEPS steps in a row, naming the cell that sets the time step (not when
+        # stop_after_steps ends the run first: it is not meant to reach t_end).
+        stalled = stalled + 1 if watch_stall and t_end - state.time > dt * (max_steps - steps) else 0
+        if stalled >= STALLED_STEPS:
+            status = "failed"
+            diagnostic = (f"step {steps + 1}, t = {state.time:.6g}: the time step collapsed to dt = {dt:.3g} "
+                          f"({stalled} steps too small to reach t_end = {t_end:g} within numerics.max_steps = "
+                          f"{max_steps}); {stepper.limiting_cell(evaluation, state.node_position)}")
             break
         try:
             new_state, evaluation, work, impulse = stepper.step(state, dt, evaluation, remapped_next=remap_all)

@@ -652,3 +652,30 @@ def test_2d_remap_of_single_material_blasts_and_pistons_conserves_and_keeps_cold
     assert result.state.material_energy[0].min() > 0
     exact = problem.exact.sample(problem.mesh.cell_centroids(result.state.node_position), result.state.time)
     assert result.errors["L1_density"] < 0.35 and np.isfinite(exact["density"]).all()
+
+
+def test_a_collapsing_cell_stops_the_run_early_naming_it(tmp_path, capsys):
+    """Noh without artificial viscosity or hourglass control: the cell at the centre
+    collapses and the time step with it.  The run stops as failed after STALLED_STEPS steps
+    too small to reach t_end (not after numerics.max_steps), exit code 3, one line naming
+    the cell that sets the time step — the smallest cell of the last good state, which is
+    written."""
+    from ale_xfem.run import STALLED_STEPS
+
+    out = tmp_path / "noh"
+    overrides = ["numerics.q_quadratic=0", "numerics.q_linear=0", "numerics.hourglass=0", "mesh.cells=[10,10]",
+                 "numerics.max_steps=20000"]
+    code = main(["run", "noh", "--out", str(out), *[a for o in overrides for a in ("--set", o)]])
+    assert code == 3
+    message = capsys.readouterr().err.strip().splitlines()
+    assert len(message) == 1 and "time step collapsed" in message[0]
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "failed" and summary["steps"] < 2 * STALLED_STEPS
+    assert summary["t_reached"] < summary["t_end"]
+    named = int(summary["diagnostic"].split("; cell ")[1].split()[0])
+    problem = build_problem(load_scene(resolve_scene_path("noh"), overrides))
+    last = simulate(problem, stop_after_steps=summary["steps"])
+    area = problem.mesh.cell_geometry(last.state.node_position)[0]
+    assert named == int(np.argmin(area)) and area[named] < 1e-4 * area.max()
+    with (out / "cells.csv").open() as handle:
+        assert len(list(csv.DictReader(handle))) == 100
