@@ -290,32 +290,28 @@ class ExplicitWilkins:
         """CFL limit with the viscous signal speed: dt_K = L / max(Q + √(Q² + c²), |Δu|),
         Q = c1 c + 2 c2 |Δu| in compression (the form of Benson, CMAME 99, 1992).  A mixed
         cell counts with its whole length and the larger sound speed of its materials."""
-        dt = self._cfl_limit(evaluation.sound_speed[0], evaluation.velocity_jump, evaluation.length)
-        if evaluation.mixed_sound_speed is not None:
-            cells = self.mixed.cells
-            dt = min(dt, self._cfl_limit(evaluation.mixed_sound_speed, evaluation.velocity_jump[cells],
-                                         evaluation.length[cells]))
-        return self.numerics.cfl * dt
+        return self.numerics.cfl * float(np.min(self._cell_time_limits(evaluation)))
 
     def limiting_cell(self, evaluation: ForceEvaluation, position) -> str:
         """The cell whose CFL limit sets the time step, described for a diagnostic: its
         index, centroid, CFL length, sound speed and velocity jump."""
-        times = self._cfl_times(evaluation.sound_speed[0], evaluation.velocity_jump, evaluation.length)
-        sound_speed = evaluation.sound_speed[0]
-        if evaluation.mixed_sound_speed is not None:
-            cells = self.mixed.cells
-            sound_speed = sound_speed.copy()
-            sound_speed[cells] = evaluation.mixed_sound_speed
-            times[cells] = np.minimum(times[cells], self._cfl_times(
-                evaluation.mixed_sound_speed, evaluation.velocity_jump[cells], evaluation.length[cells]))
-        cell = int(np.argmin(times))
+        cell = int(np.argmin(self._cell_time_limits(evaluation)))
+        sound_speed = evaluation.sound_speed[0, cell]
+        if evaluation.mixed_sound_speed is not None and cell in self.mixed.cells:
+            sound_speed = evaluation.mixed_sound_speed[np.flatnonzero(self.mixed.cells == cell)[0]]
         where = ", ".join(f"{v:.6g}" for v in np.atleast_1d(self.mesh.cell_centroids(position)[cell]))
         return (f"cell {cell} (x = {where}) sets it: length {evaluation.length[cell]:.3g}, "
-                f"sound speed {sound_speed[cell]:.3g}, velocity jump {evaluation.velocity_jump[cell]:.3g}")
+                f"sound speed {sound_speed:.3g}, velocity jump {evaluation.velocity_jump[cell]:.3g}")
 
-    def _cfl_limit(self, c, velocity_jump, length) -> float:
-        with np.errstate(divide="ignore"):
-            return float(np.min(self._cfl_times(c, velocity_jump, length)))
+    def _cell_time_limits(self, evaluation: ForceEvaluation):
+        """Each cell's time step limit before the CFL number; a mixed cell's from the larger
+        sound speed of its materials (the smaller limit of the two)."""
+        times = self._cfl_times(evaluation.sound_speed[0], evaluation.velocity_jump, evaluation.length)
+        if evaluation.mixed_sound_speed is not None:
+            cells = self.mixed.cells
+            times[cells] = np.minimum(times[cells], self._cfl_times(
+                evaluation.mixed_sound_speed, evaluation.velocity_jump[cells], evaluation.length[cells]))
+        return times
 
     def _cfl_times(self, c, velocity_jump, length):
         """Each cell's time step limit L / signal speed (before the CFL number)."""

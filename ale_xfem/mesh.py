@@ -77,11 +77,12 @@ class Corners:
             return QuadCorners.gathered(self.gather(node_values), hourglass)
         # Seen on the (ny + 1) × (nx + 1) plane the corners are strided views, and numpy's
         # arithmetic on them runs at about half speed (a call for a two-component field took
-        # 1.18 ms at 10⁵ cells, 0.94 ms now: BENCHMARKS.md).  Each combination is instead formed on flat slices over
-        # the cells numbered j (nx + 1) + i — corner c of that cell is node
-        # j (nx + 1) + i + (0, 1, nx + 2, nx + 1)[c]; i = nx, a cell that would straddle two
-        # rows, pads each row — and the rows' nx real cells are copied out (a strided copy
-        # is cheap).  The same operations on the same values: the same results to the bit.
+        # 1.18 ms at 10⁵ cells, 0.94 ms now: BENCHMARKS.md).  Each combination is instead
+        # formed on flat slices over the cells numbered j (nx + 1) + i — corner c of that
+        # cell is node j (nx + 1) + i + (0, 1, nx + 2, nx + 1)[c]; i = nx, a cell that would
+        # straddle two rows, pads each row — and the rows' nx real cells are copied out (a
+        # strided copy is cheap).  The same operations on the same values: the same results
+        # to the bit.
         nx, ny = self.grid
         width = nx + 1
         n_padded = ny * width - 1  # the last row's padding cell would need a node past the end
