@@ -54,19 +54,23 @@ def _minmod(a, b, out=None):
 
 def _limited_slopes(value, inverse_spacing, one_material, bound):
     """Minmod slopes of value over sorted pieces (1 / spacing of their centres given),
-    clipped to ±bound; zero in the first and last piece and — ``one_material[k]``: pieces
-    k and k + 1 hold the same material; None: all do — next to a piece of another
-    material, so no information crosses Γ."""
+    clipped to ±bound (None: no bound); zero in the first and last piece and —
+    ``one_material[k]``: pieces k and k + 1 hold the same material; None: all do — next to
+    a piece of another material, so no information crosses Γ."""
     if value.size < 3:
         return np.zeros_like(value)
     slope = np.empty_like(value)
     slope[0] = slope[-1] = 0.0
     gradient = np.diff(value)
     gradient *= inverse_spacing
-    # minmod(g_left, g_right) clipped to ±bound in one clip: g_left held between
-    # 0 and g_right, g_right first held within ±bound
-    right, bound = gradient[1:], bound[1:-1]
-    np.clip(gradient[:-1], np.clip(right, -bound, 0.0), np.clip(right, 0.0, bound), out=slope[1:-1])
+    right = gradient[1:]
+    if bound is None:
+        _minmod(gradient[:-1], right, out=slope[1:-1])
+    else:
+        # minmod(g_left, g_right) clipped to ±bound in one clip: g_left held between
+        # 0 and g_right, g_right first held within ±bound
+        bound = bound[1:-1]
+        np.clip(gradient[:-1], np.clip(right, -bound, 0.0), np.clip(right, 0.0, bound), out=slope[1:-1])
     inner = slope[1:-1]
     if one_material is not None:
         inner[~(one_material[:-1] & one_material[1:])] = 0.0
@@ -83,12 +87,14 @@ def piece_slopes(centre, width, density, energy_density, material, order):
     inverse_spacing = np.diff(centre)
     np.divide(1.0, inverse_spacing, out=inverse_spacing)
     one_material = None if material is None else material[1:] == material[:-1]
-    two_over_width = 2.0 / width
-    bound = density * two_over_width
-    density_slope = _limited_slopes(density, inverse_spacing, one_material, bound)
-    np.abs(energy_density, out=bound)
-    bound *= two_over_width
-    energy_slope = _limited_slopes(energy_density, inverse_spacing, one_material, bound)
+    # A minmod slope keeps both ends of a piece between its neighbours' values (the
+    # spacing of the centres is at least half the piece): a field of one sign over all
+    # pieces keeps its sign without the bound ±2|f|/w, which then cannot bind and is not
+    # formed (positive densities always; energy densities unless some are negative).
+    bounds = [None if field.min(initial=0.0) >= 0.0 else np.abs(field) * (2.0 / width)
+              for field in (density, energy_density)]
+    density_slope = _limited_slopes(density, inverse_spacing, one_material, bounds[0])
+    energy_slope = _limited_slopes(energy_density, inverse_spacing, one_material, bounds[1])
     return density_slope, energy_slope
 
 
@@ -328,6 +334,9 @@ def _lump_kinetic(mass, momentum):
     """½ |p|²/m of lumps (0 for empty ones)."""
     kinetic = _dot(momentum, momentum)
     kinetic *= 0.5
+    if mass.all():
+        kinetic /= mass
+        return kinetic
     np.divide(kinetic, mass, out=kinetic, where=mass != 0.0)
     kinetic[mass == 0.0] = 0.0
     return kinetic

@@ -238,7 +238,8 @@ def _pure_kernel(x, X, mass, specific_energy, corner, u, order, slots=1):
     (δ > 0, to node j): mass −δ (ρ_j + σ_j δ/2) times the part's lumping factor, momentum
     that mass times the part velocity at the swept mass's centre."""
     width = x[1:] - x[:-1]
-    centre = x[:-1] + 0.5 * width
+    half_width = 0.5 * width
+    centre = x[:-1] + half_width
     energy = mass * specific_energy
     rho = mass / width
     eps = energy / width
@@ -256,11 +257,12 @@ def _pure_kernel(x, X, mass, specific_energy, corner, u, order, slots=1):
     flux_mass = np.where(right_donor, srho[1:], srho[:-1])
     flux_mass *= offset
     flux_mass += np.where(right_donor, rho[1:], rho[:-1])
-    flux_mass *= -d
+    minus_d = np.negative(d)
+    flux_mass *= minus_d
     flux_energy = np.where(right_donor, seps[1:], seps[:-1])
     flux_energy *= offset
     flux_energy += np.where(right_donor, eps[1:], eps[:-1])
-    flux_energy *= -d
+    flux_energy *= minus_d
     new_mass, new_energy = np.empty((slots, width.size)), np.empty((slots, width.size))
     new_mass[1:].fill(0.0)
     new_energy[1:].fill(0.0)
@@ -273,9 +275,10 @@ def _pure_kernel(x, X, mass, specific_energy, corner, u, order, slots=1):
 
     # -- nodal momentum through the dual faces -------------------------------------------
     share_left, share_right = corner[0], corner[1]
-    mass_left = srho * (-0.25 * width)
+    mass_left = srho * half_width
+    mass_left *= -0.5  # σ (−w/4), a power of two apart: the same bits
     mass_left += rho
-    mass_left *= 0.5 * width  # ∫ over L_j = [x_j, c_j]
+    mass_left *= half_width  # ∫ over L_j = [x_j, c_j]
     mass_right = mass - mass_left
     scale_left = share_left / mass_left
     scale_right = share_right / mass_right
@@ -284,7 +287,8 @@ def _pure_kernel(x, X, mass, specific_energy, corner, u, order, slots=1):
         np.add(half_d[:-1], half_d[1:], out=delta[1:-1])
         delta[0], delta[-1] = half_d[0], half_d[-1]
     from_left = delta < 0.0
-    swept = srho * (0.5 * delta)
+    half_delta = 0.5 * delta
+    swept = srho * half_delta
     swept += rho
     swept *= -delta  # signed: > 0 moves from node j to node j + 1
     scale = np.where(from_left, scale_left, scale_right)
@@ -298,8 +302,7 @@ def _pure_kernel(x, X, mass, specific_energy, corner, u, order, slots=1):
     np.copysign(quarter, delta, out=quarter)  # −w/4 for L_j (δ < 0), +w/4 for R_j
     part_centre += quarter
     # signed first moment about the part centre: M (δ/2 − x̄) − σ δ³/12
-    moment = 0.5 * delta
-    moment -= part_centre
+    moment = np.subtract(half_delta, part_centre)
     moment *= swept
     cube = delta * delta
     cube *= delta
@@ -311,8 +314,9 @@ def _pure_kernel(x, X, mass, specific_energy, corner, u, order, slots=1):
     if order == 2:
         gradient = np.diff(u, axis=1)
         gradient /= width
-        tau = np.zeros_like(u)
-        tau[:, 1:-1] = _minmod(gradient[:, :-1], gradient[:, 1:])
+        tau = np.empty_like(u)
+        tau[:, 0] = tau[:, -1] = 0.0
+        _minmod(gradient[:, :-1], gradient[:, 1:], out=tau[:, 1:-1])
         moved_momentum = np.where(from_left, tau[:, :-1], tau[:, 1:])
         moved_momentum *= moment
     else:
@@ -320,8 +324,9 @@ def _pure_kernel(x, X, mass, specific_energy, corner, u, order, slots=1):
     part_velocity = np.where(from_left, u[:, :-1], u[:, 1:])
     part_velocity *= swept
     moved_momentum += part_velocity
-    old_node_mass = np.zeros(x.size)
-    old_node_mass[:-1] += share_left
+    old_node_mass = np.empty(x.size)
+    old_node_mass[:-1] = share_left
+    old_node_mass[-1] = 0.0
     old_node_mass[1:] += share_right
     node_mass = old_node_mass.copy()
     node_mass[:-1] -= swept
