@@ -249,7 +249,7 @@ def _pure_kernel(x, X, mass, specific_energy, corner, u, order, slots=1):
     # Nodes that move by more than half a neighbouring cell: the cells around them are
     # redone in windows, like those around an interface.
     far_nodes = np.zeros(0, dtype=np.int64)
-    if np.abs(half_d).max(initial=0.0) > 0.25 * width.min():
+    if max(half_d.max(initial=0.0), -half_d.min(initial=0.0)) > 0.25 * width.min():
         far_nodes = np.flatnonzero(np.abs(d) > 0.5 * np.minimum(width[:-1], width[1:])) + 1
     right_donor = d > 0.0
     offset = half_d + x[1:-1]

@@ -117,6 +117,8 @@ def test_phase_ratios_pair_runs_of_the_same_round():
     assert [t["total"] for t in runs[0]] == [1.0, 1.6, 1.2]
     assert _ratios(runs[1], runs[0]) == pytest.approx((1.5, 1.5, 1.5))
     assert _fastest(runs[1])["total"] == 1.5
+    # what the second case adds to the first, per round: 0.5 × the first
+    assert _ratios(runs[1], runs[0], less_runs=runs[0]) == pytest.approx((0.5, 0.5, 0.5))
 
 
 def test_bench_rejects_bad_sizes(capsys):
