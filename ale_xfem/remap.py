@@ -95,9 +95,9 @@ def piece_slopes(centre, width, density, energy_density, material, order):
     np.divide(1.0, inverse_spacing, out=inverse_spacing)
     one_material = None if material is None else material[1:] == material[:-1]
     # A minmod slope keeps both ends of a piece between its neighbours' values (the
-    # spacing of the centres is at least half the piece): a field of one sign over all
-    # pieces keeps its sign without the bound ±2|f|/w, which then cannot bind and is not
-    # formed (positive densities always; energy densities unless some are negative).
+    # spacing of the centres is at least half the piece): a field with no negative value
+    # stays non-negative without the bound ±2|f|/w, which then cannot bind and is not
+    # formed (densities always; energy densities unless some are negative).
     bounds = [None if field.min(initial=0.0) >= 0.0 else np.abs(field) * (2.0 / width)
               for field in (density, energy_density)]
     density_slope = _limited_slopes(density, inverse_spacing, one_material, bounds[0])
