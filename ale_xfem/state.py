@@ -93,7 +93,7 @@ class MaterialLayout:
 
 
 def ranked_materials(values, count: int = 2) -> np.ndarray:
-    """Per cell, the materials of its ``count`` largest ``values`` (n_materials, n_cells),
+    """Per cell, the materials of its ``count`` largest ``values`` ((n_materials, n_cells),
     finite, e.g. volumes): (count, n_cells), the largest first and of equal values the
     lower material first — np.argsort(-values, axis=0, kind="stable")[:count], without a
     sort along the strided axis (a loop over the materials).  Slot 0 of a cell holds its
