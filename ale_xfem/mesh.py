@@ -205,6 +205,31 @@ def cells_around(mesh, cells) -> np.ndarray:
     return np.flatnonzero(np.logical_or.reduce(corner))
 
 
+def node_neighbour_cells(cell_nodes: np.ndarray, n_nodes: int) -> np.ndarray:
+    """The cells sharing at least one node with each cell, itself excluded: (n_cells, w)
+    rows in increasing order, padded with −1 (w: the most any cell has)."""
+    n_cells, k = cell_nodes.shape
+    # the cells around each node, padded with −1: (n_nodes, valence)
+    nodes = cell_nodes.ravel()
+    order = np.argsort(nodes, kind="stable")
+    sorted_nodes = nodes[order]
+    count = np.bincount(nodes, minlength=n_nodes)
+    first = np.concatenate([[0], np.cumsum(count)[:-1]])
+    rank = np.arange(nodes.size) - first[sorted_nodes]
+    around = np.full((n_nodes, max(int(count.max(initial=0)), 1)), -1, dtype=np.int64)
+    around[sorted_nodes, rank] = order // k
+    candidates = np.sort(around[cell_nodes].reshape(n_cells, -1), axis=1)
+    # a neighbour seen through several shared nodes, or the cell itself: dropped
+    repeated = np.zeros(candidates.shape, dtype=bool)
+    repeated[:, 1:] = candidates[:, 1:] == candidates[:, :-1]
+    candidates[repeated | (candidates == np.arange(n_cells)[:, None]) | (candidates < 0)] = n_cells
+    candidates.sort(axis=1)  # the dropped ones (n_cells) last
+    width = max(int((candidates < n_cells).sum(axis=1).max(initial=0)), 1)
+    neighbours = candidates[:, :width]
+    neighbours[neighbours == n_cells] = -1
+    return np.ascontiguousarray(neighbours)
+
+
 def node_averaged_gradient(mesh, node_position, values, cells=None, around=None) -> np.ndarray:
     """The gradient in each cell (or in ``cells``) of cell fields averaged to the nodes by
     area: ∇v_K = (1/A_K) Σ_i v̄_i ∂A_K/∂x_i with v̄_i = Σ_K A_K v_K / Σ_K A_K over the cells

@@ -18,7 +18,7 @@ from ale_xfem._memory import keep_freed_memory
 from ale_xfem.lagrange import Breakdown, ExplicitWilkins
 from ale_xfem.problem import Problem
 from ale_xfem.remap import RemapFailure, Remapper
-from ale_xfem.state import State, totals
+from ale_xfem.state import State, material_masses, totals
 
 SUBSAMPLES_PER_CELL = 16  # midpoint rule for ∫|f_h − f_exact| dx inside each cell
 SUBSAMPLES_PER_SIDE_2D = 4  # 2D: 4 × 4 points per quadrilateral, 16 per triangle
@@ -104,6 +104,7 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
     remap_energy_change, remap_seconds = 0.0, 0.0
     state = problem.state
     start_totals = totals(state, problem.node_mass)
+    start_materials = material_masses(state, problem.layout)
     boundary_work, boundary_impulse = 0.0, np.zeros_like(start_totals["momentum"])
     growth = problem.scene.numerics.dt_growth
     evaluation = stepper.evaluate_state(state)
@@ -176,6 +177,9 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
                        dt_max=float(dt_max), phase_seconds=phases)
     result.conservation = conservation(start_totals, totals(state, problem.node_mass),
                                        boundary_work, boundary_impulse, problem.node_mass, state)
+    # each material's own mass: the worst relative change (a remap moves them one by one)
+    change = (material_masses(state, problem.layout) - start_materials) / np.where(start_materials > 0, start_materials, 1.0)
+    result.conservation["material_mass"] = float(change[np.argmax(np.abs(change))])
     if remapper is not None and remapper.motion == "interface":
         result.phase_seconds["local_remaps"] = remapper.windows_remapped
     elif remapper is not None:

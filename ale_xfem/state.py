@@ -236,6 +236,12 @@ def thermodynamics(materials, layout: MaterialLayout, density, energy, out=None)
     return pressure, sound_speed
 
 
+def material_masses(state: State, layout: MaterialLayout) -> np.ndarray:
+    """The mass of each material (n_materials,)."""
+    occupied = layout.cell_material >= 0
+    return np.bincount(layout.cell_material[occupied], state.material_mass[occupied], layout.n_materials)
+
+
 def totals(state: State, node_mass: np.ndarray) -> dict[str, float]:
     """Mass, momentum (per component) and total energy of a state."""
     kinetic = 0.5 * np.sum(node_mass * state.node_velocity**2)

@@ -54,7 +54,7 @@ for motion in ("lagrangian", "smoothed"):
 
 # ## What to look at
 #
-# The disk's mass is conserved in both runs (the remap moves each material separately;
-# a trace below 10⁻⁴ of a cell merges into the cell's other material, so the disk's mass may
-# change by such traces).  Compare the two pictures: the Lagrangian mesh wrapped around the
+# The disk's mass is conserved in both runs (the remap moves each material separately; a
+# trace below 10⁻⁴ of a cell goes to the neighbour holding the most of its material, so the
+# disk's mass stays exact to round-off).  Compare the two pictures: the Lagrangian mesh wrapped around the
 # disk, the smoothed mesh regular, the disk's edge (PLIC, black) sharp in both.
