@@ -97,7 +97,7 @@ class Remapper2D:
         """The target mesh's edge ends (2, n_edges) each and cell areas."""
         if self._fixed_target is not None:
             return self._fixed_target
-        geometry = (X[:, self.a], X[:, self.b], self.mesh.cell_volumes(X))
+        geometry = (X.take(self.a, axis=1), X.take(self.b, axis=1), self.mesh.cell_volumes(X))
         if self.motion == "eulerian":
             self._fixed_target = geometry
         return geometry
@@ -109,8 +109,8 @@ class Remapper2D:
         if self.motion == "eulerian":
             return self.initial.copy()  # the new state's own array
         n = position.shape[1]
-        mean = np.stack([np.bincount(self.a, position[d, self.b], n) + np.bincount(self.b, position[d, self.a], n)
-                         for d in range(2)])
+        mean = np.stack([np.bincount(self.a, position[d].take(self.b), n)
+                         + np.bincount(self.b, position[d].take(self.a), n) for d in range(2)])
         mean /= np.maximum(self.neighbours, 1)
         target = position + 0.5 * (mean - position)
         a, b = self.a[self.minus < 0], self.b[self.minus < 0]  # boundary edges
@@ -156,7 +156,8 @@ class Remapper2D:
 
         # -- the swept regions ------------------------------------------------------------
         a, b, plus, minus = self.a, self.b, self.plus, self.minus
-        xa, xb = x[:, a], x[:, b]
+        # (take: numpy's fancy indexing along the second axis is several times slower)
+        xa, xb = x.take(a, axis=1), x.take(b, axis=1)
         Xa, Xb, area = self._target_geometry(X)
         # the swept quadrilateral (x_a, X_a, X_b, x_b): S = ½ (X_b − x_a) × (x_b − X_a)
         S = (Xb[0] - xa[0]) * (xb[1] - Xa[1])
@@ -166,7 +167,7 @@ class Remapper2D:
         e = np.flatnonzero(moving)
         S_e = S[e]
         # the moving edges' swept quadrilaterals, vertex by vertex: ([x_i], [y_i])
-        swept = tuple([ends[d, e] for ends in (xa, Xa, Xb, xb)] for d in range(2))
+        swept = tuple([ends[d].take(e) for ends in (xa, Xa, Xb, xb)] for d in range(2))
         donor = np.where(S_e > 0, minus[e], plus[e])
         receiver = np.where(S_e > 0, plus[e], minus[e])
         size = np.abs(S_e)
@@ -177,7 +178,11 @@ class Remapper2D:
         # volume of each material in each swept region
         flux_volume = np.zeros((n_materials, e.size))
         pure = ~is_mixed[donor]
-        flux_volume[material_of[0, donor[pure]], np.flatnonzero(pure)] = size[pure]
+        from_pure = np.flatnonzero(pure)
+        entry = material_of[0].take(donor[from_pure])  # (material, region) as flat indices
+        entry *= e.size
+        entry += from_pure
+        flux_volume.reshape(-1)[entry] = size[from_pure]
         if np.any(~pure):  # mixed donors: exact clipping with their PLIC polygons
             self._mixed_donor_volumes(state, layout, mixed, swept, donor, size, flux_volume)
         if np.any(~pure):
@@ -186,8 +191,8 @@ class Remapper2D:
         with np.errstate(invalid="ignore", divide="ignore"):
             rho = np.where(volume > 0, mass / np.where(volume > 0, volume, 1.0), 0.0)
             eps = np.where(volume > 0, energy / np.where(volume > 0, volume, 1.0), 0.0)  # energy density
-        flux_mass = flux_volume * rho[:, donor]
-        flux_energy = flux_volume * eps[:, donor]
+        flux_mass = flux_volume * rho.take(donor, axis=1)
+        flux_energy = flux_volume * eps.take(donor, axis=1)
         if self.order == 2:
             self._second_order(x, layout, is_mixed, rho, eps, swept, donor, pure, flux_volume,
                                flux_mass, flux_energy)
@@ -202,7 +207,7 @@ class Remapper2D:
         old_node_mass = corners.scatter([old_cell_mass / k] * k)
         cell_velocity = np.stack([sum(c[0] for c in corners.gather(u[d:d + 1])) / k for d in range(u.shape[0])])
         total_flux = flux_mass.sum(axis=0)
-        donor_velocity = cell_velocity[:, donor]
+        donor_velocity = cell_velocity.take(donor, axis=1)
         momentum_flux = total_flux * donor_velocity
         kinetic_flux = 0.5 * total_flux * np.sum(donor_velocity ** 2, axis=0)
         change = np.stack([np.bincount(receiver, f, n_cells) - np.bincount(donor, f, n_cells) for f in momentum_flux])
@@ -430,11 +435,14 @@ class Remapper2D:
             for i in range(k):
                 delta = gx * relative[i][0]
                 delta += gy * relative[i][1]
-                room = np.where(delta > 0, corner_high[i][0], corner_low[i][0])
+                # room ≥ 0 where δ = 0 (a cell's range holds its value): the bound is +∞ or
+                # NaN there, and fmin passes over NaN — no constraint, without masks
+                room = np.where(delta >= 0, corner_high[i][0], corner_low[i][0])
                 room -= value
-                bound = np.divide(room, delta, out=np.ones(mesh.n_cells), where=delta != 0)
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    bound = np.divide(room, delta, out=room)
                 np.clip(bound, 0.0, 1.0, out=bound)
-                np.minimum(limiter, bound, out=limiter)
+                np.fmin(limiter, bound, out=limiter)
             limiter[~inside] = 0.0
             slopes.append((gx * limiter, gy * limiter))
         where = np.flatnonzero(pure)
@@ -444,8 +452,10 @@ class Remapper2D:
         swept_x = swept_x[where] - centre_x[source]
         swept_y = swept_y[where] - centre_y[source]
         volume = flux_volume.sum(axis=0)[where]
+        entry = m * flux_mass.shape[1]  # (m, where) as flat indices: each once, and faster
+        entry += where
         for (sx, sy), flux in ((slopes[0], flux_mass), (slopes[1], flux_energy)):
             correction = sx[source] * swept_x
             correction += sy[source] * swept_y
             correction *= volume
-            flux[m, where] += correction
+            flux.reshape(-1)[entry] += correction
