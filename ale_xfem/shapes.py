@@ -37,14 +37,18 @@ def polygon_area(vertices: np.ndarray) -> np.ndarray:
 def corner_centroid(xs, ys):
     """Areas and centroids of polygons given as lists over their vertices of coordinate
     arrays (xs[i], ys[i]: vertex i of every polygon): (area, cx, cy); a polygon of zero area
-    gets the mean of its vertices."""
+    gets the mean of its vertices.  Fanned into triangles from vertex 0, coordinates
+    relative to it (signed: exact for any polygon, and no cancellation of large
+    coordinates in thin ones)."""
     m = len(xs)
-    area = cx = cy = None
-    for i in range(m):
-        j = (i + 1) % m
-        cross = xs[i] * ys[j]
-        cross -= xs[j] * ys[i]
-        tx, ty = xs[i] + xs[j], ys[i] + ys[j]
+    x0, y0 = xs[0], ys[0]
+    dx = [x - x0 for x in xs[1:]]
+    dy = [y - y0 for y in ys[1:]]
+    area = cx = cy = None  # twice the area, six times the first moments about vertex 0
+    for i in range(m - 2):
+        cross = dx[i] * dy[i + 1]
+        cross -= dx[i + 1] * dy[i]
+        tx, ty = dx[i] + dx[i + 1], dy[i] + dy[i + 1]
         tx *= cross
         ty *= cross
         if area is None:
@@ -59,8 +63,10 @@ def corner_centroid(xs, ys):
     cx *= scale
     cy *= scale
     if np.any(empty):
-        cx[empty] = sum(x[empty] for x in xs) / m
-        cy[empty] = sum(y[empty] for y in ys) / m
+        cx[empty] = sum(x[empty] for x in dx) / m
+        cy[empty] = sum(y[empty] for y in dy) / m
+    cx += x0
+    cy += y0
     return area, cx, cy
 
 
