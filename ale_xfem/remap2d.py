@@ -54,11 +54,11 @@ from ale_xfem.state import density_of, ranked_materials, thermodynamics
 # to a neighbour holding more of it: Remapper2D._move_traces).  Measured on the shock on a
 # heavy disk (80 × 40, smoothed mesh, before boundary nodes slid and losses were deposited
 # only where lost, traces then merged into their cell's other material): 1e-6 left 453 mixed
-# cells of debris, 1e-4 60, 1e-3 51; with 1e-4 and traces moved to neighbours now: 87 mixed
-# cells at the end, the disk's mass exact to 2 × 10⁻¹⁴ (it lost 0.04 % while traces merged
-# in place) (`python demos/shock_disk.py --cells 80`).  A larger fraction would clean more
-# debris (1e-2: 127 mixed cells instead of 1 479 on the rotated tube, 100², Eulerian) but
-# each trace moved perturbs the pressures of its two cells by about its fraction.
+# cells of debris, 1e-4 60, 1e-3 51; with 1e-4, traces moved to neighbours and the part of
+# a swept region outside its mixed donor shared (Remapper2D._mixed_donor_volumes) now: 58
+# mixed cells at the end, the disk's mass exact to 2 × 10⁻¹⁶ (it lost 0.04 % while traces
+# merged in place) (`python demos/shock_disk.py --cells 80`).  A larger fraction cleans more
+# but each trace moved perturbs the pressures of its two cells by about its fraction.
 TRACE = 1e-4
 MAX_TRACE_PASSES = 8  # a trace moved onto a trace moves on, at most this many times a remap
 

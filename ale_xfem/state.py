@@ -237,9 +237,10 @@ def thermodynamics(materials, layout: MaterialLayout, density, energy, out=None)
 
 
 def material_masses(state: State, layout: MaterialLayout) -> np.ndarray:
-    """The mass of each material (n_materials,)."""
-    occupied = layout.cell_material >= 0
-    return np.bincount(layout.cell_material[occupied], state.material_mass[occupied], layout.n_materials)
+    """The mass of each material (n_materials,), each summed pairwise as np.sum does (a
+    running sum, as np.bincount's, drifts by up to n ε: 4 × 10⁻¹⁴ of Sedov's one material
+    on 60², where the total mass agreed to 2 × 10⁻¹⁶)."""
+    return np.array([state.material_mass[layout.cell_material == m].sum() for m in range(layout.n_materials)])
 
 
 def totals(state: State, node_mass: np.ndarray) -> dict[str, float]:
