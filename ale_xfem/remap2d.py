@@ -63,6 +63,14 @@ TRACE = 1e-4
 MAX_TRACE_PASSES = 8  # a trace moved onto a trace moves on, at most this many times a remap
 
 
+def _hand_over(quantity, source, target):
+    """Move the entries ``source`` (material, cell) of ``quantity`` onto ``target``: taken
+    out first, then added (a target that is also a source keeps what it receives)."""
+    moved = quantity[source]
+    quantity[source] = 0.0
+    np.add.at(quantity, target, moved)
+
+
 class Remapper2D:
     """The transport phase of a 2D run (see module docstring); ``apply`` has the signature
     of :class:`ale_xfem.remap.Remapper`'s."""
@@ -324,20 +332,15 @@ class Remapper2D:
                 break
             material, cells, keeper = material[larger], cells[larger], keeper[larger]
             receiver = candidates[rows[larger], best[larger]]
-            # taken out first, then added: a receiver moving on in this pass keeps what it gets
-            for quantity, to in ((mass, (material, receiver)), (energy, (material, receiver)),
-                                 (volume, (keeper, cells))):
-                moved = quantity[material, cells]
-                quantity[material, cells] = 0.0
-                np.add.at(quantity, to, moved)
+            for quantity in (mass, energy):
+                _hand_over(quantity, (material, cells), (material, receiver))
+            _hand_over(volume, (material, cells), (keeper, cells))
         present = volume > TRACE * area
         material, cells = np.nonzero(~present & (mass != 0.0))
         if cells.size:  # flecks: merged into their own cell's largest material
             keeper = np.argmax(np.where(present, volume, -np.inf)[:, cells], axis=0)
             for quantity in (mass, energy, volume):
-                moved = quantity[material, cells]
-                quantity[material, cells] = 0.0
-                np.add.at(quantity, (keeper, cells), moved)
+                _hand_over(quantity, (material, cells), (keeper, cells))
             self.lone_traces += cells.size
 
     @staticmethod
