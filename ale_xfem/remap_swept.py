@@ -71,7 +71,8 @@ def remap_1d_swept(order_of_cells, cell_left_node, cell_right_node, node_positio
     mixed_j = rank[mixed_cells]
     boundaries = np.flatnonzero(m0[:-1] != m0[1:])
     # two slots when a window may put a second material in a cell
-    kernel = _pure_kernel(x, X, mass0, energy0, corner, u, order, 2 if mixed_j.size or boundaries.size else 1)
+    kernel = _pure_kernel(x, X, mass0, energy0, corner, u, order, 2 if mixed_j.size or boundaries.size else 1,
+                          heat)
     new_mass, new_energy, corner_new, node_mass, momentum, kinetic_before, kinetic, far_nodes = kernel
     right_corner = corner_new[1]
 
@@ -118,7 +119,8 @@ def remap_1d_swept(order_of_cells, cell_left_node, cell_right_node, node_positio
             kt = slice(taken[0] + 1 - window[0], taken[1] - window[0])
             node_mass[k] = result["node_mass"][kt]
             momentum[:, k] = result["node_momentum"][:, kt]
-            kinetic[k] = result["kinetic"][kt]
+            if heat:
+                kinetic[k] = result["kinetic"][kt]
             taken_cells.append(np.arange(taken[0], taken[1]))
         new_mixed_j = np.flatnonzero(slot_material[1] >= 0)
         if np.any(np.abs(new_mixed_j[1:] - new_mixed_j[:-1]) <= 1):
@@ -221,13 +223,14 @@ def _windows(special, n):
         yield (int(first), int(last)), (max(int(first) - WINDOW_MARGIN, 0), min(int(last) + WINDOW_MARGIN, n))
 
 
-def _pure_kernel(x, X, mass, specific_energy, corner, u, order, slots=1):
+def _pure_kernel(x, X, mass, specific_energy, corner, u, order, slots=1, heat=True):
     """The swept-region remap of pure cells of one material, in flux form over the sorted
     cells (what the windows then redo near interfaces does not matter here).  Returns the
     new cell masses and total energies, the corner masses (2, n) with the right ones
     filled, node masses and momenta, the kinetic energy before and each node's kinetic
     energy balance (see :func:`deposit_kinetic_loss`), and the nodes that moved by more
     than half a neighbouring cell (the kernel's results around them are to be redone).
+    ``heat`` False: the kinetic energy is only reported, and no balance is formed (None).
     The new masses and energies come as (slots, n) arrays with slot 0 filled and any
     further slot zero (the windows put second materials there): no row is copied after.
 
@@ -338,10 +341,13 @@ def _pure_kernel(x, X, mass, specific_energy, corner, u, order, slots=1):
     kinetic *= old_node_mass
     kinetic *= 0.5
     kinetic_before = float(kinetic.sum())
-    kinetic_flux = _lump_kinetic(swept, moved_momentum)
-    np.copysign(kinetic_flux, swept, out=kinetic_flux)  # signed like the mass: > 0 rightward
-    kinetic[:-1] -= kinetic_flux
-    kinetic[1:] += kinetic_flux
+    if heat:
+        kinetic_flux = _lump_kinetic(swept, moved_momentum)
+        np.copysign(kinetic_flux, swept, out=kinetic_flux)  # signed like the mass: > 0 rightward
+        kinetic[:-1] -= kinetic_flux
+        kinetic[1:] += kinetic_flux
+    else:
+        kinetic = None
     # right corner of new cell j = [F_j, X_{j+1}] = R_j + what the face moved into it −
     # ∫ from x_{j+1} to X_{j+1} (the node's swept mass in the part beside the node)
     corner_new = np.empty((2, width.size))  # row 1 (right corners) filled here, row 0 by the caller
