@@ -288,8 +288,19 @@ class ExplicitWilkins:
 
     def stable_time_step(self, evaluation: ForceEvaluation) -> float:
         """CFL limit with the viscous signal speed: dt_K = L / max(Q + √(Q² + c²), |Δu|),
-        Q = c1 c + 2 c2 |Δu| in compression (the form of Benson, CMAME 99, 1992).  A mixed
-        cell counts with its whole length and the larger sound speed of its materials."""
+        Q = (c1 c + 2 c2 |Δu|) L_q/L in compression (the form of Benson, CMAME 99, 1992).  A
+        mixed cell counts with its whole length and the larger sound speed of its materials.
+
+        L_q/L: the viscosity's length (√A in 2D) over the CFL length (the least width).  The
+        viscosity is a diffusion of coefficient ν = (c1 c + c2 |Δu|) L_q across the cell's
+        width L, stable for dt ≲ L²/ν: Benson's 1D form, where L_q = L, scaled by L_q/L.
+        Measured (2026-11-22, tenth session): without it (``numerics.viscous_time_step = false``) Noh on
+        crossed triangles broke down on 80 × 80 (t = 0.53) and 100 × 100 (t = 0.42) — a
+        sliver triangle on the diagonal, √A ≈ 6 × its width, its centre node oscillating
+        from step to step, the viscosity of the compression half cooling the cell; with it,
+        80 × 80 runs to t = 0.6 (L1(ρ) 0.117).  On cells that keep their shape L_q/L = 1
+        (squares, the crossed triangles of a square); compressed cells take smaller steps
+        (Saltzman and Sedov: about twice as many, the same errors)."""
         return self.numerics.cfl * float(np.min(self._cell_time_limits(evaluation)))
 
     def limiting_cell(self, evaluation: ForceEvaluation, position) -> str:
@@ -306,19 +317,28 @@ class ExplicitWilkins:
     def _cell_time_limits(self, evaluation: ForceEvaluation):
         """Each cell's time step limit before the CFL number; a mixed cell's from the larger
         sound speed of its materials (the smaller limit of the two)."""
-        times = self._cfl_times(evaluation.sound_speed[0], evaluation.velocity_jump, evaluation.length)
+        stiffness = None  # L_q/L (1D: 1)
+        if self.artificial_viscosity and self.numerics.viscous_time_step and self.mesh.cell_type.dimension > 1:
+            stiffness = self.mesh.cell_type.viscosity_length(evaluation.volume)
+            stiffness /= evaluation.length
+        times = self._cfl_times(evaluation.sound_speed[0], evaluation.velocity_jump, evaluation.length,
+                                stiffness)
         if evaluation.mixed_sound_speed is not None:
             cells = self.mixed.cells
             times[cells] = np.minimum(times[cells], self._cfl_times(
-                evaluation.mixed_sound_speed, evaluation.velocity_jump[cells], evaluation.length[cells]))
+                evaluation.mixed_sound_speed, evaluation.velocity_jump[cells], evaluation.length[cells],
+                None if stiffness is None else stiffness[cells]))
         return times
 
-    def _cfl_times(self, c, velocity_jump, length):
-        """Each cell's time step limit L / signal speed (before the CFL number)."""
+    def _cfl_times(self, c, velocity_jump, length, stiffness=None):
+        """Each cell's time step limit L / signal speed (before the CFL number);
+        ``stiffness``: L_q/L, the factor of the viscous signal speed (None: 1)."""
         if self.artificial_viscosity:
             q_speed = np.minimum(velocity_jump, 0.0)
             q_speed *= -2.0 * self.numerics.q_quadratic
             q_speed += self.numerics.q_linear * c
+            if stiffness is not None:
+                q_speed *= stiffness
             signal = q_speed * q_speed
             signal += c * c
             np.sqrt(signal, out=signal)

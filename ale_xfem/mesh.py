@@ -486,6 +486,11 @@ class CellType:
             return volume_rate
         return volume_rate / np.sqrt(volume)
 
+    def viscosity_length(self, volume):
+        """The length L of the artificial viscosity's velocity jump Δu = L ∇·u (1D: the cell
+        length; 2D: √A, see :meth:`velocity_jump`)."""
+        return volume if self.dimension == 1 else np.sqrt(volume)
+
     def length_scale(self, volume, positions=None, gradient=None):
         """The sound-crossing length of the CFL condition (1D: the cell length; triangles:
         the least altitude 2A / longest edge; quadrilaterals: A over the longer of the two

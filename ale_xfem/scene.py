@@ -44,6 +44,10 @@ NUMERICS_DEFAULTS = {
     # 2D quadrilaterals: viscous hourglass control, f_i = −(κ/4) ρ c √A (Σ_j γ_j u_j) γ_i;
     # 0.3: with 0.1 a cell of the rotated tube (50 × 50) turned a corner inside out
     "hourglass": 0.3,
+    # 2D: the time step resolves the viscosity's stiffness (its signal speed scaled by √A
+    # over the cell's least width); false: Benson's 1D form alone, fewer steps on compressed
+    # cells, but sliver triangles can break down (ExplicitWilkins.stable_time_step)
+    "viscous_time_step": True,
 }
 
 INTERFACE_DEFAULTS = {
@@ -128,6 +132,7 @@ class Numerics:
     remap_order: int = 2
     remap_energy: str = "total"
     hourglass: float = 0.3
+    viscous_time_step: bool = True
 
 
 @dataclass(frozen=True)
@@ -500,6 +505,7 @@ def _validate_numerics(table: Any) -> Numerics:
         remap_order=_choice_int(table["remap_order"], "numerics.remap_order", (1, 2)),
         remap_energy=_choice(table["remap_energy"], "numerics.remap_energy", ("total", "internal")),
         hourglass=_real(table["hourglass"], "numerics.hourglass", lambda v: 0 <= v <= 1, "a real number in [0, 1]"),
+        viscous_time_step=_boolean(table["viscous_time_step"], "numerics.viscous_time_step"),
     )
 
 

@@ -264,6 +264,48 @@ def test_hourglass_control_damps_the_hourglass_mode_and_leaves_linear_fields_alo
     assert max(np.abs(f[d]).max() for f in evaluation.hourglass_force for d in range(2)) < 1e-14
 
 
+def _viscous_damping_times_time_step(tmp_path, shift, viscous_time_step):
+    """dt λ: the CFL time step times the largest eigenvalue of M⁻¹D, D = −∂F/∂u the damping
+    matrix of the artificial viscosity over the interior nodes' velocities (central
+    differences of the nodal forces at fixed positions), on a crossed 10 × 10 mesh whose
+    centre nodes are moved ``shift`` cells to the right (slivers of width (1/2 − shift) h)
+    in uniform compression u = −5 (x − x_c)."""
+    problem = build_problem(load_scene(_uniform_scene(tmp_path, "triangle"),
+                                       ["t_end=1e9", f"numerics.viscous_time_step={str(viscous_time_step).lower()}"]))
+    stepper = make_stepper(problem)
+    x = problem.state.node_position.copy()
+    centres = (np.abs(x * 10 - 0.5 - np.rint(x * 10 - 0.5)) < 1e-9).all(axis=0)
+    x[0, centres] += shift / 10
+    u = -5.0 * (x - 0.5)
+    mass, energy = problem.state.material_mass, problem.state.material_energy
+    dt = stepper.stable_time_step(stepper.evaluate(x, u, mass, energy))
+    inner = np.flatnonzero(((x > 1e-9) & (x < 1 - 1e-9)).all(axis=0))
+    damping = np.empty((2 * inner.size, 2 * inner.size))
+    for column, (d, node) in enumerate((d, node) for node in inner for d in range(2)):
+        forces = []
+        for sign in (1.0, -1.0):
+            v = u.copy()
+            v[d, node] += sign * 1e-7
+            forces.append(stepper.evaluate(x, v, mass, energy, with_length=False).nodal_force[:, inner])
+        damping[:, column] = -((forces[0] - forces[1]) / 2e-7).T.ravel()
+    scale = 1.0 / np.sqrt(np.repeat(stepper.node_mass[inner], 2))
+    symmetric = scale[:, None] * damping * scale[None, :]
+    return dt * np.linalg.eigvalsh(0.5 * (symmetric + symmetric.T)).max()
+
+
+def test_the_time_step_resolves_the_viscositys_stiffness_on_sliver_triangles(tmp_path):
+    """The step's predictor–corrector damps a velocity error of the viscosity's damping
+    rate λ by 1 − dt λ + (dt λ)²/2 a step: it grows for dt λ > 2.  With the viscous signal
+    speed scaled by √A over the least width (the default), dt λ on slivers stays below its
+    value on the undistorted mesh (about 0.5 at CFL 0.5) however thin they are; with Benson's 1D form alone it grows like 1/√width and passes 2 — what
+    broke Noh down on 80 × 80 crossed triangles."""
+    resolved = [_viscous_damping_times_time_step(tmp_path, shift, True) for shift in (0.0, 0.45, 0.498)]
+    assert resolved[0] < 1.0 and max(resolved[1:]) <= resolved[0], resolved
+    one_dimensional = [_viscous_damping_times_time_step(tmp_path, shift, False) for shift in (0.0, 0.498)]
+    assert one_dimensional[0] == pytest.approx(resolved[0], rel=1e-12)  # squares' triangles: the same
+    assert one_dimensional[1] > 2.0, one_dimensional
+
+
 # -- scenes and outputs -------------------------------------------------------------------------
 
 
