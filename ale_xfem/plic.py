@@ -122,11 +122,9 @@ def material_fractions(problem, state, layout=None, cells=None) -> np.ndarray:
     return fractions
 
 
-def reconstruct_state(problem, state, layout=None, mixed=None) -> Reconstruction:
-    """PLIC in the mixed cells of a state: α is each mixed cell's slot-0 material, its
-    normal from Youngs' method on that material's fractions.  ``layout``, ``mixed``: those
-    of the state when not the problem's (``problem`` needs only ``mesh`` and ``materials``
-    then)."""
+def _mixed_cell_cuts(problem, state, layout, mixed):
+    """What PLIC needs of a state's mixed cells: their corners (n, k, 2), Youngs' normals
+    of their slot-0 (α) material and α's volume fractions."""
     layout = problem.layout if layout is None else layout
     mixed = problem.mixed if mixed is None else mixed
     mesh, cells = problem.mesh, mixed.cells
@@ -137,5 +135,20 @@ def reconstruct_state(problem, state, layout=None, mixed=None) -> Reconstruction
     normals = youngs_normals(mesh, state.node_position, fractions[materials], cells, around)
     normals = normals[np.searchsorted(materials, alpha), np.arange(cells.size)]
     vertices = np.moveaxis(state.node_position[:, mesh.cell_nodes[cells]], 0, -1)  # the mixed cells only
-    area = polygon_area(vertices)
-    return reconstruct(vertices, normals, state.material_volume[0, cells] / area, cells)
+    return cells, vertices, normals, state.material_volume[0, cells] / polygon_area(vertices)
+
+
+def reconstruct_state(problem, state, layout=None, mixed=None) -> Reconstruction:
+    """PLIC in the mixed cells of a state: α is each mixed cell's slot-0 material, its
+    normal from Youngs' method on that material's fractions.  ``layout``, ``mixed``: those
+    of the state when not the problem's (``problem`` needs only ``mesh`` and ``materials``
+    then)."""
+    cells, vertices, normals, fraction = _mixed_cell_cuts(problem, state, layout, mixed)
+    return reconstruct(vertices, normals, fraction, cells)
+
+
+def interface_lines(problem, state, layout=None, mixed=None):
+    """The lines of :func:`reconstruct_state` without the polygons and segments: (cells,
+    normals (n, 2), offsets (n,)), α being {x·n ≤ s} in each cell — all the remap reads."""
+    cells, vertices, normals, fraction = _mixed_cell_cuts(problem, state, layout, mixed)
+    return cells, normals, cut_offsets(vertices, normals, fraction)

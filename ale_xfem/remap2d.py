@@ -369,11 +369,12 @@ class Remapper2D:
         """Of each swept region whose donor is a mixed cell, the part inside the donor's α
         polygon (PLIC) is α, the rest of its part inside the donor β (exact clipping), and
         the part outside the donor is shared by the donor's volume fractions."""
-        from ale_xfem.plic import reconstruct_state
+        from ale_xfem.plic import interface_lines
 
-        plic = reconstruct_state(self, state, layout, mixed)  # the Lagrangian state's interface
+        # the Lagrangian state's interface: α = {x·n ≤ s} in each mixed cell
+        mixed_cells, normal, offset = interface_lines(self, state, layout, mixed)
         where = np.full(self.mesh.n_cells, -1, dtype=np.int64)
-        where[plic.cells] = np.arange(plic.cells.size)
+        where[mixed_cells] = np.arange(mixed_cells.size)
         edges = np.flatnonzero(where[donor] >= 0)
         if edges.size == 0:
             return
@@ -388,7 +389,7 @@ class Remapper2D:
                                 cell_polygon)
         in_donor = clip_convex(region, cell_polygon)
         inside = np.clip(polygon_area(in_donor), 0.0, size[edges])
-        alpha = np.clip(clipped_area(in_donor, plic.normal[k], plic.offset[k]), 0.0, inside)
+        alpha = np.clip(clipped_area(in_donor, normal[k], offset[k]), 0.0, inside)
         # Near a node the region may reach out of its donor (the swept regions of the
         # node's edges overlap there): that part is neither of the donor's polygons and is
         # shared by the donor's volume fractions.  (Counted as β, it carried a trace of β

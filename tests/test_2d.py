@@ -452,6 +452,21 @@ def test_plic_of_a_disk_matches_its_area_and_circumference(cell_type):
     assert all(abs(L / (2 * np.pi * 0.3) - 1) < 0.015 for L in lengths), lengths
 
 
+def test_the_remaps_interface_lines_are_those_of_the_full_reconstruction():
+    """The remap reads only each mixed cell's line (normal, offset): plic.interface_lines
+    gives them without the polygons, the same numbers as reconstruct_state."""
+    problem = build_problem(load_scene(resolve_scene_path("rotated-tube"), ["mesh.cells=[20,20]"]))
+    full = plic.reconstruct_state(problem, problem.state)
+    cells, normal, offset = plic.interface_lines(problem, problem.state)
+    assert cells.size > 10
+    np.testing.assert_array_equal(cells, full.cells)
+    np.testing.assert_array_equal(normal, full.normal)
+    np.testing.assert_array_equal(offset, full.offset)
+    # and the line cuts α's polygon: its vertices on α's side of it
+    on_alpha_side = np.einsum("nmd,nd->nm", full.alpha, normal) <= offset[:, None] + 1e-12
+    assert on_alpha_side.all()
+
+
 def test_stability_check_flags_a_cell_inverted_at_a_corner_even_with_positive_area():
     from ale_xfem.stability import least_corner
 
