@@ -42,6 +42,11 @@ def scene_effects(scene, n_mixed_cells: int, pistons: list[str]) -> list[Effect]
                               f"mesh.cell_type = \"{scene.mesh.cell_type}\", numerics.hourglass = "
                               f"{numerics.hourglass:g}" + ("" if quadrilaterals else
                                                            " (triangles have no hourglass modes)")))
+        viscosity = numerics.q_quadratic > 0 or numerics.q_linear > 0
+        effects.append(Effect("viscous_time_step", viscosity and numerics.viscous_time_step,
+                              f"numerics.viscous_time_step = {str(numerics.viscous_time_step).lower()}"
+                              + (": the time step resolves the viscosity's stiffness (√A over the least width)"
+                                 if viscosity else " (no viscosity)")))
     mixed = n_mixed_cells > 0 and interface is not None
     if interface is None:
         why = "no [interface] table: materials never share a cell"

@@ -132,6 +132,24 @@ def test_zero_viscosity_coefficients_switch_the_viscosity_off():
     assert not stepper.artificial_viscosity and np.all(evaluation.viscosity == 0.0)
 
 
+def test_the_viscous_time_step_is_an_effect_of_2d_scenes_with_a_viscosity():
+    """On by default in 2D; off with its key or without a viscosity; on a mesh of squares
+    (√A equal to the least width) the first step is the same to round-off."""
+    def effects(*overrides):
+        return build_problem(load_scene(resolve_scene_path("sod-2d"), ["mesh.cells=[20,20]", *overrides])).effects
+    assert "viscous_time_step" in effects()
+    assert "viscous_time_step" not in effects("numerics.viscous_time_step=false")
+    assert "viscous_time_step" not in effects("numerics.q_quadratic=0", "numerics.q_linear=0")
+    assert "viscous_time_step" not in build_problem(load_scene(resolve_scene_path("sod"))).effects
+    runs = [simulate(build_problem(load_scene(resolve_scene_path("sod-2d"),
+                                              ["mesh.cells=[20,20]", f"numerics.viscous_time_step={flag}"])),
+                     stop_after_steps=1) for flag in ("true", "false")]
+    assert runs[0].state.time == pytest.approx(runs[1].state.time, rel=1e-13)
+    for name in ("node_position", "node_velocity", "material_energy"):
+        np.testing.assert_allclose(getattr(runs[0].state, name), getattr(runs[1].state, name),
+                                   rtol=1e-12, atol=1e-13, err_msg=name)
+
+
 def test_explain_prints_the_effects_and_their_keys_and_runs_nothing(tmp_path):
     out = tmp_path / "out"
     done = subprocess.run([sys.executable, "-m", "ale_xfem.cli", "run", "--explain", "sod-two-gamma-enriched",
