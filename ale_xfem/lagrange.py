@@ -305,13 +305,18 @@ class ExplicitWilkins:
 
     def limiting_cell(self, evaluation: ForceEvaluation, position) -> str:
         """The cell whose CFL limit sets the time step, described for a diagnostic: its
-        index, centroid, CFL length, sound speed and velocity jump."""
+        index, centroid, CFL length, sound speed and velocity jump (2D with the viscous time
+        step: also the viscosity's length √A, which makes a sliver's steps small)."""
         cell = int(np.argmin(self._cell_time_limits(evaluation)))
         sound_speed = evaluation.sound_speed[0, cell]
         if evaluation.mixed_sound_speed is not None and cell in self.mixed.cells:
             sound_speed = evaluation.mixed_sound_speed[np.flatnonzero(self.mixed.cells == cell)[0]]
         where = ", ".join(f"{v:.6g}" for v in np.atleast_1d(self.mesh.cell_centroids(position)[cell]))
-        return (f"cell {cell} (x = {where}) sets it: length {evaluation.length[cell]:.3g}, "
+        viscous = ""
+        if self.artificial_viscosity and self.numerics.viscous_time_step and self.mesh.cell_type.dimension > 1:
+            length_q = float(self.mesh.cell_type.viscosity_length(evaluation.volume[cell]))
+            viscous = f", viscosity length √A {length_q:.3g}"
+        return (f"cell {cell} (x = {where}) sets it: length {evaluation.length[cell]:.3g}{viscous}, "
                 f"sound speed {sound_speed:.3g}, velocity jump {evaluation.velocity_jump[cell]:.3g}")
 
     def _cell_time_limits(self, evaluation: ForceEvaluation):

@@ -278,7 +278,9 @@ def _viscous_damping_times_time_step(tmp_path, shift, viscous_time_step):
     x[0, centres] += shift / 10
     u = -5.0 * (x - 0.5)
     mass, energy = problem.state.material_mass, problem.state.material_energy
-    dt = stepper.stable_time_step(stepper.evaluate(x, u, mass, energy))
+    evaluation = stepper.evaluate(x, u, mass, energy)
+    dt = stepper.stable_time_step(evaluation)
+    limiting = stepper.limiting_cell(evaluation, x)
     inner = np.flatnonzero(((x > 1e-9) & (x < 1 - 1e-9)).all(axis=0))
     damping = np.empty((2 * inner.size, 2 * inner.size))
     for column, (d, node) in enumerate((d, node) for node in inner for d in range(2)):
@@ -290,7 +292,7 @@ def _viscous_damping_times_time_step(tmp_path, shift, viscous_time_step):
         damping[:, column] = -((forces[0] - forces[1]) / 2e-7).T.ravel()
     scale = 1.0 / np.sqrt(np.repeat(stepper.node_mass[inner], 2))
     symmetric = scale[:, None] * damping * scale[None, :]
-    return dt * np.linalg.eigvalsh(0.5 * (symmetric + symmetric.T)).max()
+    return dt * np.linalg.eigvalsh(0.5 * (symmetric + symmetric.T)).max(), limiting
 
 
 def test_the_time_step_resolves_the_viscositys_stiffness_on_sliver_triangles(tmp_path):
@@ -299,9 +301,11 @@ def test_the_time_step_resolves_the_viscositys_stiffness_on_sliver_triangles(tmp
     speed scaled by √A over the least width (the default), dt λ on slivers stays below its
     value on the undistorted mesh (about 0.5 at CFL 0.5) however thin they are; with Benson's 1D form alone it grows like 1/√width and passes 2 — what
     broke Noh down on 80 × 80 crossed triangles."""
-    resolved = [_viscous_damping_times_time_step(tmp_path, shift, True) for shift in (0.0, 0.45, 0.498)]
+    resolved, limiting = zip(*[_viscous_damping_times_time_step(tmp_path, shift, True) for shift in (0.0, 0.45, 0.498)])
     assert resolved[0] < 1.0 and max(resolved[1:]) <= resolved[0], resolved
-    one_dimensional = [_viscous_damping_times_time_step(tmp_path, shift, False) for shift in (0.0, 0.498)]
+    # the diagnostic of a collapsing time step names a sliver: width 0.002 h = 2e-4, √A 3e-3
+    assert "length 0.0002, viscosity length √A 0.003" in limiting[2], limiting[2]
+    one_dimensional = [_viscous_damping_times_time_step(tmp_path, shift, False)[0] for shift in (0.0, 0.498)]
     assert one_dimensional[0] == pytest.approx(resolved[0], rel=1e-12)  # squares' triangles: the same
     assert one_dimensional[1] > 2.0, one_dimensional
 
