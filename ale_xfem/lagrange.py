@@ -125,7 +125,7 @@ class ExplicitWilkins:
 
     def __init__(self, mesh: MeshArrays, materials, layout: MaterialLayout, node_mass,
                  boundaries: list[Boundary], numerics, artificial_viscosity: bool = True,
-                 mixed: MixedCells | None = None):
+                 mixed: MixedCells | None = None, viscous_time_step: bool = True):
         if layout.slots != 1 and mixed is None:
             raise ValueError("two material slots need the mixed-cell solver")
         self.mesh, self.materials, self.layout = mesh, materials, layout
@@ -144,6 +144,9 @@ class ExplicitWilkins:
         self.free_nodes[self.constrained_nodes] = 0.0
         self.numerics = numerics
         self.artificial_viscosity = artificial_viscosity
+        # the time step resolves the viscosity's stiffness (stable_time_step); in 1D its
+        # factor L_q/L is 1
+        self.viscous_time_step = viscous_time_step and artificial_viscosity and mesh.cell_type.dimension > 1
         # viscous hourglass control: quadrilaterals only (triangles have no hourglass modes)
         self.quadrilaterals = mesh.cell_type.name == "quadrilateral"
         self.hourglass = numerics.hourglass if self.quadrilaterals else 0.0
@@ -294,13 +297,13 @@ class ExplicitWilkins:
         L_q/L: the viscosity's length (√A in 2D) over the CFL length (the least width).  The
         viscosity is a diffusion of coefficient ν = (c1 c + c2 |Δu|) L_q across the cell's
         width L, stable for dt ≲ L²/ν: Benson's 1D form, where L_q = L, scaled by L_q/L.
-        Measured (2026-11-22, tenth session): without it (``numerics.viscous_time_step = false``) Noh on
-        crossed triangles broke down on 80 × 80 (t = 0.53) and 100 × 100 (t = 0.42) — a
-        sliver triangle on the diagonal, √A ≈ 6 × its width, its centre node oscillating
-        from step to step, the viscosity of the compression half cooling the cell; with it,
-        80 × 80 runs to t = 0.6 (L1(ρ) 0.117).  On cells that keep their shape L_q/L = 1
-        (squares, the crossed triangles of a square); compressed cells take smaller steps
-        (Saltzman and Sedov: about twice as many, the same errors)."""
+        Measured (2026-11-22, tenth session): without it (``numerics.viscous_time_step =
+        false``) Noh on crossed triangles broke down on 80 × 80 (t = 0.53) and 100 × 100
+        (t = 0.42) — a sliver triangle on the diagonal, √A ≈ 6 × its width, its centre node
+        oscillating from step to step, the viscosity of the compression half cooling the
+        cell; with it, 80 × 80 runs to t = 0.6 (L1(ρ) 0.117).  On cells that keep their
+        shape L_q/L = 1 (squares, the crossed triangles of a square); compressed cells take
+        smaller steps (Saltzman and Sedov: about twice as many, L1(ρ) within 0.2 %)."""
         return self.numerics.cfl * float(np.min(self._cell_time_limits(evaluation)))
 
     def limiting_cell(self, evaluation: ForceEvaluation, position) -> str:
@@ -313,7 +316,7 @@ class ExplicitWilkins:
             sound_speed = evaluation.mixed_sound_speed[np.flatnonzero(self.mixed.cells == cell)[0]]
         where = ", ".join(f"{v:.6g}" for v in np.atleast_1d(self.mesh.cell_centroids(position)[cell]))
         viscous = ""
-        if self.artificial_viscosity and self.numerics.viscous_time_step and self.mesh.cell_type.dimension > 1:
+        if self.viscous_time_step:
             length_q = float(self.mesh.cell_type.viscosity_length(evaluation.volume[cell]))
             viscous = f", viscosity length √A {length_q:.3g}"
         return (f"cell {cell} (x = {where}) sets it: length {evaluation.length[cell]:.3g}{viscous}, "
@@ -323,7 +326,7 @@ class ExplicitWilkins:
         """Each cell's time step limit before the CFL number; a mixed cell's from the larger
         sound speed of its materials (the smaller limit of the two)."""
         stiffness = None  # L_q/L (1D: 1)
-        if self.artificial_viscosity and self.numerics.viscous_time_step and self.mesh.cell_type.dimension > 1:
+        if self.viscous_time_step:
             stiffness = self.mesh.cell_type.viscosity_length(evaluation.volume)
             stiffness /= evaluation.length
         times = self._cfl_times(evaluation.sound_speed[0], evaluation.velocity_jump, evaluation.length,

@@ -72,7 +72,7 @@ def make_stepper(problem: Problem) -> ExplicitWilkins:
     stepper = ExplicitWilkins(problem.mesh, problem.materials, problem.layout, problem.node_mass,
                            problem.boundaries, problem.scene.numerics,
                            artificial_viscosity="artificial_viscosity" in problem.effects,
-                           mixed=problem.mixed)
+                           mixed=problem.mixed, viscous_time_step="viscous_time_step" in problem.effects)
     if "interface_predictor_assembled" in problem.effects:  # compiles the UFL forms
         stepper.use_assembled_predictor()
     return stepper

@@ -299,9 +299,11 @@ def test_the_time_step_resolves_the_viscositys_stiffness_on_sliver_triangles(tmp
     """The step's predictor–corrector damps a velocity error of the viscosity's damping
     rate λ by 1 − dt λ + (dt λ)²/2 a step: it grows for dt λ > 2.  With the viscous signal
     speed scaled by √A over the least width (the default), dt λ on slivers stays below its
-    value on the undistorted mesh (about 0.5 at CFL 0.5) however thin they are; with Benson's 1D form alone it grows like 1/√width and passes 2 — what
-    broke Noh down on 80 × 80 crossed triangles."""
-    resolved, limiting = zip(*[_viscous_damping_times_time_step(tmp_path, shift, True) for shift in (0.0, 0.45, 0.498)])
+    value on the undistorted mesh (about 0.5 at CFL 0.5) however thin they are; with
+    Benson's 1D form alone it grows like 1/√width and passes 2 — what broke Noh down on
+    80 × 80 crossed triangles."""
+    resolved, limiting = zip(*[_viscous_damping_times_time_step(tmp_path, shift, True)
+                               for shift in (0.0, 0.45, 0.498)])
     assert resolved[0] < 1.0 and max(resolved[1:]) <= resolved[0], resolved
     # the diagnostic of a collapsing time step names a sliver: width 0.002 h = 2e-4, √A 3e-3
     assert "length 0.0002, viscosity length √A 0.003" in limiting[2], limiting[2]
