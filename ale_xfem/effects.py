@@ -25,9 +25,9 @@ def scene_effects(scene, n_mixed_cells: int, pistons: list[str]) -> list[Effect]
     numerics, interface = scene.numerics, scene.interface
     effects = [Effect("lagrange_explicit", True, "always: the explicit Wilkins loop of the pure cells")]
     q = f"numerics.q_quadratic = {numerics.q_quadratic:g}, numerics.q_linear = {numerics.q_linear:g}"
-    effects.append(Effect("artificial_viscosity", numerics.q_quadratic > 0 or numerics.q_linear > 0,
-                          q + (" (one > 0)" if numerics.q_quadratic > 0 or numerics.q_linear > 0
-                               else " (both 0: no viscosity is computed)")))
+    viscosity = numerics.q_quadratic > 0 or numerics.q_linear > 0
+    effects.append(Effect("artificial_viscosity", viscosity,
+                          q + (" (one > 0)" if viscosity else " (both 0: no viscosity is computed)")))
     effects.append(Effect("piston", bool(pistons),
                           ", ".join(f"boundaries.{side} = {{velocity = ...}}" for side in pistons)
                           if pistons else "no boundary is {velocity = [...]}"))
@@ -42,7 +42,6 @@ def scene_effects(scene, n_mixed_cells: int, pistons: list[str]) -> list[Effect]
                               f"mesh.cell_type = \"{scene.mesh.cell_type}\", numerics.hourglass = "
                               f"{numerics.hourglass:g}" + ("" if quadrilaterals else
                                                            " (triangles have no hourglass modes)")))
-        viscosity = numerics.q_quadratic > 0 or numerics.q_linear > 0
         effects.append(Effect("viscous_time_step", viscosity and numerics.viscous_time_step,
                               f"numerics.viscous_time_step = {str(numerics.viscous_time_step).lower()}"
                               + (": the time step resolves the viscosity's stiffness (√A over the least width)"

@@ -482,13 +482,14 @@ class CellType:
         axes collapse (negative energy at t ≈ 0.45 on 100 × 100) and left Saltzman's plateau
         between 3.86 and 4.30 in the mid-height cells; with L = √A Noh runs to t = 0.6 and
         Saltzman's plateau stays within 3.99–4.03 (``demos/scenes/saltzman.toml``)."""
-        if self.dimension == 1:
+        if self.dimension == 1:  # L = V: Δu = dV/dt
             return volume_rate
-        return volume_rate / np.sqrt(volume)
+        return volume_rate / self.viscosity_length(volume)  # L/V = 1/√A
 
     def viscosity_length(self, volume):
         """The length L of the artificial viscosity's velocity jump Δu = L ∇·u (1D: the cell
-        length; 2D: √A, see :meth:`velocity_jump`)."""
+        length; 2D: √A, the choice explained in :meth:`velocity_jump`); the time step's
+        viscous signal speed is scaled by it over the CFL length."""
         return volume if self.dimension == 1 else np.sqrt(volume)
 
     def length_scale(self, volume, positions=None, gradient=None):
