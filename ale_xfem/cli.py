@@ -99,7 +99,7 @@ def main(argv: list[str] | None = None) -> int:
 
 def _list() -> int:
     from ale_xfem.scene import SceneError, load_scene, shipped_scenes
-    from ale_xfem.studies import load_study, shipped_studies
+    from ale_xfem.studies.accuracy import load_study, shipped_studies
 
     print("scenes (ale-xfem run NAME):")
     for path in shipped_scenes():
@@ -132,12 +132,12 @@ def _study(args) -> int:
     if args.kind == "stability":
         return _stability(args)
     from ale_xfem.scene import SceneError, resolve_scene_path
-    from ale_xfem.studies import (DEFAULT_CELLS, _study_path, check_study, load_study,
+    from ale_xfem.studies.accuracy import (DEFAULT_CELLS, study_path, check_study, load_study,
                                   run_accuracy_study, study_from_vary)
 
     try:
         cells = _cells(args.cells) if args.cells is not None else None
-        path = _study_path(args.target)
+        path = study_path(args.target)
         if path is not None:
             if args.vary or args.overrides:
                 raise SceneError("--vary/--set", " ".join(args.vary + args.overrides),
@@ -161,10 +161,10 @@ def _study(args) -> int:
 
 
 def _bench(args) -> int:
-    from ale_xfem.bench import run_bench, run_phase_bench
+    from ale_xfem.studies.bench import run_bench, run_phase_bench
 
     if args.peers:
-        from ale_xfem.peers import SIZES, pyclaw_available, run_peer_comparison
+        from ale_xfem.studies.peers import SIZES, pyclaw_available, run_peer_comparison
 
         if not pyclaw_available():
             print("error: --peers needs PyClaw (package clawpack), which is not installed: run "
@@ -188,7 +188,7 @@ def _bench(args) -> int:
         print(f"error: --cells = {args.cells!r}: comma-separated positive integers", file=sys.stderr)
         return EXIT_BAD_INPUT
     if args.phases and args.dimension == 2:
-        from ale_xfem.bench import run_phase_bench_2d
+        from ale_xfem.studies.bench import run_phase_bench_2d
 
         run_phase_bench_2d(200 if args.cells == "1000,10000,100000,1000000" else sizes[0])
     elif args.phases:
@@ -201,7 +201,7 @@ def _bench(args) -> int:
 
 
 def _stability(args) -> int:
-    from ale_xfem.stability import random_riemann_cases, run_stability_study, suite
+    from ale_xfem.studies.stability import random_riemann_cases, run_stability_study, suite
 
     if args.cells < 20 or args.random < 0:
         print(f"error: --cells = {args.cells}, --random = {args.random}: cells ≥ 20, random ≥ 0", file=sys.stderr)
@@ -226,7 +226,7 @@ def _run(args) -> int:
         print(f"error: {error}", file=sys.stderr)
         return EXIT_BAD_INPUT
 
-    from ale_xfem.io import write_outputs
+    from ale_xfem.output.files import write_outputs
     from ale_xfem.problem import build_problem
     from ale_xfem.run import Progress, simulate
 
@@ -243,7 +243,7 @@ def _run(args) -> int:
         print(f"error: {error}", file=sys.stderr)
         return EXIT_BAD_INPUT
     if args.explain:
-        from ale_xfem.effects import explain
+        from ale_xfem.scene.effects import explain
 
         print(f"{scene.name}: {scene.description}" if scene.description else scene.name)
         print(explain(problem.effect_table))
@@ -251,12 +251,12 @@ def _run(args) -> int:
     progress = Progress(scene.t_end, enabled=False if args.quiet else None)
     history = None
     if args.xt:
-        from ale_xfem.plot import XTHistory
+        from ale_xfem.output.plots import XTHistory
 
         history = XTHistory()
     series = None
     if scene.dimension == 2 and args.frames > 0:
-        from ale_xfem.io2d import VTXSeries
+        from ale_xfem.output.cells_2d import VTXSeries
 
         series = VTXSeries(problem, out, args.frames)
     observe = history.observe if history else series.observe if series else None
@@ -267,7 +267,7 @@ def _run(args) -> int:
         series.close()
     write_outputs(problem, result, out, plot=not args.no_plot)
     if history is not None:
-        from ale_xfem.plot import plot_xt
+        from ale_xfem.output.plots import plot_xt
 
         plot_xt(history, out / f"{scene.name}-xt.png", f"{scene.name}: density over x and t")
     if result.status != "ok":

@@ -14,11 +14,16 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ale_xfem._memory import keep_freed_memory
-from ale_xfem.lagrange import Breakdown, ExplicitWilkins
-from ale_xfem.problem import Problem
-from ale_xfem.remap import RemapFailure, Remapper
-from ale_xfem.state import State, material_masses, totals
+from ale_xfem.lagrange.breakdown import Breakdown
+from ale_xfem.lagrange.memory import keep_freed_memory
+from ale_xfem.lagrange.wilkins import ExplicitWilkins
+from ale_xfem.mixed.closures import Closures
+from ale_xfem.model.plic import reconstruct_state
+from ale_xfem.model.state import State, material_masses, totals
+from ale_xfem.problem.build import Problem
+from ale_xfem.remap.failure import RemapFailure
+from ale_xfem.remap.remapper_1d import Remapper
+from ale_xfem.remap.remapper_2d import Remapper2D
 
 SUBSAMPLES_PER_CELL = 16  # midpoint rule for ∫|f_h − f_exact| dx inside each cell
 SUBSAMPLES_PER_SIDE_2D = 4  # 2D: 4 × 4 points per quadrilateral, 16 per triangle
@@ -68,14 +73,16 @@ class Progress:
 
 
 def make_stepper(problem: Problem) -> ExplicitWilkins:
+    """The Lagrange step of a problem, its mixed cells closed as the scene asks (the
+    assembled predictor's UFL forms are compiled here, once per run)."""
     keep_freed_memory()
-    stepper = ExplicitWilkins(problem.mesh, problem.materials, problem.layout, problem.node_mass,
+    closures = Closures(problem.mesh, problem.materials,
+                        assembled_predictor="interface_predictor_assembled" in problem.effects)
+    return ExplicitWilkins(problem.mesh, problem.materials, problem.layout, problem.node_mass,
                            problem.boundaries, problem.scene.numerics,
                            artificial_viscosity="artificial_viscosity" in problem.effects,
-                           mixed=problem.mixed, viscous_time_step="viscous_time_step" in problem.effects)
-    if "interface_predictor_assembled" in problem.effects:  # compiles the UFL forms
-        stepper.use_assembled_predictor()
-    return stepper
+                           mixed=problem.mixed, viscous_time_step="viscous_time_step" in problem.effects,
+                           closures=closures)
 
 
 # Steps in a row at a time step too small to reach t_end within numerics.max_steps before a
@@ -96,8 +103,6 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
     remapper = None
     if any(name.startswith("remap_") for name in problem.effects):
         if problem.mesh.dimension == 2:
-            from ale_xfem.remap2d import Remapper2D
-
             remapper = Remapper2D(problem, problem.scene.mesh.motion, problem.scene.numerics.remap_order)
         else:
             remapper = Remapper(problem, problem.scene.mesh.motion, problem.scene.numerics.remap_order)
@@ -220,8 +225,8 @@ def _remap(problem, stepper, remapper, state, evaluation, impulse):
     after = state.node_velocity[:, held]
     impulse = impulse + (node_mass[held] * (after - before)).sum(axis=1) + remapper.wall_impulse
     kinetic_change += 0.5 * float(np.sum(node_mass[held] * (after**2 - before**2)))
-    if mixed is not None and mixed.relaxation:  # the remap leaves a pressure jump in mixed cells
-        state, _ = stepper.relax_mixed_cells(state, in_place=True)
+    if stepper.closure is not None:  # the remap leaves a pressure jump in mixed cells
+        state, _ = stepper.closure.relax_start(state, in_place=True)
     evaluation = stepper.evaluate_state(state, thermodynamics_known=True)
     stepper.check(evaluation, state.node_position, state.material_energy, "remapped ")
     return state, evaluation, impulse, kinetic_change
@@ -330,8 +335,6 @@ def _l1_errors_2d(problem: Problem, state: State) -> dict:
     density = np.repeat(state.material_density[0][:, None], shape.shape[0], axis=1)
     pressure = np.repeat(state.material_pressure[0][:, None], shape.shape[0], axis=1)
     if problem.mixed is not None:  # the points on β's side of the reconstructed interface
-        from ale_xfem.plic import reconstruct_state
-
         plic = reconstruct_state(problem, state)
         c = plic.cells
         beta = np.einsum("cmd,cd->cm", points[c], plic.normal) > plic.offset[:, None]

@@ -19,7 +19,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from ale_xfem.io import write_outputs  # noqa: E402
+from ale_xfem.output.files import write_outputs  # noqa: E402
 from ale_xfem.problem import build_problem  # noqa: E402
 from ale_xfem.run import simulate  # noqa: E402
 from ale_xfem.scene import load_scene, resolve_scene_path  # noqa: E402
@@ -56,7 +56,7 @@ files = write_outputs(problem, result, args.out)
 # cells inside the error window in colour.
 
 # +
-from ale_xfem.io2d import cells_rows  # noqa: E402
+from ale_xfem.output.cells_2d import cells_rows  # noqa: E402
 
 rows = cells_rows(problem, result.state)
 solution = problem.exact.solution

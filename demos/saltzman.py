@@ -19,7 +19,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from ale_xfem.io import write_outputs  # noqa: E402
+from ale_xfem.output.files import write_outputs  # noqa: E402
 from ale_xfem.problem import build_problem  # noqa: E402
 from ale_xfem.run import simulate  # noqa: E402
 from ale_xfem.scene import load_scene, resolve_scene_path  # noqa: E402

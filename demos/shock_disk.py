@@ -7,7 +7,7 @@
 # On a Lagrangian mesh that shear turns cells inside out (the run still conserves, but the
 # stability suite would count it a failure); on a smoothed mesh — each node moved half-way to
 # the mean of its neighbours after every step, and the state remapped material by material
-# (`ale_xfem/remap2d.py`) — the mesh stays valid.  Both are run here.
+# (`ale_xfem/remap/remapper_2d.py`) — the mesh stays valid.  Both are run here.
 #
 # Run as `python demos/shock_disk.py [--cells 120] [--out out/shock_disk]` (cells along x;
 # the two runs write their outputs into `lagrangian/` and `smoothed/` there, and their
@@ -18,7 +18,7 @@ import argparse
 import shutil
 from pathlib import Path
 
-from ale_xfem.io import write_outputs
+from ale_xfem.output.files import write_outputs
 from ale_xfem.problem import build_problem
 from ale_xfem.run import simulate
 from ale_xfem.scene import load_scene, resolve_scene_path
@@ -32,7 +32,7 @@ args = parser.parse_args()
 # ## The runs
 
 # +
-from ale_xfem.stability import least_corner  # noqa: E402
+from ale_xfem.studies.stability import least_corner  # noqa: E402
 
 for motion in ("lagrangian", "smoothed"):
     problem = build_problem(load_scene(resolve_scene_path("shock-disk"),

@@ -14,8 +14,8 @@
 import argparse
 from pathlib import Path
 
-from ale_xfem.io import write_outputs
-from ale_xfem.plot import plot_comparison
+from ale_xfem.output.files import write_outputs
+from ale_xfem.output.plots import plot_comparison
 from ale_xfem.problem import build_problem
 from ale_xfem.run import simulate
 from ale_xfem.scene import load_scene, resolve_scene_path

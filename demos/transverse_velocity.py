@@ -16,8 +16,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ale_xfem.io import profile_rows, write_outputs
-from ale_xfem.plot import plot_comparison
+from ale_xfem.output.files import write_outputs
+from ale_xfem.output.profile import profile_rows
+from ale_xfem.output.plots import plot_comparison
 from ale_xfem.problem import build_problem
 from ale_xfem.run import simulate
 from ale_xfem.scene import load_scene, resolve_scene_path

@@ -13,7 +13,7 @@
 import argparse
 from pathlib import Path
 
-from ale_xfem.plot import XTHistory, plot_xt
+from ale_xfem.output.plots import XTHistory, plot_xt
 from ale_xfem.problem import build_problem
 from ale_xfem.run import simulate
 from ale_xfem.scene import load_scene, resolve_scene_path

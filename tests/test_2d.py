@@ -7,9 +7,9 @@ import json
 import numpy as np
 import pytest
 
-from ale_xfem import shapes
+from ale_xfem.geometry import shapes
 from ale_xfem.cli import main
-from ale_xfem.mesh import from_dolfinx, rectangle_mesh, saltzman_mesh
+from ale_xfem.model.mesh import from_dolfinx, rectangle_mesh, saltzman_mesh
 from ale_xfem.problem import build_problem
 from ale_xfem.run import make_stepper, simulate
 from ale_xfem.scene import SceneError, load_scene, resolve_scene_path
@@ -385,7 +385,7 @@ def test_saltzman_mesh_is_skewed_with_straight_ends_and_the_rectangle_area():
 
 # -- PLIC -------------------------------------------------------------------------------------
 
-from ale_xfem import plic  # noqa: E402
+from ale_xfem.model import plic  # noqa: E402
 
 
 def _mixed(mesh, shape):
@@ -474,7 +474,7 @@ def test_the_remaps_interface_lines_are_those_of_the_full_reconstruction():
 
 
 def test_stability_check_flags_a_cell_inverted_at_a_corner_even_with_positive_area():
-    from ale_xfem.stability import least_corner
+    from ale_xfem.studies.stability import least_corner
 
     mesh = rectangle_mesh([[0.0, 1.0], [0.0, 1.0]], [2, 2], "quadrilateral")
     assert least_corner(mesh, mesh.node_position) == pytest.approx(1.0)
@@ -536,7 +536,7 @@ def test_a_heavy_disk_in_pressure_balance_stays_at_rest_with_single_velocity_mix
 
 
 def test_cells_csv_gives_each_material_of_a_mixed_cell_its_plic_part(tmp_path):
-    from ale_xfem.io2d import cells_rows
+    from ale_xfem.output.cells_2d import cells_rows
 
     problem, result = run_scene("rotated-tube", "mesh.cells=[20,20]")
     rows = cells_rows(problem, result.state)
@@ -659,7 +659,7 @@ def test_each_materials_mass_and_energy_survive_the_traces_the_remap_cleans_up()
 def _trace_fixture():
     """A 3 × 3 grid of the rotated tube's remapper, every cell of material 0, and each
     cell's index by its (column, row)."""
-    from ale_xfem.remap2d import Remapper2D
+    from ale_xfem.remap.remapper_2d import Remapper2D
 
     problem = build_problem(load_scene(resolve_scene_path("rotated-tube"), ["mesh.cells=[3,3]"]))
     remapper = Remapper2D(problem, "eulerian", 1)
@@ -710,7 +710,7 @@ def test_traces_move_on_through_traces_and_a_lone_fleck_merges_into_its_cell():
 
 @pytest.mark.parametrize("mesh_name", MESHES)
 def test_node_neighbour_cells_are_the_cells_sharing_a_node(mesh_name):
-    from ale_xfem.mesh import node_neighbour_cells
+    from ale_xfem.model.mesh import node_neighbour_cells
 
     mesh = MESHES[mesh_name]()
     table = node_neighbour_cells(mesh.cell_nodes, mesh.n_nodes)
@@ -725,7 +725,7 @@ def test_the_remap_puts_each_cells_largest_material_first_the_lower_one_on_a_tie
     """state.ranked_materials (the slot-0 material of a remapped or set-up cell) is np.argmax
     over the materials: the largest, the first of equal ones — on values with many ties;
     its second row (slot 1 of a mixed cell) the next in a stable sort."""
-    from ale_xfem.state import ranked_materials
+    from ale_xfem.model.state import ranked_materials
 
     rng = np.random.default_rng(5)
     for n_materials in (1, 2, 3, 5):
@@ -737,7 +737,7 @@ def test_the_remap_puts_each_cells_largest_material_first_the_lower_one_on_a_tie
 
 
 def test_2d_remap_edges_sweep_the_exact_change_of_every_cell_area():
-    from ale_xfem.mesh import mesh_edges
+    from ale_xfem.model.mesh import mesh_edges
 
     mesh = MESHES["skewed"]()
     a, b, plus, minus = mesh_edges(mesh.cell_nodes)

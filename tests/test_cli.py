@@ -108,7 +108,7 @@ def test_bench_prints_zone_cycles_per_second(capsys):
 def test_phase_ratios_pair_runs_of_the_same_round():
     """A machine that slows down between rounds must not bias the ratios: each round's case
     is divided by the same round's reference (here the true ratio is 1.5 in every round)."""
-    from ale_xfem.bench import _fastest, _interleaved, _ratios
+    from ale_xfem.studies.bench import _fastest, _interleaved, _ratios
 
     clock = iter(range(100))
     speed = [1.0, 1.0, 1.6, 1.6, 1.2, 1.2]  # the machine's pace, one entry per timed run
@@ -126,7 +126,7 @@ def test_bench_rejects_bad_sizes(capsys):
 
 
 def test_xt_writes_the_diagram_with_one_row_per_recorded_step(tmp_path):
-    from ale_xfem.plot import XTHistory
+    from ale_xfem.output.plots import XTHistory
     from ale_xfem.problem import build_problem
     from ale_xfem.run import simulate
     from ale_xfem.scene import resolve_scene_path

@@ -5,11 +5,11 @@ import numpy as np
 import pytest
 
 from ale_xfem.eos import IdealGas
-from ale_xfem.lagrange import ExplicitWilkins
-from ale_xfem.mesh import from_dolfinx, interval_mesh, rectangle_mesh
+from ale_xfem.lagrange.wilkins import ExplicitWilkins
+from ale_xfem.model.mesh import from_dolfinx, interval_mesh, rectangle_mesh
 from ale_xfem.problem import side_boundaries, state_from_cells
 from ale_xfem.scene import BoundarySpec, Numerics
-from ale_xfem.state import Material, MaterialLayout
+from ale_xfem.model.state import Material, MaterialLayout
 from forms.corner_forces import CornerForceForm
 
 NUMERICS = Numerics(cfl=0.5, dt_growth=1.1, q_quadratic=1.0, q_linear=0.5, max_steps=10**6)
@@ -76,7 +76,7 @@ def test_quadrilateral_two_corner_kernel_equals_the_textbook_corner_sums():
     the shoelace area and gradient, Flanagan–Belytschko's hourglass forces written corner by
     corner (γ_i = h_i − (Σ_j h_j x_j)·∇_i A / A), their corner work, and the CFL length from
     the medians, on a perturbed mesh with random velocities."""
-    from ale_xfem.mesh import QuadCorners, QuadHourglass, _polygon_geometry
+    from ale_xfem.model.mesh import QuadCorners, QuadHourglass, _polygon_geometry
 
     mesh = _perturbed(rectangle_mesh([[0.0, 1.0], [0.0, 1.0]], [6, 5], "quadrilateral"), 0.05)
     rng = np.random.default_rng(3)
@@ -121,8 +121,8 @@ def test_a_rectangle_numbered_as_a_grid_reads_its_corners_from_views_and_maps_ba
     cells map back to DOLFINx's, and the VTX series writes each field at its own node and
     cell (a linear velocity and a density linear in the centroid come back at the DOLFINx
     dof coordinates)."""
-    from ale_xfem.io2d import VTXSeries
-    from ale_xfem.mesh import Corners, QuadCorners
+    from ale_xfem.output.cells_2d import VTXSeries
+    from ale_xfem.model.mesh import Corners, QuadCorners
     from ale_xfem.run import simulate
 
     mesh = rectangle_mesh([[0.0, 2.0], [0.0, 1.0]], [7, 5], "quadrilateral")

@@ -43,8 +43,8 @@ def counters(monkeypatch):
     import dolfinx_solver  # noqa: F401  (before dolfinx: it loads MPI and PETSc)
     import dolfinx.jit
 
-    import ale_xfem.mixed
-    import ale_xfem.remap
+    import ale_xfem.model.mixed_cells
+    import ale_xfem.remap.remapper_1d
 
     counts = {"mixed_cell_solvers": 0, "remappers": 0, "compiled_forms": 0}
 
@@ -56,8 +56,8 @@ def counters(monkeypatch):
             original(self, *args, **kwargs)
         monkeypatch.setattr(cls, "__init__", init)
 
-    counting(ale_xfem.mixed.MixedCells, "mixed_cell_solvers")
-    counting(ale_xfem.remap.Remapper, "remappers")
+    counting(ale_xfem.model.mixed_cells.MixedCells, "mixed_cell_solvers")
+    counting(ale_xfem.remap.remapper_1d.Remapper, "remappers")
     jit = dolfinx.jit.ffcx_jit
 
     def counting_jit(*args, **kwargs):

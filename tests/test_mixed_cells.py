@@ -3,11 +3,11 @@
 import numpy as np
 import pytest
 
-from ale_xfem.lagrange import ExplicitWilkins
+from ale_xfem.lagrange.wilkins import ExplicitWilkins
 from ale_xfem.problem import build_problem
 from ale_xfem.run import make_stepper, simulate
 from ale_xfem.scene import load_scene, resolve_scene_path
-from ale_xfem.state import TwoSlotArrays
+from ale_xfem.model.state import TwoSlotArrays
 from conftest import fitted_rate, run_scene
 
 
@@ -301,12 +301,12 @@ def test_a_failed_initial_relaxation_is_reported_as_a_breakdown(tmp_path, monkey
     import json
 
     from ale_xfem.cli import main
-    from ale_xfem.mixed import MixedCellFailure, MixedCells
+    from ale_xfem.mixed.equilibrium import MixedCellFailure, PressureEquilibrium
 
     def refuse(self, *args, **kwargs):
         raise MixedCellFailure("mixed cell 201: interface solve not converged after 50 iterations")
 
-    monkeypatch.setattr(MixedCells, "relax", refuse)
+    monkeypatch.setattr(PressureEquilibrium, "relax", refuse)
     out = tmp_path / "run"
     assert main(["run", "sod-two-gamma-enriched", "--out", str(out), "--quiet", "--no-plot",
                  "--set", "mesh.cells=400"]) == 3

@@ -3,7 +3,8 @@ to install it when it is not."""
 
 import pytest
 
-from ale_xfem import cli, peers
+from ale_xfem import cli
+from ale_xfem.studies import peers
 
 
 def test_without_pyclaw_the_command_says_how_to_install_it(monkeypatch, capsys):

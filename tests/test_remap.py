@@ -52,7 +52,7 @@ def test_transverse_velocity_keeps_its_jump_after_200_cells_of_travel():
     interface = result.state.node_position[0, problem.mixed.node_left] + result.state.material_volume[0, cells]
     travelled_cells = (interface[0] - start) * 1000
     assert travelled_cells >= 200
-    from ale_xfem.io import profile_rows
+    from ale_xfem.output.profile import profile_rows
 
     rows = profile_rows(problem, result.state)
     pure = rows["volume_fraction"] > 1 - 1e-9
@@ -106,7 +106,7 @@ def test_single_velocity_closure_conserves_and_converges(motion):
 def test_single_velocity_diffuses_the_transverse_velocity_where_the_enriched_method_does_not():
     """The paper's §3.1 point: one velocity field mixes the two materials' tangential
     velocities at the mixed cell's nodes, and the remap carries the mixture on."""
-    from ale_xfem.io import profile_rows
+    from ale_xfem.output.profile import profile_rows
 
     counts = {}
     for model in ("enriched", "single_velocity"):
@@ -162,8 +162,9 @@ def test_swept_remap_equals_the_general_intersection(scene, order):
     """The face-flux form and the general volume intersection integrate the same
     reconstruction over the same new cells: equal to round-off, step after step, while
     the interface moves from cell to cell."""
-    from ale_xfem.remap import Remapper, remap_1d
-    from ale_xfem.remap_swept import remap_1d_swept
+    from ale_xfem.remap.intersection_1d import remap_1d
+    from ale_xfem.remap.remapper_1d import Remapper
+    from ale_xfem.remap.swept_1d import remap_1d_swept
     from ale_xfem.run import make_stepper, _remap
 
     overrides = ["mesh.cells=60", "mesh.motion=eulerian", f"numerics.remap_order={order}"]
@@ -203,8 +204,9 @@ def test_swept_remap_redoes_nodes_that_moved_more_than_half_a_cell(scene):
     """The pure-cell kernel covers nodes that move by up to half a cell; a node moved
     further (here 0.7 of a cell, in a smooth region and next to the interface) has its
     cells redone in a window, and the result is still the general intersection's."""
-    from ale_xfem import remap_swept
-    from ale_xfem.remap import Remapper, remap_1d
+    from ale_xfem.remap import swept_1d as remap_swept
+    from ale_xfem.remap.intersection_1d import remap_1d
+    from ale_xfem.remap.remapper_1d import Remapper
     from ale_xfem.run import make_stepper
 
     problem = build_problem(load_scene(resolve_scene_path(scene), ["mesh.cells=60", "mesh.motion=eulerian"]))
@@ -245,7 +247,7 @@ def test_swept_remap_redoes_nodes_that_moved_more_than_half_a_cell(scene):
 def test_leaving_out_the_lagrangian_forces_before_a_full_remap_changes_nothing(scene, model, monkeypatch):
     """With an Eulerian mesh the step does not evaluate the forces of the Lagrangian state
     (the remap evaluates the remapped one): the run must be bit-identical to one that does."""
-    from ale_xfem.lagrange import ExplicitWilkins
+    from ale_xfem.lagrange.wilkins import ExplicitWilkins
 
     overrides = ["mesh.cells=120", "mesh.motion=eulerian", "t_end=0.1"]
     if model:
@@ -273,7 +275,7 @@ def test_limited_slopes_keep_a_field_of_one_sign_at_both_piece_ends(pieces, shif
     """piece_slopes forms the bound ±2|f|/w only for a field with negative values: minmod
     already keeps a field of one sign of that sign at both ends of every piece.  Checked
     on random widths and values, shifted to one sign or left to change sign."""
-    from ale_xfem.remap import _limited_slopes, piece_slopes
+    from ale_xfem.remap.pieces_1d import limited_slopes, piece_slopes
 
     width = np.array([w for w, _ in pieces])
     values = np.array([v for _, v in pieces])
@@ -285,5 +287,5 @@ def test_limited_slopes_keep_a_field_of_one_sign_at_both_piece_ends(pieces, shif
             ends = (f - 0.5 * width * slope, f + 0.5 * width * slope)
             assert all(np.all(end * f >= -1e-12 * np.abs(f).max()) for end in ends), "an end changed sign"
             # the same slopes as with the bound always formed: where it is left out it cannot bind
-            bounded = _limited_slopes(f, inverse_spacing, None, np.abs(f) * (2.0 / width))
+            bounded = limited_slopes(f, inverse_spacing, None, np.abs(f) * (2.0 / width))
             np.testing.assert_array_equal(slope, bounded)

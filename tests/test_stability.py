@@ -10,7 +10,7 @@ import pytest
 from hypothesis import HealthCheck, assume, example, given, settings
 from hypothesis import strategies as st
 
-from ale_xfem.stability import random_case, run_case, suite, vacuum_forms
+from ale_xfem.studies.stability import random_case, run_case, suite, vacuum_forms
 
 SMALL = 50
 
@@ -39,7 +39,7 @@ def test_a_material_losing_mass_fails_even_when_the_total_is_kept(monkeypatch):
     """Each material's mass counts: traces merged into their cell's other material (what the
     2D remap once did) keep the total exact but fail the interface moving through an
     Eulerian mesh."""
-    from ale_xfem import remap2d
+    from ale_xfem.remap import remapper_2d as remap2d
 
     # no pass moving traces to neighbours: every trace is a fleck merged into its own cell
     monkeypatch.setattr(remap2d, "MAX_TRACE_PASSES", 0)

@@ -7,7 +7,7 @@ import sys
 
 import pytest
 
-from ale_xfem.studies import (check_study, load_study, run_accuracy_study, shipped_studies,
+from ale_xfem.studies.accuracy import (check_study, load_study, run_accuracy_study, shipped_studies,
                               study_from_vary)
 
 

@@ -1,5 +1,7 @@
-"""Enriched mixed cells in 1D: the interface Γ inside a cell, one velocity field per
-material, an interface pressure, solved implicitly (the paper's §2–3; DESIGN.md §5).
+"""The pressure equilibrium of enriched mixed cells in 1D: the interface Γ inside a cell,
+one velocity field per material, an interface pressure solved implicitly (the paper's
+§2–3; DESIGN.md §5).  :mod:`ale_xfem.mixed.enriched` steps the cells; this module solves for
+their interface pressure and relaxes their materials' pressures.
 
 A mixed cell K = [x_a, x_b] holds material α on the left (volume V_α) and β on the right
 (V_β = V − V_α); Γ sits at x_a + V_α.  Node a is internal to α, node b internal to β.
@@ -36,10 +38,9 @@ Everything is vectorised over all mixed cells at once.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-
 import numpy as np
 
+from ale_xfem.model.mixed_cells import MixedCells
 
 # an iterate that moves by less than this (relative) has stopped moving: round-off
 _STALLED = 64 * np.finfo(float).eps
@@ -49,58 +50,19 @@ class MixedCellFailure(RuntimeError):
     """The mixed-cell solve did not converge or left the admissible states."""
 
 
-@dataclass
-class MaterialGroups:
-    """Per-material index groups of a 1D array of material ids (one entry per mixed cell)."""
-
-    ids: np.ndarray
-
-    def __post_init__(self):
-        self.groups = [(int(m), np.flatnonzero(self.ids == m)) for m in np.unique(self.ids)]
-
-    def eos_values(self, materials, rho, e):
-        """Pressure, ∂p/∂ρ|_e, ∂p/∂e|_ρ, c² for each entry."""
-        if len(self.groups) == 1:
-            return list(materials[self.groups[0][0]].eos.state(rho, e))
-        out = [np.empty_like(rho) for _ in range(4)]
-        for material, where in self.groups:
-            values = materials[material].eos.state(rho[where], e[where])
-            for target, value in zip(out, values):
-                target[where] = value
-        return out
-
-    def max_density(self, materials):
-        limit = np.empty(self.ids.size)
-        for material, where in self.groups:
-            limit[where] = materials[material].eos.max_density
-        return limit
+def start_values(state, cells):
+    """(m_α, m_β, V_α, V_β, e_α, e_β) of the mixed cells ``cells`` of a state."""
+    return (state.material_mass[0, cells], state.material_mass[1, cells],
+            state.material_volume[0, cells], state.material_volume[1, cells],
+            state.material_energy[0, cells], state.material_energy[1, cells])
 
 
-@dataclass
-class MixedCells:
-    """The static description of the mixed cells of a 1D mesh and their solver."""
+class PressureEquilibrium:
+    """The interface solve and the pressure relaxation of a set of mixed cells (module
+    docstring), vectorised over them; the settings and statistics are those of ``mixed``."""
 
-    cells: np.ndarray  # (n_mixed,) cell index
-    node_left: np.ndarray  # (n_mixed,) node a, internal to α (slot 0)
-    node_right: np.ndarray  # (n_mixed,) node b, internal to β (slot 1)
-    material_left: np.ndarray  # (n_mixed,) material id of α
-    material_right: np.ndarray  # (n_mixed,) material id of β
-    materials: list
-    tolerance: float = 1e-10
-    max_iterations: int = 50
-    nonlinear: bool = True
-    model: str = "enriched"  # or "single_velocity": one velocity field, equal strain + relaxation
-    relaxation: bool = True  # pressure relaxation at the start of every step
-    stats: dict = field(default_factory=lambda: {"steps": 0, "iterations": 0, "max_iterations": 0,
-                                                 "relaxations": 0})
-
-    def __post_init__(self):
-        self.left_groups = MaterialGroups(self.material_left)
-        self.right_groups = MaterialGroups(self.material_right)
-        self.count = self.cells.size
-        # the densities each side's equation of state allows (its compression limit)
-        self.max_density_left = self.left_groups.max_density(self.materials)
-        self.max_density_right = self.right_groups.max_density(self.materials)
+    def __init__(self, mixed: MixedCells):
+        self.mixed = mixed
 
     # -- thermodynamics along a trapezoidal adiabat ---------------------------------------
 
@@ -110,7 +72,7 @@ class MixedCells:
         specific_change = (volume - volume0) / mass
         energy = energy0 - work_pressure * specific_change
         rho = mass / volume
-        p, dp_drho, dp_de, c2 = groups.eos_values(self.materials, rho, energy)
+        p, dp_drho, dp_de, c2 = groups.eos_values(self.mixed.materials, rho, energy)
         dp_dv = -dp_drho * rho / volume - dp_de * work_pressure / mass
         dp_dwork = -dp_de * specific_change
         return p, dp_dv, energy, rho, c2, dp_dwork
@@ -126,23 +88,23 @@ class MixedCells:
         """Corrector: the volume V_α ∈ (0, total) at which both materials' pressures balance
         (bracketed Newton, vectorised).  state0 = (m_α, m_β, V_α0, V_β0, e_α0, e_β0)."""
         m_a, m_b, va0, vb0, ea0, eb0 = state0
-        limit_a = m_a / self.max_density_left
-        limit_b = m_b / self.max_density_right
+        limit_a = m_a / self.mixed.max_density_left
+        limit_b = m_b / self.mixed.max_density_right
         lo = np.maximum(1e-12 * total, limit_a * (1 + 1e-9))
         hi = np.minimum((1 - 1e-12) * total, total - limit_b * (1 + 1e-9))
         if (lo >= hi).any():
             bad = int(np.flatnonzero(lo >= hi)[0])
-            raise MixedCellFailure(f"mixed cell {int(self.cells[bad])}: volume {total[bad]:.6g} "
+            raise MixedCellFailure(f"mixed cell {int(self.mixed.cells[bad])}: volume {total[bad]:.6g} "
                                    "cannot hold both materials below their compression limits")
         v = np.minimum(np.maximum(guess, lo), hi)
         for iteration in range(1, 101):
-            pa, da, ea, rho_a, c2a, wa = self._adiabat(self.left_groups, m_a, v, ea0, va0, work_pressure)
-            pb, db, eb, rho_b, c2b, wb = self._adiabat(self.right_groups, m_b, total - v, eb0, vb0, work_pressure)
+            pa, da, ea, rho_a, c2a, wa = self._adiabat(self.mixed.left_groups, m_a, v, ea0, va0, work_pressure)
+            pb, db, eb, rho_b, c2b, wb = self._adiabat(self.mixed.right_groups, m_b, total - v, eb0, vb0, work_pressure)
             h = pa - pb  # decreasing in V_α
             slope = da + db
             # balanced: the pressures agree far below the solver tolerance (|slope|·V is
             # the cell's bulk modulus); such cells keep their volume
-            balanced = np.abs(h) <= 1e-3 * self.tolerance * np.abs(slope) * total
+            balanced = np.abs(h) <= 1e-3 * self.mixed.tolerance * np.abs(slope) * total
             if balanced.all():  # the values just computed are those of the result
                 self.last_slopes = (da, db, wa, wb)
                 return v, 0.5 * (pa + pb), (ea, eb, pa, pb, rho_a, rho_b, c2a, c2b), iteration
@@ -156,8 +118,8 @@ class MixedCells:
             # or round-off bounds what Newton can still change (a few ulps of the volume)
             if (balanced | (change <= 8e-16 * total) | (hi - lo <= 8e-16 * total)).all():
                 break
-        pa, da, ea, rho_a, c2a, wa = self._adiabat(self.left_groups, m_a, v, ea0, va0, work_pressure)
-        pb, db, eb, rho_b, c2b, wb = self._adiabat(self.right_groups, m_b, total - v, eb0, vb0, work_pressure)
+        pa, da, ea, rho_a, c2a, wa = self._adiabat(self.mixed.left_groups, m_a, v, ea0, va0, work_pressure)
+        pb, db, eb, rho_b, c2b, wb = self._adiabat(self.mixed.right_groups, m_b, total - v, eb0, vb0, work_pressure)
         self.last_slopes = (da, db, wa, wb)
         return v, 0.5 * (pa + pb), (ea, eb, pa, pb, rho_a, rho_b, c2a, c2b), iteration
 
@@ -173,11 +135,11 @@ class MixedCells:
         m_a, m_b, va0, vb0, ea0, eb0 = state0
         va, vb, pi = va0.copy(), vb0.copy(), pressure0.copy()
         previous = None  # the corrector's result: pressures and slopes at the new iterate
-        for iteration in range(1, self.max_iterations + 1):
+        for iteration in range(1, self.mixed.max_iterations + 1):
             work = w0 + w1 * pi
             if previous is None:
-                pa, da, *_, wa = self._adiabat(self.left_groups, m_a, va, ea0, va0, work)
-                pb, db, *_, wb = self._adiabat(self.right_groups, m_b, vb, eb0, vb0, work)
+                pa, da, *_, wa = self._adiabat(self.mixed.left_groups, m_a, va, ea0, va0, work)
+                pb, db, *_, wb = self._adiabat(self.mixed.right_groups, m_b, vb, eb0, vb0, work)
             else:  # the corrector just evaluated both materials there, with this work
                 pa, pb, da, db, wa, wb = previous
             # Each material's law linearised about the iterate, in V_α and in π through the
@@ -196,7 +158,7 @@ class MixedCells:
                 pi_new = predictor(va, vb, pa, pb, da, db)
             total = a + b * pi_new
             work_new = w0 + w1 * pi_new
-            if not self.nonlinear:
+            if not self.mixed.nonlinear:
                 va = va + (pi_new - pa) / da
                 va_new, vb = va, total - va
                 details = self._state_at(state0, va_new, vb, work_new)
@@ -207,7 +169,7 @@ class MixedCells:
             # starting from the predictor's own split V_α^k + (π − p_α')/D_α' (it sums to V(π))
             va_new, balanced, details, _ = self._split(total, state0, work_new, va + (pi_new - pa) / da)
             scale = np.maximum(np.abs(pi_new), np.minimum(details[4] * details[6], details[5] * details[7]))
-            converged = np.abs(balanced - pi_new) <= self.tolerance * scale
+            converged = np.abs(balanced - pi_new) <= self.mixed.tolerance * scale
             # With a stiff material against a soft one (water at 1e9 Pa against air at
             # 1e5 Pa) round-off in the corrector bounds the balance before the tolerance
             # does: the iterate then stops moving, which is convergence too.
@@ -220,46 +182,28 @@ class MixedCells:
                 return pi, va, vb, details
         worst = int(np.argmax(np.abs(balanced - pi_new) / scale))
         raise MixedCellFailure(
-            f"mixed cell {int(self.cells[worst])}: interface solve not converged after "
-            f"{self.max_iterations} iterations (pressure change {abs(balanced[worst] - pi_new[worst]):.3g})")
+            f"mixed cell {int(self.mixed.cells[worst])}: interface solve not converged after "
+            f"{self.mixed.max_iterations} iterations (pressure change {abs(balanced[worst] - pi_new[worst]):.3g})")
 
     def _state_at(self, state0, va, vb, work):
         m_a, m_b, va0, vb0, ea0, eb0 = state0
-        pa, _, ea, rho_a, c2a, _ = self._adiabat(self.left_groups, m_a, va, ea0, va0, work)
-        pb, _, eb, rho_b, c2b, _ = self._adiabat(self.right_groups, m_b, vb, eb0, vb0, work)
+        pa, _, ea, rho_a, c2a, _ = self._adiabat(self.mixed.left_groups, m_a, va, ea0, va0, work)
+        pb, _, eb, rho_b, c2b, _ = self._adiabat(self.mixed.right_groups, m_b, vb, eb0, vb0, work)
         return ea, eb, pa, pb, rho_a, rho_b, c2a, c2b
 
     def _record(self, iterations):
-        self.stats["steps"] += 1
-        self.stats["iterations"] += iterations
-        self.stats["max_iterations"] = max(self.stats["max_iterations"], iterations)
+        self.mixed.stats["steps"] += 1
+        self.mixed.stats["iterations"] += iterations
+        self.mixed.stats["max_iterations"] = max(self.mixed.stats["max_iterations"], iterations)
 
     def relax(self, volume, state0, pressure_guess):
         """Pressure relaxation at fixed cell volume: returns (p*, V_α, V_β, details)."""
-        self.stats["relaxations"] += 1
-        saved = self.nonlinear
-        self.nonlinear = True  # relaxation always uses the full equations of state
+        self.mixed.stats["relaxations"] += 1
+        saved = self.mixed.nonlinear
+        self.mixed.nonlinear = True  # relaxation always uses the full equations of state
         try:
             result = self.solve(state0, pressure_guess, (volume, np.zeros_like(volume)),
                                  (np.zeros_like(volume), np.ones_like(volume)), record=False)
         finally:
-            self.nonlinear = saved
+            self.mixed.nonlinear = saved
         return result
-
-
-def with_mixed_state(state, cells, va, vb, details, interface_velocity, in_place: bool = False):
-    """A copy of state with the mixed cells' material arrays replaced (``in_place``: the
-    state's own arrays are changed, for a state nothing else refers to yet)."""
-    ea, eb, pa, pb, rho_a, rho_b, c2a, c2b = details
-    arrays = {k: getattr(state, k) if in_place else getattr(state, k).copy() for k in (
-        "material_volume", "material_energy", "material_density", "material_pressure",
-        "material_sound_speed")}
-    for slot, values in enumerate(((va, ea, rho_a, pa, c2a), (vb, eb, rho_b, pb, c2b))):
-        v, e, rho, p, c2 = values
-        arrays["material_volume"][slot, cells] = v
-        arrays["material_energy"][slot, cells] = e
-        arrays["material_density"][slot, cells] = rho
-        arrays["material_pressure"][slot, cells] = p
-        arrays["material_sound_speed"][slot, cells] = np.sqrt(np.maximum(c2, 0.0))
-    return state.evolved(**arrays, interface_pressure=0.5 * (pa + pb),
-                         interface_velocity=interface_velocity)

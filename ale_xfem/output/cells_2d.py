@@ -5,7 +5,7 @@ PNG snapshot of the density with the boundaries between materials drawn.
 ``x,y,volume,material,volume_fraction,density,velocity_x,velocity_y,pressure,internal_energy``
 (x, y: centroid of that material's part of the cell; volume: its area; the velocity is the
 mean of the cell's corner velocities, one field for both materials of a single-velocity
-mixed cell).  A mixed cell's parts are those of its PLIC reconstruction (``ale_xfem.plic``):
+mixed cell).  A mixed cell's parts are those of its PLIC reconstruction (``ale_xfem.model.plic``):
 their areas are the materials' volumes exactly; rows come cell by cell.
 
 The VTX folder ``<name>.bp`` holds, at each written time, the moving mesh, the nodal
@@ -21,8 +21,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ale_xfem.mesh import mesh_edges
-from ale_xfem.shapes import polygon_area, polygon_centroid
+from ale_xfem.geometry.shapes import polygon_area, polygon_centroid
+from ale_xfem.model.mesh import mesh_edges
+from ale_xfem.model.plic import part_centroids, reconstruct_state
 
 CELLS_COLUMNS = ("x", "y", "volume", "material", "volume_fraction", "density", "velocity_x",
                  "velocity_y", "pressure", "internal_energy")
@@ -49,8 +50,6 @@ def cells_rows(problem, state) -> dict[str, np.ndarray]:
     }
     if problem.mixed is None:
         return rows
-    from ale_xfem.plic import part_centroids, reconstruct_state
-
     plic = reconstruct_state(problem, state)
     c = plic.cells
     alpha_centre, beta_centre = part_centroids(plic)
@@ -203,8 +202,6 @@ def plot_density_2d(problem, result, path: Path) -> Path:
         ends[0::2, :2], ends[1::2, :2] = state.node_position[:, first].T, state.node_position[:, second].T
         plotter.add_mesh(pv.line_segments_from_points(ends), color="black", line_width=2)
     if problem.mixed is not None:  # the reconstructed interface
-        from ale_xfem.plic import reconstruct_state
-
         plic = reconstruct_state(problem, state)
         ends = np.zeros((2 * plic.cells.size, 3))
         ends[0::2, :2], ends[1::2, :2] = plic.start, plic.end

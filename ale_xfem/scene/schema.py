@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from ale_xfem import eos as eos_models
-from ale_xfem import shapes
+from ale_xfem.geometry import shapes
 
 BOUNDARY_SIDES_1D = ("left", "right")
 BOUNDARY_SIDES_2D = ("left", "right", "bottom", "top")
@@ -109,7 +109,7 @@ class RegionSpec:
     density: float
     pressure: float
     velocity: tuple[float, ...]
-    shape: object = None  # 2D: a shape of ale_xfem.shapes
+    shape: object = None  # 2D: a shape of ale_xfem.geometry.shapes
     radial_velocity: tuple[float, float, float] | None = None  # 2D: (cx, cy, speed), u = speed r̂
     total_energy: float | None = None  # 2D: the region's internal energy (instead of its pressure)
 
@@ -435,7 +435,7 @@ def _validate_regions(regions: Any, materials: dict[str, MaterialSpec], mesh: Me
 
 
 def _validate_shape(table: dict, where: str):
-    """Exactly one of box, half_plane, disk, polygon (see ale_xfem.shapes)."""
+    """Exactly one of box, half_plane, disk, polygon (see ale_xfem.geometry.shapes)."""
     given = [k for k in shapes.SHAPES if k in table]
     if len(given) != 1:
         raise SceneError(where, ", ".join(given) if given else _MISSING,
@@ -620,7 +620,7 @@ def _check_motion(scene: Scene) -> None:
 
 # ----------------------------------------------------------------------------- shipped scenes
 
-SCENES_DIR = Path(__file__).resolve().parent.parent / "demos" / "scenes"
+SCENES_DIR = Path(__file__).resolve().parents[2] / "demos" / "scenes"
 
 
 def shipped_scenes() -> list[Path]:

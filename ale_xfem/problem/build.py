@@ -9,12 +9,13 @@ from pathlib import Path
 import numpy as np
 
 from ale_xfem import exact
-from ale_xfem.effects import Effect, active, scene_effects
-from ale_xfem.lagrange import Boundary
-from ale_xfem.mesh import MeshArrays, file_mesh, interval_mesh, rectangle_mesh, saltzman_mesh
-from ale_xfem.mixed import MixedCellFailure, MixedCells, with_mixed_state
-from ale_xfem.scene import Scene, SceneError
-from ale_xfem.state import Material, MaterialLayout, State, density_of, ranked_materials, thermodynamics
+from ale_xfem.mixed.equilibrium import MixedCellFailure, PressureEquilibrium, start_values
+from ale_xfem.model.boundaries import Boundary
+from ale_xfem.model.mesh import MeshArrays, file_mesh, interval_mesh, rectangle_mesh, saltzman_mesh
+from ale_xfem.model.mixed_cells import MixedCells, with_mixed_state
+from ale_xfem.model.state import Material, MaterialLayout, State, density_of, ranked_materials, thermodynamics
+from ale_xfem.scene.effects import Effect, active, scene_effects
+from ale_xfem.scene.schema import Scene, SceneError
 
 
 @dataclass
@@ -307,14 +308,13 @@ def _left_material_first(scene, names, left, right, first, second):
 
 
 def initial_relaxation(mixed: MixedCells, state: State) -> State:
-    """Equilibrate the pressures of the initial mixed cells (energy conserved)."""
+    """Equilibrate the pressures of the initial mixed cells (energy conserved): the pressure
+    equilibrium of :mod:`ale_xfem.mixed.equilibrium` at fixed cell volumes."""
     cells = mixed.cells
-    state0 = (state.material_mass[0, cells], state.material_mass[1, cells],
-              state.material_volume[0, cells], state.material_volume[1, cells],
-              state.material_energy[0, cells], state.material_energy[1, cells])
+    state0 = start_values(state, cells)
     volume = state.material_volume[0, cells] + state.material_volume[1, cells]
     guess = 0.5 * (state.material_pressure[0, cells] + state.material_pressure[1, cells])
-    pressure, va, vb, details = mixed.relax(volume, state0, guess)
+    pressure, va, vb, details = PressureEquilibrium(mixed).relax(volume, state0, guess)
     return with_mixed_state(state, mixed.cells, va, vb, details, interface_velocity=np.zeros_like(va))
 
 
@@ -467,7 +467,7 @@ def _sedov(scene: Scene) -> ExactReference | None:
     sides (a quarter of the plane: the blast's energy per unit length is 4 × total_energy).
     Valid until the shock reaches the nearest other side."""
     from ale_xfem.exact.sedov import SedovProfile, SedovSolution
-    from ale_xfem.shapes import Box
+    from ale_xfem.geometry.shapes import Box
 
     background, source = scene.regions[0], scene.regions[-1]
     (x0, x1), (y0, y1) = scene.mesh.extent
@@ -496,7 +496,7 @@ def _planar_riemann(scene: Scene) -> ExactReference | None:
     Walls reflect its waves in 2D, so the L1 errors are taken over the disk around the
     domain's centre that no signal from a wall reaches before t_end."""
     from ale_xfem.exact.planar_2d import PlanarRiemann
-    from ale_xfem.shapes import Box, HalfPlane
+    from ale_xfem.geometry.shapes import Box, HalfPlane
 
     first, last = scene.regions[0], scene.regions[-1]
     if not (isinstance(last.shape, HalfPlane) and isinstance(first.shape, Box)) or any(

@@ -1,5 +1,5 @@
 """The 1D remap in swept-region (face-flux) form: the same result as
-:func:`ale_xfem.remap.remap_1d` when every node and every dual face moves by less than
+:func:`ale_xfem.remap.intersection_1d.remap_1d` when every node and every dual face moves by less than
 the pieces around it (always, with a CFL-limited step), at about a hundred passes over
 n_cells.
 
@@ -21,7 +21,7 @@ Two levels:
   dependence (donor, slopes, node parts), so the two agree wherever both are valid.
 
 The reconstruction (piece densities and slopes, part velocities and slopes, lumped shares)
-is the one of :mod:`ale_xfem.remap`; only the way it is integrated differs.  Returns None
+is the one of :mod:`ale_xfem.remap.pieces_1d`; only the way it is integrated differs.  Returns None
 when a displacement is too large, and the caller uses the general intersection.
 """
 
@@ -29,8 +29,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ale_xfem.remap import (RemapFailure, RemapResult, _dot, _integrate_linear, _lump_kinetic, _minmod,
-                            deposit_kinetic_loss, piece_slopes)
+from ale_xfem.remap.failure import RemapFailure
+from ale_xfem.remap.pieces_1d import (RemapResult, component_dot, deposit_kinetic_loss,
+                                      integrate_linear, lump_kinetic, minmod, piece_slopes)
 
 
 def _clipped_integral(value, slope, centre, lo, hi, a, b):
@@ -39,14 +40,14 @@ def _clipped_integral(value, slope, centre, lo, hi, a, b):
     end = np.minimum(b, hi)
     length = np.maximum(end - start, 0.0)
     end = start + length
-    return _integrate_linear(value, slope, centre, start, end), length, start, end
+    return integrate_linear(value, slope, centre, start, end), length, start, end
 
 
 def remap_1d_swept(order_of_cells, cell_left_node, cell_right_node, node_position, target_position,
                    cell_material, material_mass, material_energy, material_volume, corner_mass,
                    node_velocity, mixed_cells, interface_velocity, n_materials, order: int = 2,
                    heat: bool = True):
-    """The remap of :func:`ale_xfem.remap.remap_1d` (same arguments; mixed cells sorted left
+    """The remap of :func:`ale_xfem.remap.intersection_1d.remap_1d` (same arguments; mixed cells sorted left
     to right): the pure-cell kernel over the whole mesh, then the cells around each
     interface (mixed cells and node-aligned material boundaries) redone material by
     material in a window that holds them.  None when a step is out of the swept form's
@@ -142,7 +143,7 @@ def remap_1d_swept(order_of_cells, cell_left_node, cell_right_node, node_positio
     left_corner[1:] -= right_corner[:-1]
     specific = new_energy / new_mass[:1] if slots == 1 else _specific(new_energy, new_mass, taken_cells)
     velocity = momentum / node_mass
-    kinetic_new = _dot(momentum, velocity)
+    kinetic_new = component_dot(momentum, velocity)
     kinetic_new *= 0.5
     kinetic_change = float(np.sum(kinetic_new)) - kinetic_before
     loss = kinetic - kinetic_new if heat else None
@@ -319,7 +320,7 @@ def _pure_kernel(x, X, mass, specific_energy, corner, u, order, slots=1, heat=Tr
         gradient /= width
         tau = np.empty_like(u)
         tau[:, 0] = tau[:, -1] = 0.0
-        _minmod(gradient[:, :-1], gradient[:, 1:], out=tau[:, 1:-1])
+        minmod(gradient[:, :-1], gradient[:, 1:], out=tau[:, 1:-1])
         moved_momentum = np.where(from_left, tau[:, :-1], tau[:, 1:])
         moved_momentum *= moment
     else:
@@ -337,12 +338,12 @@ def _pure_kernel(x, X, mass, specific_energy, corner, u, order, slots=1, heat=Tr
     momentum = u * old_node_mass
     momentum[:, :-1] -= moved_momentum
     momentum[:, 1:] += moved_momentum
-    kinetic = _dot(u, u)  # ½M u², less what is handed over, plus what comes in
+    kinetic = component_dot(u, u)  # ½M u², less what is handed over, plus what comes in
     kinetic *= old_node_mass
     kinetic *= 0.5
     kinetic_before = float(kinetic.sum())
     if heat:
-        kinetic_flux = _lump_kinetic(swept, moved_momentum)
+        kinetic_flux = lump_kinetic(swept, moved_momentum)
         np.copysign(kinetic_flux, swept, out=kinetic_flux)  # signed like the mass: > 0 rightward
         kinetic[:-1] -= kinetic_flux
         kinetic[1:] += kinetic_flux
@@ -652,7 +653,7 @@ def _momentum(n, x, X, xl, xr, mixed_j, gamma, new_mixed_j, new_gamma, rho0, srh
     to_left_mass, to_left_momentum = _overlap_mass_momentum(right, a, b)
     # kinetic energy handed to the next node (rightward) less that handed back, one lump
     # per old part (the general intersection's grouping)
-    kinetic_flux = _lump_kinetic(to_right_mass, to_right_momentum) - _lump_kinetic(to_left_mass, to_left_momentum)
+    kinetic_flux = lump_kinetic(to_right_mass, to_right_momentum) - lump_kinetic(to_left_mass, to_left_momentum)
     far = _inside_cut(np.flatnonzero((a < xl) | (b > xr)), n, cut)
     if far.size:
         width = xr[far] - xl[far]
@@ -664,11 +665,11 @@ def _momentum(n, x, X, xl, xr, mixed_j, gamma, new_mixed_j, new_gamma, rho0, srh
         m[far == 0], mom[:, far == 0] = 0.0, 0.0
         to_right_mass[far] += m
         to_right_momentum[:, far] += mom
-        kinetic_flux[far] += _lump_kinetic(m, mom)
+        kinetic_flux[far] += lump_kinetic(m, mom)
         m, mom = _overlap_mass_momentum(left.take(after), a[far], b[far])
         to_left_mass[far] += m
         to_left_momentum[:, far] += mom
-        kinetic_flux[far] -= _lump_kinetic(m, mom)
+        kinetic_flux[far] -= lump_kinetic(m, mom)
     moved_mass = to_right_mass - to_left_mass
     moved_momentum = to_right_momentum - to_left_momentum
     old_mass = np.zeros(n + 1)
@@ -703,7 +704,7 @@ def _momentum(n, x, X, xl, xr, mixed_j, gamma, new_mixed_j, new_gamma, rho0, srh
         right_corner[far] += extra + beyond
     left_corner = new_mass[:-1] - np.concatenate([[0.0], right_corner[:-1]])
     # ½M u² of each node, less the kinetic energy it handed over, plus what it received
-    kinetic = 0.5 * old_mass * _dot(u, u)
+    kinetic = 0.5 * old_mass * component_dot(u, u)
     kinetic[:-1] -= kinetic_flux
     kinetic[1:] += kinetic_flux
     return new_mass, new_momentum, np.stack([left_corner, right_corner]), kinetic
@@ -722,7 +723,7 @@ def _inside_cut(index, n, cut):
 
 def _node_velocity_slopes(u, x, mixed_j, gamma, mixed_velocity, m0, m1_of_mixed):
     """Minmod slope of each node's velocity from the cells on either side, within one
-    material (the same slopes as :func:`ale_xfem.remap._velocity_slopes`).  A mixed cell
+    material (the same slopes as :func:`ale_xfem.remap.intersection_1d._velocity_slopes`).  A mixed cell
     gives each of its internal nodes the gradient of that material's full field: the line
     through the node and (x_Γ, u_Γ) for the normal component, none for a transverse one."""
     gradient_left_part = (u[:, 1:] - u[:, :-1]) / (x[1:] - x[:-1])  # seen from cell j's left node
@@ -738,7 +739,7 @@ def _node_velocity_slopes(u, x, mixed_j, gamma, mixed_velocity, m0, m1_of_mixed)
     material_right_part[mixed_j] = m1_of_mixed
     same = material_right_part[:-1] == m0[1:]
     slope = np.zeros((u.shape[0], u.shape[1]))
-    slope[:, 1:-1] = np.where(same, _minmod(gradient_right_part[:, :-1], gradient_left_part[:, 1:]), 0.0)
+    slope[:, 1:-1] = np.where(same, minmod(gradient_right_part[:, :-1], gradient_left_part[:, 1:]), 0.0)
     return slope
 
 

@@ -16,7 +16,7 @@ What crosses an edge comes from its donor cell, material by material:
   so that the donor's reconstruction stays within its neighbours' range (Barth–Jespersen),
   evaluated at the swept region's centroid;
 - a mixed donor gives of each material the part of the swept region inside that
-  material's PLIC polygon (exact polygon clipping, ``ale_xfem.plic``), at the material's own
+  material's PLIC polygon (exact polygon clipping, ``ale_xfem.model.plic``), at the material's own
   density and energy (order 1): exact intersection only where the interface is.  The part
   of a region outside its donor (near a node, where the regions of its edges overlap) is
   shared by the donor's volume fractions.
@@ -44,11 +44,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from ale_xfem.mesh import mesh_edges, node_averaged_gradient, node_neighbour_cells
-from ale_xfem.mixed import MixedCells
-from ale_xfem.remap import RemapFailure
-from ale_xfem.shapes import clip_convex, clipped_area, corner_centroid, polygon_area
-from ale_xfem.state import density_of, ranked_materials, thermodynamics
+from ale_xfem.model.mesh import mesh_edges, node_averaged_gradient, node_neighbour_cells
+from ale_xfem.model.mixed_cells import MixedCells
+from ale_xfem.remap.failure import RemapFailure
+from ale_xfem.geometry.shapes import clip_convex, clipped_area, corner_centroid, polygon_area
+from ale_xfem.model.state import density_of, ranked_materials, thermodynamics
 
 # A material below this fraction of its cell's area leaves the cell (its mass and energy go
 # to a neighbour holding more of it: Remapper2D._move_traces).  Measured on the shock on a
@@ -73,7 +73,7 @@ def _hand_over(quantity, source, target):
 
 class Remapper2D:
     """The transport phase of a 2D run (see module docstring); ``apply`` has the signature
-    of :class:`ale_xfem.remap.Remapper`'s."""
+    of :class:`ale_xfem.remap.remapper_1d.Remapper`'s."""
 
     def __init__(self, problem, motion: str, order: int):
         mesh = problem.mesh
@@ -369,7 +369,7 @@ class Remapper2D:
         """Of each swept region whose donor is a mixed cell, the part inside the donor's α
         polygon (PLIC) is α, the rest of its part inside the donor β (exact clipping), and
         the part outside the donor is shared by the donor's volume fractions."""
-        from ale_xfem.plic import interface_lines
+        from ale_xfem.model.plic import interface_lines
 
         # the Lagrangian state's interface: α = {x·n ≤ s} in each mixed cell
         mixed_cells, normal, offset = interface_lines(self, state, layout, mixed)

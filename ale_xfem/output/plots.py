@@ -11,7 +11,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from ale_xfem.io import profile_rows  # noqa: E402
+from ale_xfem.output.profile import profile_rows  # noqa: E402
 
 PANELS = (("density", "density"), ("velocity", "velocity"), ("pressure", "pressure"),
           ("internal_energy", "specific internal energy"))

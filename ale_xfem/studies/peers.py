@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from ale_xfem.exact.riemann import GasState, RiemannSolution
-from ale_xfem.studies import fitted_rates, time_to_reach, work_precision_chart
+from ale_xfem.studies.accuracy import fitted_rates, time_to_reach, work_precision_chart
 
 SIZES = (100, 200, 400, 800, 1600, 3200)
 GAMMA, T_END = 1.4, 0.2

@@ -17,8 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ale_xfem.mesh import cells_around, node_averaged_gradient
-from ale_xfem.shapes import clip_half_plane, clipped_area, polygon_area, polygon_centroid
+from ale_xfem.model.mesh import cells_around, node_averaged_gradient
+from ale_xfem.geometry.shapes import clip_half_plane, clipped_area, polygon_area, polygon_centroid
 
 
 @dataclass

@@ -24,7 +24,7 @@ import numpy as np
 
 from ale_xfem.scene import SceneError, load_scene, resolve_scene_path
 
-STUDIES_DIR = Path(__file__).resolve().parent.parent / "demos" / "studies"
+STUDIES_DIR = Path(__file__).resolve().parents[2] / "demos" / "studies"
 DEFAULT_CELLS = (100, 200, 400, 800, 1600)
 COLUMNS = ("variant", "scene", "cells", "status", "steps", "wall_seconds", "L1_density", "L1_velocity",
            "L1_pressure", "ms_per_step_lagrange", "ms_per_step_mixed_cell_solve", "ms_per_step_remap")
@@ -49,7 +49,7 @@ def shipped_studies() -> list[Path]:
     return sorted(STUDIES_DIR.glob("*.toml"))
 
 
-def _study_path(name: str) -> Path | None:
+def study_path(name: str) -> Path | None:
     for candidate in (Path(name), STUDIES_DIR / name, STUDIES_DIR / f"{name}.toml"):
         if candidate.suffix == ".toml" and candidate.exists():
             try:

@@ -24,62 +24,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ale_xfem.mesh import MeshArrays, QuadGradient, QuadHourglass, constant_gradient, corner_dot
-from ale_xfem.mixed import MixedCellFailure, MixedCells, with_mixed_state
-from ale_xfem.state import MaterialLayout, State, TwoSlotArrays, thermodynamics
-
-
-class _AssembledPredictor:
-    """The compiled forms of the predictor on the current mixed cells."""
-
-    def __init__(self, dolfinx_mesh, cells):
-        from forms.mixed_cell import MixedCellForms
-
-        self.mesh = dolfinx_mesh
-        self.forms = MixedCellForms(dolfinx_mesh.comm, dolfinx_mesh.topology.cell_name(),
-                                    dolfinx_mesh.geometry.dim)  # compiled once per run
-        self.rebuild(cells)
-
-    def rebuild(self, cells):
-        """Bind the compiled forms to the current mixed cells (no compilation)."""
-        from forms.mixed_cell import MixedCellPredictor
-
-        self.cells = cells
-        self.predictor = MixedCellPredictor(self.mesh, cells, self.forms)
-
-
-class Breakdown(RuntimeError):
-    """The state became unphysical: a one-line diagnostic (step, time, cell, quantity)."""
-
-    def __init__(self, quantity: str, cell: int, value: float, position, allowed: str):
-        self.quantity, self.cell, self.value, self.position = quantity, cell, value, position
-        where = ", ".join(f"{v:.6g}" for v in np.atleast_1d(position))
-        super().__init__(f"cell {cell} (x = {where}): {quantity} = {value:.6g}, must be {allowed}")
-
-
-@dataclass(frozen=True)
-class Boundary:
-    """Nodes held by one boundary condition.
-
-    kind ``wall``: no normal velocity (unit outward normal, free tangential slip);
-    kind ``velocity``: the whole velocity prescribed (a piston);  ``free``: no constraint."""
-
-    side: str
-    kind: str
-    nodes: np.ndarray
-    normal: np.ndarray | None = None  # (dim,)
-    velocity: np.ndarray | None = None  # (dim,)
-
-    def apply(self, node_velocity: np.ndarray) -> None:
-        """Impose the condition on node_velocity (components, n_nodes), in place.  In 1D a
-        second (transverse) component is tangential to the wall and left free."""
-        dim = self.normal.size
-        if self.kind == "wall":
-            u = node_velocity[:dim, self.nodes]
-            normal_part = self.normal @ u
-            node_velocity[:dim, self.nodes] = u - self.normal[:, None] * normal_part
-        elif self.kind == "velocity":
-            node_velocity[:dim, self.nodes] = self.velocity[:dim, None]
+from ale_xfem.lagrange.breakdown import Breakdown
+from ale_xfem.lagrange.closure import MixedCellClosure, MixedView
+from ale_xfem.model.boundaries import Boundary
+from ale_xfem.model.mesh import MeshArrays, QuadGradient, QuadHourglass, constant_gradient, corner_dot
+from ale_xfem.model.mixed_cells import MixedCells
+from ale_xfem.model.state import MaterialLayout, State, TwoSlotArrays, thermodynamics
 
 
 @dataclass
@@ -102,37 +52,22 @@ class ForceEvaluation:
     corner_velocity: object = None  # what the corner work needs of the velocities (corner_velocities)
 
 
-@dataclass
-class MixedView:
-    """What the force evaluation needs of the mixed cells (n_mixed,): the materials'
-    volumes, β's mass and energy (α's sit in slot 0), and the interface pressure."""
-
-    volume_left: np.ndarray
-    volume_right: np.ndarray
-    mass_right: np.ndarray
-    energy_right: np.ndarray
-    interface_pressure: np.ndarray
-
-    @classmethod
-    def of(cls, state: State, cells) -> "MixedView":
-        return cls(state.material_volume[0, cells], state.material_volume[1, cells],
-                   state.material_mass[1, cells], state.material_energy[1, cells],
-                   state.interface_pressure)
-
-
 class ExplicitWilkins:
     """One explicit Lagrangian step of pure cells (see module docstring)."""
 
     def __init__(self, mesh: MeshArrays, materials, layout: MaterialLayout, node_mass,
                  boundaries: list[Boundary], numerics, artificial_viscosity: bool = True,
-                 mixed: MixedCells | None = None, viscous_time_step: bool = True):
-        if layout.slots != 1 and mixed is None:
-            raise ValueError("two material slots need the mixed-cell solver")
+                 mixed: MixedCells | None = None, viscous_time_step: bool = True,
+                 closures=None):
+        if layout.slots != 1 and (mixed is None or closures is None):
+            raise ValueError("two material slots need mixed cells and their closures")
         self.mesh, self.materials, self.layout = mesh, materials, layout
         # The explicit loop evaluates slot 0 of every cell (a mixed cell's α); the mixed
         # cells' stresses are then replaced by their interface pressure.
         self.pure_layout = layout.first_slot()
-        self.mixed = mixed
+        # closures(mixed cells) → their MixedCellClosure (ale_xfem.mixed.closures.Closures)
+        self.closures = closures
+        self.closure: MixedCellClosure | None = None if mixed is None else closures(mixed)
         self.corners = mesh.corners
         self.node_mass = node_mass
         self.inverse_node_mass = 1.0 / node_mass
@@ -153,15 +88,15 @@ class ExplicitWilkins:
         self.mixed_seconds, self.mixed_calls = 0.0, 0  # time in the implicit interface solve
         # The state a step ends with starts the next step (no remap of the whole state in
         # between, which relaxes the state it makes): its mixed cells are relaxed before its
-        # forces are evaluated (_relaxed).  simulate() sets it from the mesh motion.
+        # forces are evaluated (the closure's finish).  simulate() sets it from the mesh motion.
         self.relax_end_state = True
-        self.assembled_predictor = None  # set by use_assembled_predictor()
         # the (2, n_cells) arrays of the states the step makes (slot 1: the mixed cells')
         self.two_slots = TwoSlotArrays(mesh.n_cells)
 
-    def use_assembled_predictor(self) -> None:
-        """Solve the predictor as the FE system assembled from UFL forms with PETSc."""
-        self.assembled_predictor = _AssembledPredictor(self.mesh.dolfinx_mesh, self.mixed.cells)
+    @property
+    def mixed(self) -> MixedCells | None:
+        """The current mixed cells (None: every cell is pure)."""
+        return None if self.closure is None else self.closure.mixed
 
     def rebuild(self, layout: MaterialLayout, node_mass, mixed: MixedCells | None) -> None:
         """Take the material layout, lumped masses and mixed cells left by a remap."""
@@ -169,7 +104,7 @@ class ExplicitWilkins:
         self.pure_layout = layout.first_slot()
         self.node_mass = node_mass
         self.inverse_node_mass = 1.0 / node_mass
-        self.mixed = mixed
+        self.closure = None if mixed is None else self.closures(mixed)
 
     # -- forces -------------------------------------------------------------------------
 
@@ -226,18 +161,9 @@ class ExplicitWilkins:
         velocity_jump = cell_type.velocity_jump(volume_rate, volume)
         mixed_viscosity = mixed_sound_speed = None
         if mixed_view is not None:
-            # The viscosity of a mixed cell acts on the whole cell (both materials alike, so
-            # it does not upset their pressure balance).  Its sound speed is the larger of
-            # the two materials'; its density the volume-weighted harmonic mean
-            # 1/ρ = Σ f_α/ρ_α, which weights the material that takes the compression: with
-            # the mass-weighted mean, a light gas against a dense one is damped by the dense
-            # one's inertia and the mixed cell does not compress under a shock.
-            rho_right = mixed_view.mass_right / mixed_view.volume_right
-            c2_right = self.mixed.right_groups.eos_values(self.materials, rho_right,
-                                                          mixed_view.energy_right)[3]
-            mixed_density = volume[cells] / (mixed_view.volume_left / density[0, cells]
-                                             + mixed_view.volume_right / rho_right)
-            mixed_sound_speed = np.maximum(sound_speed[0, cells], np.sqrt(np.maximum(c2_right, 0.0)))
+            # the density and sound speed a mixed cell's viscosity sees: its closure's
+            mixed_density, mixed_sound_speed = self.closure.viscosity_medium(mixed_view, volume, density,
+                                                                             sound_speed)
         if self.artificial_viscosity:
             # Quadratic (von Neumann–Richtmyer) + linear (Landshoff) viscosity in compression:
             # q = ρ (c2 Δu² + c1 c |Δu|) for Δu < 0.
@@ -414,8 +340,8 @@ class ExplicitWilkins:
         Lagrangian state are not evaluated (the evaluation returned is None) and the new
         state holds only what the remap reads — positions, velocities, masses, energies and
         volumes; its densities, pressures and sound speeds are None."""
-        if self.mixed is not None and self.mixed.relaxation:
-            state, relaxed = self.relax_mixed_cells(state)
+        if self.closure is not None:
+            state, relaxed = self.closure.relax_start(state)
             if relaxed:
                 start = None
         first = start if start is not None else self.evaluate_state(state)
@@ -441,18 +367,8 @@ class ExplicitWilkins:
             corner_positions = self.corners.quad_corners(x_pred, hourglass=False)
         e_pred = energy[:1] - self._corner_work([first], velocity_sum, half_dt_over_mass, corner_sum)
         view = None
-        if self.mixed is not None:
-            # Mixed cells are not advanced by the predictor; their materials are only
-            # needed for the viscosity q*, taken with both materials strained alike.
-            cells = self.mixed.cells
-            e_pred[0, cells] = energy[0, cells]
-            strain = self._mixed_volumes(x_pred) / first.volume[cells]
-            view = MixedView.of(state, cells)
-            predicted_pressure = view.interface_pressure
-            if self.mixed.model == "single_velocity":
-                predicted_pressure = self._equal_strain(state, first, strain)[0]
-            view = MixedView(view.volume_left * strain, view.volume_right * strain,
-                             view.mass_right, view.energy_right, predicted_pressure)
+        if self.closure is not None:  # the mixed cells at x*, for their viscosity q*
+            view = self.closure.predicted_view(state, first, x_pred, e_pred)
         # the hourglass forces of the start serve the predicted state too (a damping device,
         # evaluated once a step; the same forces enter momentum and energy: still compatible)
         predicted = self.evaluate(x_pred, u_pred, mass, e_pred, view, with_length=False,
@@ -464,12 +380,11 @@ class ExplicitWilkins:
         # Corrector with the time-centred forces F̄ = (F^n + F*)/2.
         mean_force = first.nodal_force + predicted.nodal_force
         mean_force *= 0.5
-        if self.mixed is not None and self.mixed.model == "single_velocity":
-            solution = None  # explicit: the mixed cells' forces are already in mean_force
-        elif self.mixed is not None:
+        solution = None
+        if self.closure is not None and self.closure.implicit:  # the mixed cells' n+1 stress
             clock = time.perf_counter()
-            solution = self._solve_mixed_cells(state, first, predicted, mean_force, dt,
-                                               dt_over_node_mass)
+            solution = self.closure.implicit_solve(self, state, first, predicted, mean_force, dt,
+                                                   dt_over_node_mass)
             self.mixed_seconds += time.perf_counter() - clock
             self.mixed_calls += 1
         u_new = self._advance_velocity(u0, mean_force, dt_over_node_mass)
@@ -512,206 +427,15 @@ class ExplicitWilkins:
                 material_density=final.density, material_pressure=final.pressure,
                 material_sound_speed=final.sound_speed)
             return new_state, final, boundary_work, boundary_impulse
-        if solution is None:
-            cells = self.mixed.cells
-            # the cell's internal energy changes by the work of its corner forces on the
-            # nodes, as in pure cells (compatible: total energy conserved), shared by strain
-            change = (e_new[0, cells] - energy[0, cells]) * mass[0, cells]
-            solution = self._equal_strain(state, first, self._mixed_volumes(x_new) / first.volume[cells],
-                                          energy_change=change)[1]
+        solution = self.closure.end_of_step(state, first, x_new, e_new, solution)
         if remapped_next:
             return self._state_for_remap(state, solution, x_new, u_new, e_new, dt), None, \
                 boundary_work, boundary_impulse
-        new_state, final = self._finish_mixed(state, solution, x_new, u_new, e_new, dt)
+        new_state, final = self.closure.finish(self, state, solution, x_new, u_new, e_new, dt)
         if not self._healthy(final, new_state.material_energy[:1]):
             self.check(predicted, x_pred, e_pred, "predicted ")
             self.check(final, x_new, new_state.material_energy[:1], "")
         return new_state, final, boundary_work, boundary_impulse
-
-    # -- mixed cells ----------------------------------------------------------------------
-
-    def _mixed_start(self, state: State):
-        cells = self.mixed.cells
-        return (state.material_mass[0, cells], state.material_mass[1, cells],
-                state.material_volume[0, cells], state.material_volume[1, cells],
-                state.material_energy[0, cells], state.material_energy[1, cells])
-
-    def relax_mixed_cells(self, state: State, in_place: bool = False):
-        """Pressure relaxation of the mixed cells at the start of a step (paper §3): only
-        where the materials' pressures differ beyond the solver tolerance.  ``in_place``:
-        change the state's arrays (a state just made by the remap) instead of copying.
-        (A step relaxes the state it ends with already, before evaluating its forces —
-        :meth:`_relaxed` — so this finds work only in states made elsewhere.)"""
-        cells = self.mixed.cells
-        pa, pb = state.material_pressure[0, cells], state.material_pressure[1, cells]
-        c2a, c2b = state.material_sound_speed[0, cells] ** 2, state.material_sound_speed[1, cells] ** 2
-        if self._balanced(pa, pb, state.material_density[0, cells] * c2a, state.material_density[1, cells] * c2b):
-            return state, False
-        volume = state.material_volume[0, cells] + state.material_volume[1, cells]
-        _, va, vb, details = self._relax(volume, self._mixed_start(state), 0.5 * (pa + pb))
-        return with_mixed_state(state, cells, va, vb, details, state.interface_velocity, in_place), True
-
-    def _balanced(self, pa, pb, bulk_a, bulk_b) -> bool:
-        """Whether the materials' pressures agree within what the relaxation leaves alone:
-        10 × interface_tolerance relative to the larger pressure or the smaller ρc²."""
-        scale = np.maximum(np.maximum(np.abs(pa), np.abs(pb)), np.minimum(bulk_a, bulk_b))
-        return bool((np.abs(pa - pb) <= 10.0 * self.mixed.tolerance * scale).all())
-
-    def _relax(self, volume, start, guess):
-        try:
-            return self.mixed.relax(volume, start, guess)
-        except MixedCellFailure as failure:
-            raise Breakdown("pressure relaxation", -1, float("nan"), [0.0], str(failure)) from None
-
-    def _relaxed(self, state, va, vb, details):
-        """The relaxation that starts the next step, done on the mixed cells' new volumes,
-        energies and pressures before the step evaluates the forces of its new state: that
-        evaluation then serves the next step as it is (relaxing the finished state instead
-        would change its pressures and call for a second evaluation of every cell).  The
-        same solve on the same values as :meth:`relax_mixed_cells` would do."""
-        ea, eb, pa, pb, rho_a, rho_b, c2a, c2b = details
-        if not (self.mixed.relaxation and self.relax_end_state) or self._balanced(pa, pb, rho_a * c2a,
-                                                                                  rho_b * c2b):
-            return va, vb, details
-        cells = self.mixed.cells
-        start = (state.material_mass[0, cells], state.material_mass[1, cells], va, vb, ea, eb)
-        _, va, vb, details = self._relax(va + vb, start, 0.5 * (pa + pb))
-        return va, vb, details
-
-    def _solve_mixed_cells(self, state, first, predicted, mean_force, dt, dt_over_node_mass):
-        """The implicit interface solve; adds the mixed cells' n+1 stress to mean_force."""
-        mixed = self.mixed
-        a, b = mixed.node_left, mixed.node_right
-        # held nodes do not move
-        mobility_a = dt_over_node_mass[a] * self.free_nodes[a]
-        mobility_b = dt_over_node_mass[b] * self.free_nodes[b]
-        pi_n = state.interface_pressure
-        u0 = state.node_velocity[0]
-        # V(π) = A + Bπ (module docstring of ale_xfem.mixed): the internal nodes move with
-        # the trapezoidal force ½(F^n + F*) − ½(π − π^n) ∂V/∂x_i.
-        centred = (u0[b] - u0[a]) + 0.5 * (mobility_b * mean_force[0, b] - mobility_a * mean_force[0, a])
-        slope = 0.25 * dt * (mobility_a + mobility_b)
-        offset = first.volume[mixed.cells] + dt * centred - slope * pi_n
-        work_offset = 0.5 * (pi_n + first.mixed_viscosity + predicted.mixed_viscosity)
-        start = self._mixed_start(state)
-        predictor = None
-        if self.assembled_predictor is not None:
-            predictor = self._assembled_predictor(state, first, predicted, mean_force, dt,
-                                                  mobility_a, mobility_b, start)
-        try:
-            pi, va, vb, details = mixed.solve(start, pi_n, (offset, slope),
-                                              (work_offset, np.full_like(pi_n, 0.5)),
-                                              predictor=predictor)
-        except MixedCellFailure as failure:
-            raise Breakdown("interface solve", -1, float("nan"), [0.0], str(failure)) from None
-        change = 0.5 * (pi - pi_n)
-        mean_force[0, a] -= change
-        mean_force[0, b] += change
-        return va, vb, details
-
-    def _equal_strain(self, state, first, strain, energy_change=None):
-        """Single-velocity closure: both materials of a mixed cell take the cell's volume
-        change in proportion to their volumes (equal strain); their energies change by
-        −P^n ΔV_α in the predictor, and at the end of the step share ``energy_change``, the
-        cell's compatible work (in 1D exactly −P̄ ΔV), in proportion to their volumes; the
-        cell's stress is the volume-weighted mean of their pressures.  The pressure
-        relaxation at the start of the next step then equilibrates them."""
-        m_a, m_b, va0, vb0, ea0, eb0 = self._mixed_start(state)
-        va, vb = va0 * strain, vb0 * strain
-        if energy_change is None:
-            work = first.stress[self.mixed.cells]
-            ea = ea0 - work * (va - va0) / m_a
-            eb = eb0 - work * (vb - vb0) / m_b
-        else:
-            share = va0 / (va0 + vb0)
-            ea = ea0 + energy_change * share / m_a
-            eb = eb0 + energy_change * (1.0 - share) / m_b
-        pa, _, _, c2a = self.mixed.left_groups.eos_values(self.materials, m_a / va, ea)
-        pb, _, _, c2b = self.mixed.right_groups.eos_values(self.materials, m_b / vb, eb)
-        mean_pressure = (va * pa + vb * pb) / (va + vb)
-        return mean_pressure, (va, vb, (ea, eb, pa, pb, m_a / va, m_b / vb, c2a, c2b))
-
-    def _mixed_volumes(self, position):
-        """Volumes of the mixed cells only (1D: x_b − x_a; 2D: their areas)."""
-        if self.mixed.node_left is not None:
-            return position[0, self.mixed.node_right] - position[0, self.mixed.node_left]
-        return self.mesh.cell_geometry(position, self.mixed.cells)[0]
-
-    def _assembled_predictor(self, state, first, predicted, mean_force, dt, mobility_a, mobility_b, start):
-        """The predictor as the assembled FE system of forms/mixed_cell.py: returns a
-        callable (iterate → material pressure π) for MixedCells.solve."""
-        mixed, forms = self.mixed, self.assembled_predictor
-        if not np.array_equal(forms.cells, mixed.cells):  # a remap moved an interface: new submesh
-            forms.rebuild(mixed.cells)
-        a, b = mixed.node_left, mixed.node_right
-        forms.predictor.move(state.node_position)
-        pi_n = state.interface_pressure
-        q_star = predicted.mixed_viscosity
-        n_nodes = state.node_position.shape[1]
-        held = 1e30  # a held node: its row fixes ū to its prescribed value
-        mass = [np.zeros(n_nodes), np.zeros(n_nodes)]
-        rhs = [np.zeros((1, n_nodes)), np.zeros((1, n_nodes))]
-        u0 = state.node_velocity[0]
-        for k, node, mobility, sign in ((0, a, mobility_a, 1.0), (1, b, mobility_b, -1.0)):
-            m4 = np.where(mobility > 0, 4.0 / np.where(mobility > 0, mobility, 1.0), held)  # 4M/dt
-            mass[k][node] = m4
-            # 4M u^n/dt + 2F̄ + F^n: the doubled trapezoidal row (module docstring there)
-            explicit = np.where(mobility > 0, 2.0 * mean_force[0, node] + sign * (pi_n + q_star), 0.0)
-            rhs[k][0, node] = m4 * u0[node] + explicit
-        m_a, m_b, va0, vb0, _, _ = start
-        volume = va0 + vb0
-        x_gamma = state.node_position[0, a] + va0
-
-        def predict(va, vb, pa, pb, da, db):
-            offsets = [pa + da * (va0 - va) + q_star, pb + db * (vb0 - vb) + q_star]
-            pressure, _ = forms.predictor.solve(mass, rhs, [va0 / volume, vb0 / volume], [da * dt, db * dt],
-                                                offsets, np.ones((a.size, 1)), x_gamma[:, None],
-                                                np.ones(a.size))
-            return pressure - q_star  # the interface stress less the viscosity: π
-
-        return predict
-
-    def _finish_mixed(self, state, solution, x_new, u_new, e_new, dt):
-        """Assemble the new state: pure cells from the explicit update, mixed cells from the
-        interface solve; every (S, n_cells) array is allocated once."""
-        va, vb, details = solution
-        cells = self.mixed.cells
-        vb = self._mixed_volumes(x_new) - va  # the geometric cell volume takes the round-off
-        interface_velocity = self._interface_velocity(state, x_new, va, dt)  # Γ's motion in the step
-        va, vb, (ea, eb, pa, pb, rho_a, rho_b, c2a, c2b) = self._relaxed(state, va, vb, details)
-        energy = e_new  # slot 0 from the explicit update
-        energy[0, cells], energy[1, cells] = ea, eb
-        interface_pressure = 0.5 * (pa + pb)
-        view = MixedView(va, vb, state.material_mass[1, cells], eb, interface_pressure)
-        final = self.evaluate(x_new, u_new, state.material_mass, energy, view, slots=2)
-        volume = self._slot_volumes(final.volume, va, vb)
-        density, pressure, sound_speed = final.density, final.pressure, final.sound_speed
-        density[1, cells], pressure[1, cells] = rho_b, pb
-        sound_speed[1, cells] = np.sqrt(np.maximum(c2b, 0.0))
-        new_state = state.evolved(
-            time=state.time + dt, node_position=x_new, node_velocity=u_new, material_energy=energy,
-            material_volume=volume, material_density=density, material_pressure=pressure,
-            material_sound_speed=sound_speed, interface_pressure=interface_pressure,
-            interface_velocity=interface_velocity)
-        return new_state, final
-
-    def _slot_volumes(self, cell_volume, va, vb):
-        """The (2, n_cells) material volumes of a new state: each cell's volume in slot 0,
-        the mixed cells' split (V_α, V_β) in slots 0 and 1."""
-        cells = self.mixed.cells
-        volumes = self.two_slots.take(cells)
-        volumes[0] = cell_volume
-        volumes[0, cells], volumes[1, cells] = va, vb
-        return volumes
-
-    def _interface_velocity(self, state, x_new, va, dt):
-        """The mixed cells' interface velocity over the step: in 1D Γ's displacement / dt
-        (Γ = node a + V_α); 2D single-velocity cells rebuild Γ (PLIC), it has none of its own."""
-        cells, a = self.mixed.cells, self.mixed.node_left
-        if a is None:
-            return np.zeros(cells.size)
-        before = state.node_position[0, a] + state.material_volume[0, cells]
-        return (x_new[0, a] + va - before) / dt
 
     def _state_for_remap(self, state, solution, x_new, u_new, e_new, dt):
         """The new state as the remap reads it (no force evaluation): volumes from the
@@ -722,12 +446,7 @@ class ExplicitWilkins:
         if self.mixed is None:
             volumes = volume[None, :]
         else:
-            cells = self.mixed.cells
-            va, vb, details = solution
-            e_new[0, cells], e_new[1, cells] = details[0], details[1]
-            volumes = self._slot_volumes(volume, va, volume[cells] - va)
-            interface = dict(interface_pressure=0.5 * (details[2] + details[3]),
-                             interface_velocity=self._interface_velocity(state, x_new, va, dt))
+            volumes, interface = self.closure.state_for_remap(self, state, solution, x_new, volume, e_new, dt)
         occupied = volumes[:, self.mixed.cells] if self.mixed is not None else volume
         if not (volume.min() > 0.0 and occupied.min() > 0.0 and np.isfinite(e_new.sum())):
             for name, values, allowed, good in (("volume", volumes, "> 0", lambda v: v > 0.0),

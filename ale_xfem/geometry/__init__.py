@@ -1,0 +1,1 @@
+"""Shapes and exact polygon geometry (areas, centroids, clipping), below any physics."""

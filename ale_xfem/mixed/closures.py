@@ -1,0 +1,32 @@
+"""The closure of each set of mixed cells a run meets, by ``interface.model``: one closure
+per model, kept for the whole run (a remap that makes new mixed cells rebinds it, so the
+assembled predictor's forms compile once)."""
+
+from __future__ import annotations
+
+from ale_xfem.lagrange.closure import MixedCellClosure
+from ale_xfem.mixed.enriched import EnrichedClosure
+from ale_xfem.mixed.single_velocity import SingleVelocityClosure
+from ale_xfem.model.mixed_cells import MixedCells
+
+CLOSURES = {"enriched": EnrichedClosure, "single_velocity": SingleVelocityClosure}
+
+
+class Closures:
+    """Called with the current mixed cells, returns their closure.  ``assembled_predictor``:
+    the enriched closure solves its predictor from the UFL forms."""
+
+    def __init__(self, mesh, materials, assembled_predictor: bool = False):
+        self.mesh, self.materials = mesh, materials
+        self.assembled_predictor = assembled_predictor
+        self.made = {}  # model → its closure
+
+    def __call__(self, mixed: MixedCells) -> MixedCellClosure:
+        closure = self.made.get(mixed.model)
+        if closure is not None:
+            closure.bind(mixed)
+            return closure
+        options = {"assembled": self.assembled_predictor} if mixed.model == "enriched" else {}
+        closure = CLOSURES[mixed.model](self.mesh, self.materials, mixed, **options)
+        self.made[mixed.model] = closure
+        return closure

@@ -1,0 +1,60 @@
+"""The enriched closure of mixed cells (the paper's method; 1D): one velocity field per
+material, the external nodes massless, the interface pressure π = p_Γ^{n+1} solved
+implicitly with trapezoidal stresses on the internal nodes (paper §2.2.1; the solve itself
+is :mod:`ale_xfem.mixed.equilibrium`)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ale_xfem.lagrange.breakdown import Breakdown
+from ale_xfem.mixed.assembled_predictor import AssembledPredictor
+from ale_xfem.mixed.common import SharedClosure
+from ale_xfem.mixed.equilibrium import MixedCellFailure, start_values
+from ale_xfem.model.mixed_cells import MixedCells
+
+
+class EnrichedClosure(SharedClosure):
+    """Mixed cells with doubled velocities and an implicit interface pressure.
+    ``assembled``: the predictor is the FE system assembled from the UFL forms (compiled
+    here, once per run), not its closed form."""
+
+    implicit = True
+
+    def __init__(self, mesh, materials, mixed: MixedCells, assembled: bool = False):
+        super().__init__(mesh, materials, mixed)
+        self.assembled = AssembledPredictor(mesh.dolfinx_mesh, mixed.cells) if assembled else None
+
+    def implicit_solve(self, step, state, first, predicted, mean_force, dt, dt_over_node_mass):
+        """The implicit interface solve; adds the mixed cells' n+1 stress to mean_force."""
+        mixed = self.mixed
+        a, b = mixed.node_left, mixed.node_right
+        # held nodes do not move
+        mobility_a = dt_over_node_mass[a] * step.free_nodes[a]
+        mobility_b = dt_over_node_mass[b] * step.free_nodes[b]
+        pi_n = state.interface_pressure
+        u0 = state.node_velocity[0]
+        # V(π) = A + Bπ (module docstring of ale_xfem.mixed.equilibrium): the internal nodes
+        # move with the trapezoidal force ½(F^n + F*) − ½(π − π^n) ∂V/∂x_i.
+        centred = (u0[b] - u0[a]) + 0.5 * (mobility_b * mean_force[0, b] - mobility_a * mean_force[0, a])
+        slope = 0.25 * dt * (mobility_a + mobility_b)
+        offset = first.volume[mixed.cells] + dt * centred - slope * pi_n
+        work_offset = 0.5 * (pi_n + first.mixed_viscosity + predicted.mixed_viscosity)
+        start = start_values(state, mixed.cells)
+        predictor = None
+        if self.assembled is not None:
+            predictor = self.assembled.predictor_for(mixed, state, predicted, mean_force, dt,
+                                                     mobility_a, mobility_b, start)
+        try:
+            pi, va, vb, details = self.equilibrium.solve(start, pi_n, (offset, slope),
+                                                         (work_offset, np.full_like(pi_n, 0.5)),
+                                                         predictor=predictor)
+        except MixedCellFailure as failure:
+            raise Breakdown("interface solve", -1, float("nan"), [0.0], str(failure)) from None
+        change = 0.5 * (pi - pi_n)
+        mean_force[0, a] -= change
+        mean_force[0, b] += change
+        return va, vb, details
+
+    def end_of_step(self, state, first, x_new, e_new, solution):
+        return solution

@@ -1,0 +1,1 @@
+"""Run outputs: summary.json, profile.csv / cells.csv, VTX, plots."""

@@ -1,0 +1,72 @@
+"""Run outputs: summary.json, profile.csv (1D) or cells.csv (2D, see ale_xfem.output.cells_2d), the
+resolved scene, and the PNG plot."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import tomli_w
+
+from ale_xfem.output.profile import write_profile
+from ale_xfem.problem.build import Problem
+from ale_xfem.run import RunResult
+
+
+def write_resolved_scene(problem: Problem, folder: Path) -> Path:
+    path = folder / "scene.toml"
+    path.write_bytes(tomli_w.dumps(problem.scene.resolved).encode())
+    return path
+
+
+def summary(problem: Problem, result: RunResult) -> dict:
+    scene = problem.scene
+    data = {
+        "scene": scene.name,
+        "status": result.status,
+        "t_end": scene.t_end,
+        "t_reached": result.state.time,
+        "steps": result.steps,
+        "cells": problem.mesh.n_cells,
+        "wall_seconds": result.wall_seconds,
+        "zone_cycles_per_second": result.zone_cycles_per_second,
+        "effects": list(problem.effects),
+        "conservation": result.conservation,
+        "dt": {"min": result.dt_min, "max": result.dt_max},
+        "phase_seconds": result.phase_seconds,
+    }
+    if result.mixed_cells is not None:
+        data["mixed_cells"] = result.mixed_cells
+    if result.diagnostic:
+        data["diagnostic"] = result.diagnostic
+    if result.errors is not None:
+        data["errors"] = result.errors
+    return data
+
+
+def write_summary(problem: Problem, result: RunResult, folder: Path) -> Path:
+    path = folder / "summary.json"
+    path.write_text(json.dumps(summary(problem, result), indent=2) + "\n")
+    return path
+
+
+def write_outputs(problem: Problem, result: RunResult, folder: Path, plot: bool = True) -> dict:
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    written = {
+        "scene": write_resolved_scene(problem, folder),
+        "summary": write_summary(problem, result, folder),
+    }
+    if problem.mesh.dimension == 2:
+        from ale_xfem.output.cells_2d import plot_density_2d, write_cells
+
+        written["cells"] = write_cells(problem, result.state, folder)
+        if plot:
+            written["plot"] = plot_density_2d(problem, result, folder / f"{problem.scene.name}.png")
+        return written
+    written["profile"] = write_profile(problem, result.state, folder)
+    if plot:
+        from ale_xfem.output.plots import plot_profile
+
+        written["plot"] = plot_profile(problem, result, folder / f"{problem.scene.name}.png")
+    return written

@@ -1,0 +1,1 @@
+"""The transport phase: material-by-material remaps onto the regularised mesh, 1D and 2D."""

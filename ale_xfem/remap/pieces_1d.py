@@ -1,0 +1,140 @@
+"""What the two 1D remaps share: the result they return, the failure they raise, and the
+reconstruction of each piece (limited slopes of densities per material, exact integrals of
+linear functions, the kinetic energy of lumps and its deposit as heat).  See
+:mod:`ale_xfem.remap.intersection_1d` for the method."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass
+class RemapResult:
+    cell_material: np.ndarray  # (S, n_cells)
+    material_mass: np.ndarray  # (S, n_cells)
+    material_energy: np.ndarray  # (S, n_cells) specific
+    material_volume: np.ndarray  # (S, n_cells)
+    corner_mass: np.ndarray  # (2, n_cells): the mass each cell lumps on its left / right node
+    node_mass: np.ndarray  # (n_nodes,)
+    node_velocity: np.ndarray  # (components, n_nodes)
+    mixed_cells: np.ndarray  # (n_mixed,) cells holding an interface
+    kinetic_energy_change: float
+    node_momentum: np.ndarray | None = None  # (components, n_nodes): Σ of the nodes' parts
+
+
+def minmod(a, b, out=None):
+    """minmod(a, b): the one of smaller magnitude when they have the same sign, else 0;
+    as a clipped to the interval between 0 and b: min(max(a, min(b, 0)), max(b, 0)), the
+    definition of np.clip, in four passes without its array-bound overhead (at 10⁵ values
+    175 µs against 210, the same values)."""
+    if out is None:
+        out = np.empty(np.broadcast_shapes(np.shape(a), np.shape(b)))
+    high = np.maximum(b, 0.0)
+    np.minimum(b, 0.0, out=out)
+    np.maximum(a, out, out=out)
+    return np.minimum(out, high, out=out)
+
+
+def limited_slopes(value, inverse_spacing, one_material, bound):
+    """Minmod slopes of value over sorted pieces (1 / spacing of their centres given),
+    clipped to ±bound (None: no bound); zero in the first and last piece and —
+    ``one_material[k]``: pieces k and k + 1 hold the same material; None: all do — next to
+    a piece of another material, so no information crosses Γ."""
+    if value.size < 3:
+        return np.zeros_like(value)
+    slope = np.empty_like(value)
+    slope[0] = slope[-1] = 0.0
+    gradient = np.diff(value)
+    gradient *= inverse_spacing
+    right = gradient[1:]
+    if bound is None:
+        minmod(gradient[:-1], right, out=slope[1:-1])
+    else:
+        # minmod(g_left, g_right) clipped to ±bound in one clip: g_left held between
+        # 0 and g_right, g_right first held within ±bound
+        bound = bound[1:-1]
+        np.clip(gradient[:-1], np.clip(right, -bound, 0.0), np.clip(right, 0.0, bound), out=slope[1:-1])
+    inner = slope[1:-1]
+    if one_material is not None:
+        inner[~(one_material[:-1] & one_material[1:])] = 0.0
+    return slope
+
+
+def piece_slopes(centre, width, density, energy_density, material, order):
+    """The limited slopes of a material's density and energy density over the pieces
+    (sorted left to right): minmod within one material, zero at Γ, and no more than keeps
+    the reconstruction of the same sign at both ends of the piece.  ``material``: per
+    piece, or None when all pieces hold one material.  Order 1: zero."""
+    if order != 2:
+        return np.zeros_like(density), np.zeros_like(energy_density)
+    inverse_spacing = np.diff(centre)
+    np.divide(1.0, inverse_spacing, out=inverse_spacing)
+    one_material = None if material is None else material[1:] == material[:-1]
+    # A minmod slope keeps both ends of a piece between its neighbours' values (the
+    # spacing of the centres is at least half the piece): a field with no negative value
+    # stays non-negative without the bound ±2|f|/w, which then cannot bind and is not
+    # formed (densities always; energy densities unless some are negative).
+    bounds = [None if field.min(initial=0.0) >= 0.0 else np.abs(field) * (2.0 / width)
+              for field in (density, energy_density)]
+    density_slope = limited_slopes(density, inverse_spacing, one_material, bounds[0])
+    energy_slope = limited_slopes(energy_density, inverse_spacing, one_material, bounds[1])
+    return density_slope, energy_slope
+
+
+def integrate_linear(value, slope, centre, lo, hi):
+    """∫_lo^hi value + slope (x − centre) dx."""
+    return value * (hi - lo) + 0.5 * slope * ((hi - centre) ** 2 - (lo - centre) ** 2)
+
+
+def lump_kinetic(mass, momentum):
+    """½ |p|²/m of lumps (0 for empty ones)."""
+    kinetic = component_dot(momentum, momentum)
+    kinetic *= 0.5
+    if mass.all():
+        kinetic /= mass
+        return kinetic
+    np.divide(kinetic, mass, out=kinetic, where=mass != 0.0)
+    kinetic[mass == 0.0] = 0.0
+    return kinetic
+
+
+def component_dot(a, b):
+    """Σ_components a·b of (components, n) arrays, without a reduction over a new array."""
+    out = a[0] * b[0]
+    for k in range(1, a.shape[0]):
+        out += a[k] * b[k]
+    return out
+
+
+def deposit_kinetic_loss(loss, corner_mass, node_mass, left_node, right_node, cell_material, material_mass,
+                         material_energy, mixed_cells, condensed: bool = True, in_order: bool = False):
+    """Add each node's kinetic-energy loss to the specific internal energies of the cells
+    around it (in place, on the remap's own arrays), in proportion to the lumped (corner)
+    masses they give it: the remap then conserves total energy.  The loss of node k is
+    ½M u² − ½M'u'² plus the kinetic energy of what came in, less what went out; it sums to
+    the discrete kinetic energy lost.  In an enriched mixed cell a corner belongs to its
+    node's internal material; a single-velocity mixed cell shares it by mass.
+    ``in_order``: cell j lies between nodes j and j + 1 (slices instead of gathers)."""
+    if node_mass.min() > 0:  # every node keeps mass (always in the swept form)
+        per_mass = loss / node_mass
+    else:
+        per_mass = np.zeros_like(loss)
+        np.divide(loss, node_mass, out=per_mass, where=node_mass > 0)
+    if in_order:
+        left, right = per_mass[:-1] * corner_mass[0], per_mass[1:] * corner_mass[1]
+    else:
+        left, right = per_mass[left_node] * corner_mass[0], per_mass[right_node] * corner_mass[1]
+    heat = left
+    heat += right  # slot 0 of every cell; moved to slot 1 below where a mixed cell holds it
+    if mixed_cells.size:
+        c = mixed_cells
+        to_second = right[c] if condensed else heat[c] * material_mass[1, c] / (material_mass[0, c] + material_mass[1, c])
+        heat[c] -= to_second
+        material_energy[1, c] += to_second / material_mass[1, c]
+    heat /= material_mass[0]
+    material_energy[0] += heat
+    return material_energy
+
+
