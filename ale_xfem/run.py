@@ -40,7 +40,8 @@ class RunResult:
     errors: dict | None = None
     dt_min: float = 0.0
     dt_max: float = 0.0
-    phase_seconds: dict = field(default_factory=dict)
+    phase_seconds: dict = field(default_factory=dict)  # seconds per phase of the step
+    remaps: dict | None = None  # with a remap: how many were done, and how
     mixed_cells: dict | None = None
 
     @property
@@ -109,6 +110,7 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
     remap_energy_change, remap_seconds = 0.0, 0.0
     state = problem.state
     start_totals = totals(state, problem.node_mass)
+    scale = velocity_scale(problem)
     start_materials = material_masses(state, problem.layout)
     boundary_work, boundary_impulse = 0.0, np.zeros_like(start_totals["momentum"])
     growth = problem.scene.numerics.dt_growth
@@ -181,14 +183,14 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
     result = RunResult(status, state, steps, wall, diagnostic, dt_min=float(dt_min if steps else 0.0),
                        dt_max=float(dt_max), phase_seconds=phases)
     result.conservation = conservation(start_totals, totals(state, problem.node_mass),
-                                       boundary_work, boundary_impulse, problem.node_mass, state)
+                                       boundary_work, boundary_impulse, scale)
     # each material's own mass: the worst relative change (a remap moves them one by one)
     change = (material_masses(state, problem.layout) - start_materials) / np.where(start_materials > 0, start_materials, 1.0)
     result.conservation["material_mass"] = float(change[np.argmax(np.abs(change))])
-    if remapper is not None and remapper.motion == "interface":
-        result.phase_seconds["local_remaps"] = remapper.windows_remapped
-    elif remapper is not None:
-        result.phase_seconds["general_remaps"] = remapper.general_remaps
+    if remapper is not None and remapper.motion == "interface":  # windows around a mixed cell
+        result.remaps = {"local": remapper.windows_remapped}
+    elif remapper is not None:  # every step; those the swept form did not cover
+        result.remaps = {"steps": steps, "general_intersection": remapper.general_remaps}
     if remapper is not None:
         # The remap conserves mass, momentum and internal energy; it dissipates kinetic
         # energy, reported here relative to the initial total energy.
@@ -232,22 +234,38 @@ def _remap(problem, stepper, remapper, state, evaluation, impulse):
     return state, evaluation, impulse, kinetic_change
 
 
-def conservation(start, end, boundary_work, boundary_impulse, node_mass, state) -> dict:
-    """Relative drifts.  Momentum and energy balances include what the boundaries gave
-    (reactions of walls and pistons); momentum is scaled by Σ M|u| (it may start at 0),
-    energy by the larger of the initial and final total energies."""
-    momentum_scale = max(float(np.sum(node_mass * np.abs(state.node_velocity))),
-                         float(np.linalg.norm(start["momentum"])), 1e-300)
-    momentum_drift = end["momentum"] - start["momentum"] - boundary_impulse
+def velocity_scale(problem: Problem) -> float:
+    """The scene's velocity scale V: the largest of the initial speeds, the initial sound
+    speeds and the pistons' speeds.  It vanishes only for cold matter at rest with no
+    piston, where nothing can move."""
+    state = problem.state
+    speeds = [float(np.max(np.linalg.norm(state.node_velocity, axis=0), initial=0.0)),
+              float(np.max(np.where(state.material_mass > 0, state.material_sound_speed, 0.0), initial=0.0))]
+    speeds += [float(np.linalg.norm(b.velocity)) for b in problem.boundaries if b.kind == "velocity"]
+    return max(speeds)
+
+
+def _relative(drift: float, scale: float) -> float:
+    return drift / scale if scale > 0 else (0.0 if drift == 0 else float("inf"))
+
+
+def conservation(start, end, boundary_work, boundary_impulse, velocity_scale: float) -> dict:
+    """Drifts relative to scales that do not vanish while anything can move (README,
+    'Outputs'): mass by the initial mass M; momentum |ΔP − boundary impulse| by M V, with V
+    the scene's velocity scale; total energy (ΔE − boundary work) by the largest of |E⁰|,
+    |E| and M V².  The balances include what the boundaries gave (reactions of walls and
+    pistons)."""
+    mass = start["mass"]
+    momentum_scale = mass * velocity_scale
+    energy_scale = max(abs(start["total_energy"]), abs(end["total_energy"]), mass * velocity_scale**2)
+    momentum_drift = float(np.linalg.norm(end["momentum"] - start["momentum"] - boundary_impulse))
     return {
-        "mass": (end["mass"] - start["mass"]) / start["mass"],
-        "momentum": float(np.linalg.norm(momentum_drift)) / momentum_scale,
-        # relative to the larger of the initial and final energies (a piston may start
-        # from gas at rest and almost no energy)
-        "total_energy": (end["total_energy"] - start["total_energy"] - boundary_work)
-        / max(abs(start["total_energy"]), abs(end["total_energy"]), 1e-300),
+        "mass": (end["mass"] - mass) / mass,
+        "momentum": _relative(momentum_drift, momentum_scale),
+        "total_energy": _relative(end["total_energy"] - start["total_energy"] - boundary_work, energy_scale),
         "boundary_work": boundary_work,
         "momentum_scale": momentum_scale,
+        "energy_scale": energy_scale,
     }
 
 

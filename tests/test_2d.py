@@ -237,6 +237,19 @@ def test_uniform_state_at_rest_stays_at_rest(tmp_path, cell_type, kind):
     np.testing.assert_allclose(result.state.material_pressure[0], 1.0, rtol=1e-12)
 
 
+def test_drifts_of_a_gas_at_rest_are_relative_to_scales_that_do_not_vanish(tmp_path):
+    """At rest, Σ M|u| is 0: a drift relative to it read 1.11e+283.  The scales are M V and
+    max(|E|, M V²), V the scene's velocity scale (here its sound speed √(γ p/ρ))."""
+    scene = load_scene(_uniform_scene(tmp_path), ["t_end=1e9"])
+    problem = build_problem(scene)
+    result = simulate(problem, stop_after_steps=50)
+    drift = result.conservation
+    mass = float(problem.state.material_mass.sum())
+    assert drift["momentum_scale"] == pytest.approx(mass * np.sqrt(1.4), rel=1e-12)
+    assert drift["energy_scale"] == pytest.approx(mass * 1.0 / 0.4, rel=1e-12)  # E = p A/(γ − 1) = 2.5 > M V² = 1.4
+    assert 0.0 <= drift["momentum"] < 1e-14 and abs(drift["total_energy"]) < 1e-14
+
+
 def test_hourglass_control_damps_the_hourglass_mode_and_leaves_linear_fields_alone(tmp_path):
     """An hourglass velocity pattern (±1 in a checkerboard of nodes) on a uniform gas: with
     κ = 0 nothing resists it in a quadrilateral of constant pressure, with κ > 0 its kinetic
@@ -371,6 +384,21 @@ def test_run_2d_with_an_uncovered_domain_exits_2(tmp_path, capsys):
     path = _uniform_scene(tmp_path)
     assert main(["run", str(path), "--set", "regions.0.box=[[0.0, 0.5], [0.0, 1.0]]", "--out", str(tmp_path / "o")]) == 2
     assert "regions" in capsys.readouterr().err
+
+
+def test_a_2d_region_that_meets_no_cell_is_an_error_naming_its_shape(tmp_path, capsys):
+    """A disk centred at (2, 2) on [0, 1]² was accepted and did nothing."""
+    path = _uniform_scene(tmp_path, extra="""
+[[regions]]
+material = "gas"
+disk = {center = [2.0, 2.0], radius = 0.3}
+density = 5.0
+pressure = 1.0
+""")
+    assert main(["run", str(path), "--out", str(tmp_path / "o")]) == 2
+    error = capsys.readouterr().err.strip()
+    assert error.startswith("error: regions[1].disk = ") and "covers none" in error and "\n" not in error
+    assert not (tmp_path / "o").exists()  # nothing ran
 
 
 def test_saltzman_mesh_is_skewed_with_straight_ends_and_the_rectangle_area():

@@ -136,7 +136,7 @@ def test_interface_following_motion_recentres_an_interface_near_a_node_and_keeps
     fraction = problem.state.material_volume[0, cells] / (x[problem.mixed.node_right] - x[problem.mixed.node_left])
     assert fraction[0] == pytest.approx(0.1)
     result = simulate(problem, stop_after_steps=1000)
-    assert result.status == "ok" and result.phase_seconds["local_remaps"] >= 1
+    assert result.status == "ok" and result.remaps["local"] >= 1
     x = result.state.node_position[0]
     fraction = result.state.material_volume[0, cells] / (x[problem.mixed.node_right] - x[problem.mixed.node_left])
     assert fraction[0] == pytest.approx(0.35 / 1.25, abs=1e-9)

@@ -47,7 +47,15 @@ BAD = {
     "domain not covered": (lambda d: set_path(d, ["regions", 1, "interval"], [0.6, 1.0]),
                            "regions", "cover the whole domain"),
     "region covering nothing": (lambda d: d["regions"].append(dict(d["regions"][0], interval=[2.0, 3.0])),
-                                "regions[2].interval", "meets the domain"),
+                                "regions[2].interval", "inside the domain"),
+    # it was clipped silently to [0.5, 1.0]
+    "region partly outside": (lambda d: set_path(d, ["regions", 1, "interval"], [0.5, 1.2]),
+                              "regions[1].interval", "inside the domain [0.0, 1.0] (nothing is clipped)"),
+    # accepted and ignored: nothing in 1D reads it
+    "stabilisation in 1D": (lambda d: d.setdefault("interface", {}).update(stabilisation="nitsche"),
+                            "interface.stabilisation", "2D enriched mixed cells"),
+    "solver without enriched cells": (lambda d: d.setdefault("interface", {}).update(
+        model="single_velocity", solver="linearised"), "interface.solver", "acts only on enriched"),
     "unknown material": (lambda d: set_path(d, ["regions", 1, "material"], "steel"),
                          "regions[1].material", "one of the materials"),
     "material boundary inside a cell": (lambda d: [set_path(d, ["regions", 0, "interval"], [0.0, 0.5037]),

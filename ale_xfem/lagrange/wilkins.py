@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ale_xfem.lagrange.breakdown import Breakdown
+from ale_xfem.model.diagnostics import place
 from ale_xfem.lagrange.closure import MixedCellClosure, MixedView
 from ale_xfem.model.boundaries import Boundary
 from ale_xfem.model.mesh import MeshArrays, QuadGradient, QuadHourglass, constant_gradient, corner_dot
@@ -240,12 +241,11 @@ class ExplicitWilkins:
         sound_speed = evaluation.sound_speed[0, cell]
         if evaluation.mixed_sound_speed is not None and cell in self.mixed.cells:
             sound_speed = evaluation.mixed_sound_speed[np.flatnonzero(self.mixed.cells == cell)[0]]
-        where = ", ".join(f"{v:.6g}" for v in np.atleast_1d(self.mesh.cell_centroids(position)[cell]))
         viscous = ""
         if self.viscous_time_step:
             length_q = float(self.mesh.cell_type.viscosity_length(evaluation.volume[cell]))
             viscous = f", viscosity length √A {length_q:.3g}"
-        return (f"cell {cell} (x = {where}) sets it: length {evaluation.length[cell]:.3g}{viscous}, "
+        return (f"{place(cell, self.mesh.cell_centroids(position)[cell])} sets it: length {evaluation.length[cell]:.3g}{viscous}, "
                 f"sound speed {sound_speed:.3g}, velocity jump {evaluation.velocity_jump[cell]:.3g}")
 
     def _cell_time_limits(self, evaluation: ForceEvaluation):

@@ -6,8 +6,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from ale_xfem.lagrange.breakdown import Breakdown
 from ale_xfem.lagrange.closure import MixedCellClosure, MixedView
-from ale_xfem.mixed.equilibrium import PressureEquilibrium
+from ale_xfem.mixed.equilibrium import MixedCellFailure, PressureEquilibrium
 from ale_xfem.mixed.relaxation import PressureRelaxation
 from ale_xfem.model.mixed_cells import MixedCells
 
@@ -28,7 +29,19 @@ class SharedClosure(MixedCellClosure):
     def relax_start(self, state, in_place: bool = False):
         if not self.mixed.relaxation:
             return state, False
-        return self.relaxation.relax_state(state, in_place)
+        try:
+            return self.relaxation.relax_state(state, in_place)
+        except MixedCellFailure as failure:
+            raise self.breakdown("pressure relaxation", failure, state.node_position) from None
+
+    def breakdown(self, quantity: str, failure: MixedCellFailure, node_position) -> Breakdown:
+        """The diagnostic of a failed mixed-cell solve: the cell, where it is, its materials
+        (α | β: slot 0 | slot 1; in 1D left | right) and what failed."""
+        k = failure.index
+        names = " | ".join(self.materials[int(m[k])].name for m in (self.mixed.material_left,
+                                                                     self.mixed.material_right))
+        centroid = self.mesh.cell_centroids(node_position)[failure.cell]
+        return Breakdown(quantity, failure.cell, float("nan"), centroid, materials=names, detail=failure.detail)
 
     def viscosity_medium(self, view: MixedView, volume, density, sound_speed):
         """The viscosity of a mixed cell acts on the whole cell (both materials alike, so it
@@ -72,8 +85,11 @@ class SharedClosure(MixedCellClosure):
         cells = self.mixed.cells
         vb = self.mixed_volumes(x_new) - va  # the geometric cell volume takes the round-off
         interface_velocity = self.interface_velocity(state, x_new, va, dt)  # Γ's motion in the step
-        va, vb, (ea, eb, pa, pb, rho_a, rho_b, c2a, c2b) = self.relaxation.relax_end(state, va, vb, details,
-                                                                                     step.relax_end_state)
+        try:
+            va, vb, (ea, eb, pa, pb, rho_a, rho_b, c2a, c2b) = self.relaxation.relax_end(state, va, vb, details,
+                                                                                         step.relax_end_state)
+        except MixedCellFailure as failure:
+            raise self.breakdown("pressure relaxation", failure, x_new) from None
         energy = e_new  # slot 0 from the explicit update
         energy[0, cells], energy[1, cells] = ea, eb
         interface_pressure = 0.5 * (pa + pb)

@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from ale_xfem.lagrange.breakdown import Breakdown
 from ale_xfem.mixed.assembled_predictor import AssembledPredictor
 from ale_xfem.mixed.common import SharedClosure
 from ale_xfem.mixed.equilibrium import MixedCellFailure, start_values
@@ -50,7 +49,7 @@ class EnrichedClosure(SharedClosure):
                                                          (work_offset, np.full_like(pi_n, 0.5)),
                                                          predictor=predictor)
         except MixedCellFailure as failure:
-            raise Breakdown("interface solve", -1, float("nan"), [0.0], str(failure)) from None
+            raise self.breakdown("interface solve", failure, state.node_position) from None
         change = 0.5 * (pi - pi_n)
         mean_force[0, a] -= change
         mean_force[0, b] += change

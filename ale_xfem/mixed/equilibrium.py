@@ -47,7 +47,12 @@ _STALLED = 64 * np.finfo(float).eps
 
 
 class MixedCellFailure(RuntimeError):
-    """The mixed-cell solve did not converge or left the admissible states."""
+    """The mixed-cell solve did not converge or left the admissible states: ``cell`` the
+    mesh cell, ``index`` its place among the mixed cells, ``detail`` what went wrong."""
+
+    def __init__(self, mixed: MixedCells, index: int, detail: str):
+        self.index, self.cell, self.detail = index, int(mixed.cells[index]), detail
+        super().__init__(f"mixed cell {self.cell}: {detail}")
 
 
 def start_values(state, cells):
@@ -94,8 +99,8 @@ class PressureEquilibrium:
         hi = np.minimum((1 - 1e-12) * total, total - limit_b * (1 + 1e-9))
         if (lo >= hi).any():
             bad = int(np.flatnonzero(lo >= hi)[0])
-            raise MixedCellFailure(f"mixed cell {int(self.mixed.cells[bad])}: volume {total[bad]:.6g} "
-                                   "cannot hold both materials below their compression limits")
+            raise MixedCellFailure(self.mixed, bad, f"volume {total[bad]:.6g} cannot hold both materials "
+                                   "below their compression limits")
         v = np.minimum(np.maximum(guess, lo), hi)
         for iteration in range(1, 101):
             pa, da, ea, rho_a, c2a, wa = self._adiabat(self.mixed.left_groups, m_a, v, ea0, va0, work_pressure)
@@ -182,8 +187,8 @@ class PressureEquilibrium:
                 return pi, va, vb, details
         worst = int(np.argmax(np.abs(balanced - pi_new) / scale))
         raise MixedCellFailure(
-            f"mixed cell {int(self.mixed.cells[worst])}: interface solve not converged after "
-            f"{self.mixed.max_iterations} iterations (pressure change {abs(balanced[worst] - pi_new[worst]):.3g})")
+            self.mixed, worst, f"not converged after {self.mixed.max_iterations} iterations (pressure "
+            f"change {abs(balanced[worst] - pi_new[worst]):.3g})")
 
     def _state_at(self, state0, va, vb, work):
         m_a, m_b, va0, vb0, ea0, eb0 = state0

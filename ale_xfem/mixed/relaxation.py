@@ -8,8 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ale_xfem.lagrange.breakdown import Breakdown
-from ale_xfem.mixed.equilibrium import MixedCellFailure, PressureEquilibrium, start_values
+from ale_xfem.mixed.equilibrium import PressureEquilibrium, start_values
 from ale_xfem.model.mixed_cells import MixedCells, with_mixed_state
 from ale_xfem.model.state import State
 
@@ -47,12 +46,9 @@ class PressureRelaxation:
         return bool((np.abs(pa - pb) <= 10.0 * self.mixed.tolerance * scale).all())
 
     def relax(self, volume, start, guess):
-        """The equilibrium at fixed volumes: (p*, V_α, V_β, details); a failure is a
-        :class:`Breakdown`."""
-        try:
-            return self.equilibrium.relax(volume, start, guess)
-        except MixedCellFailure as failure:
-            raise Breakdown("pressure relaxation", -1, float("nan"), [0.0], str(failure)) from None
+        """The equilibrium at fixed volumes: (p*, V_α, V_β, details); raises
+        :class:`MixedCellFailure`."""
+        return self.equilibrium.relax(volume, start, guess)
 
     def relax_end(self, state, va, vb, details, relax_end_state: bool):
         """The relaxation that starts the next step, done on the mixed cells' new volumes,

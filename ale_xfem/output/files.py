@@ -35,6 +35,8 @@ def summary(problem: Problem, result: RunResult) -> dict:
         "dt": {"min": result.dt_min, "max": result.dt_max},
         "phase_seconds": result.phase_seconds,
     }
+    if result.remaps is not None:
+        data["remaps"] = result.remaps
     if result.mixed_cells is not None:
         data["mixed_cells"] = result.mixed_cells
     if result.diagnostic:

@@ -10,7 +10,9 @@ import numpy as np
 
 from ale_xfem import exact
 from ale_xfem.mixed.equilibrium import MixedCellFailure, PressureEquilibrium, start_values
+from ale_xfem.geometry.shapes import SHAPES
 from ale_xfem.model.boundaries import Boundary
+from ale_xfem.model.diagnostics import place
 from ale_xfem.model.mesh import MeshArrays, file_mesh, interval_mesh, rectangle_mesh, saltzman_mesh
 from ale_xfem.model.mixed_cells import MixedCells, with_mixed_state
 from ale_xfem.model.state import Material, MaterialLayout, State, density_of, ranked_materials, thermodynamics
@@ -157,7 +159,10 @@ def finish_problem(scene, mesh, materials, layout, node_mass, state, mixed, corn
             try:
                 state = initial_relaxation(mixed, state)
             except MixedCellFailure as failure:  # reported by the run, with this state
-                setup_failure = f"initial pressure relaxation: {failure}"
+                k = failure.index
+                names = " | ".join(materials[int(m[k])].name for m in (mixed.material_left, mixed.material_right))
+                where = place(failure.cell, mesh.cell_centroids()[failure.cell], names)
+                setup_failure = f"{where}: initial pressure relaxation: {failure.detail}"
         if setup_failure or "pressure_relaxation" not in effects:  # the pressures as given
             cells = mixed.cells
             volumes = state.material_volume[:, cells]
@@ -196,6 +201,11 @@ def region_fractions_2d(scene: Scene, mesh: MeshArrays) -> np.ndarray:
     fractions = np.zeros((len(scene.regions), mesh.n_cells))
     for r, region in enumerate(scene.regions):
         share = np.clip(region.shape.area_in(vertices) / area, 0.0, 1.0)
+        if not np.any(share >= 1e-12):  # a region that acts nowhere
+            table = scene.resolved["regions"][r]
+            key = next(k for k in SHAPES if k in table)
+            raise SceneError(f"regions[{r}].{key}", table[key], "a shape that meets the domain's cells "
+                             "(this one covers none of them)")
         share[share < 1e-12] = 0.0
         share[share > 1.0 - 1e-12] = 1.0
         fractions[:r] *= 1.0 - share

@@ -53,7 +53,6 @@ NUMERICS_DEFAULTS = {
 INTERFACE_DEFAULTS = {
     "model": "enriched",  # enriched (the paper) | single_velocity (baseline closure)
     "solver": "nonlinear",  # nonlinear (predictor + corrector) | linearised (predictor alone)
-    "stabilisation": "bubble",  # 2D only: bubble | nitsche
     "slip": "free",  # free | stick | coulomb
     "relaxation": True,  # pressure relaxation of mixed cells at the start of every step
     "predictor": "closed_form",  # closed_form (1D elimination) | assembled (UFL forms + PETSc)
@@ -139,7 +138,7 @@ class Numerics:
 class InterfaceSpec:
     model: str
     solver: str
-    stabilisation: str
+    stabilisation: str | None  # 2D enriched mixed cells only (none in this version)
     slip: str
     relaxation: bool = True
     predictor: str = "closed_form"
@@ -288,10 +287,7 @@ def validate(data: dict, source: str = "") -> Scene:
     regions = _validate_regions(data["regions"], materials, mesh, dimension)
     boundaries = _validate_boundaries(data.setdefault("boundaries", {}), dimension)
     numerics = _validate_numerics(data.setdefault("numerics", {}))
-    interface = _validate_interface(data["interface"]) if "interface" in data else None
-    if dimension == 2 and interface is not None and interface.model != "single_velocity":
-        raise SceneError("interface.model", interface.model, "'single_velocity' in 2D in this version "
-                         "(the enriched 2D method, bubble or Nitsche, comes next)")
+    interface = _validate_interface(data["interface"], dimension) if "interface" in data else None
 
     scene = Scene(name, description, dimension, t_end, mesh, materials, regions, boundaries, numerics,
                   interface, resolved=data, source=source)
@@ -398,10 +394,11 @@ def _validate_regions(regions: Any, materials: dict[str, MaterialSpec], mesh: Me
             interval = _reals(table["interval"], f"{where}.interval", 2)
             if not interval[0] < interval[1]:
                 raise SceneError(f"{where}.interval", table["interval"], "[x0, x1] with x0 < x1")
-            lo, hi = max(interval[0], mesh.extent[0]), min(interval[1], mesh.extent[1])
-            if not hi > lo:
+            a, b = mesh.extent
+            slack = 1e-12 * (b - a)
+            if interval[0] < a - slack or interval[1] > b + slack:
                 raise SceneError(f"{where}.interval", table["interval"],
-                                 f"an interval that meets the domain {list(mesh.extent)}")
+                                 f"an interval inside the domain {list(mesh.extent)} (nothing is clipped)")
         else:
             shape = _validate_shape(table, where)
         density = _real(table["density"], f"{where}.density")
@@ -515,17 +512,40 @@ def _choice_int(value: Any, key: str, choices: tuple[int, ...]) -> int:
     return int(value)
 
 
-def _validate_interface(table: Any) -> InterfaceSpec:
-    _keys(table, "interface", (), tuple(INTERFACE_DEFAULTS))
+# [interface] keys that act only with enriched mixed cells (the 1D interface solve)
+ENRICHED_ONLY = ("solver", "predictor")
+
+
+def _validate_interface(table: Any, dimension: int) -> InterfaceSpec:
+    """[interface]; a key that cannot act in the scene is an error naming what would make it
+    act (the resolved scene holds only keys that act)."""
+    _keys(table, "interface", (), tuple(INTERFACE_DEFAULTS) + ("stabilisation",))
+    model = _choice(table.setdefault("model", INTERFACE_DEFAULTS["model"]), "interface.model",
+                    ("enriched", "single_velocity"))
+    if dimension == 2 and model != "single_velocity":
+        raise SceneError("interface.model", model, "'single_velocity' in 2D in this version "
+                         "(the enriched 2D method, bubble or Nitsche, comes next)")
+    if "stabilisation" in table:
+        _choice(table["stabilisation"], "interface.stabilisation", ("bubble", "nitsche"))
+        raise SceneError("interface.stabilisation", table["stabilisation"],
+                         "no value: it stabilises 2D enriched mixed cells, which this version does not have "
+                         f"(this scene: {dimension}D, interface.model = '{model}'); remove the key")
+    for key in ENRICHED_ONLY:
+        if key in table and model != "enriched":
+            raise SceneError(f"interface.{key}", table[key], "no value with interface.model = "
+                             f"'{model}': it acts only on enriched mixed cells (remove it, or set "
+                             "interface.model = 'enriched')")
     for key, default in INTERFACE_DEFAULTS.items():
-        table.setdefault(key, default)
+        if key not in ENRICHED_ONLY or model == "enriched":
+            table.setdefault(key, default)
     return InterfaceSpec(
-        model=_choice(table["model"], "interface.model", ("enriched", "single_velocity")),
-        solver=_choice(table["solver"], "interface.solver", ("nonlinear", "linearised")),
-        stabilisation=_choice(table["stabilisation"], "interface.stabilisation", ("bubble", "nitsche")),
+        model=model,
+        solver=_choice(table.get("solver", "nonlinear"), "interface.solver", ("nonlinear", "linearised")),
+        stabilisation=None,
         slip=_choice(table["slip"], "interface.slip", ("free",), ("stick", "coulomb")),
         relaxation=_boolean(table["relaxation"], "interface.relaxation"),
-        predictor=_choice(table["predictor"], "interface.predictor", ("closed_form", "assembled")),
+        predictor=_choice(table.get("predictor", "closed_form"), "interface.predictor",
+                          ("closed_form", "assembled")),
     )
 
 
