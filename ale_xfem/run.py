@@ -205,7 +205,7 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
             "iterations_max": stats.get("max_iterations", 0),
             "relaxations": stats.get("relaxations", 0),
         }
-    if problem.exact is not None and state.time > 0:
+    if problem.exact is not None and state.time > 0 and problem.exact.holds_at(state.time):
         result.errors = l1_errors(problem, state)
     return result
 
@@ -367,7 +367,7 @@ def _l1_errors_2d(problem: Problem, state: State) -> dict:
         "L1_velocity": float(np.sum(np.linalg.norm(velocity - reference["velocity"], axis=-1) * area)),
         "L1_pressure": float(np.sum(np.abs(pressure - reference["pressure"]) * area)),
         "exact": problem.exact.kind,
-        "exact_valid_until": problem.exact.valid_until,
+        "exact_valid_until": problem.exact.valid_until if np.isfinite(problem.exact.valid_until) else None,
     }
     if problem.exact.window is not None:
         errors["window"] = {"centre": list(problem.exact.window[0]), "radius": problem.exact.window[1]}

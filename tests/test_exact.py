@@ -70,3 +70,49 @@ def test_impedance_matching_balances_both_hugoniots():
     p_cu = cu.rho0 * (cu.c0 + cu.s * w_cu) * w_cu
     assert p_al == pytest.approx(p_cu, rel=1e-12)
     assert 0.0 < sol.contact_velocity < 2000.0
+
+
+# -- the exact reference is used only while it is the solution of the scene as run ----------
+
+def _summary(tmp_path, scene, *overrides):
+    import json
+
+    from ale_xfem.cli import main
+
+    out = tmp_path / "run"
+    argv = ["run", scene, "--out", str(out), "--quiet"]
+    for override in ("mesh.cells=100", *overrides):
+        argv += ["--set", override]
+    assert main(argv) == 0
+    return json.loads((out / "summary.json").read_text())
+
+
+@pytest.mark.parametrize("overrides, boundary, phrase", [
+    # a free end at p = 0.1 launches a rarefaction at t = 0 (L1(u) read 1.31 against the
+    # Riemann solution, 'valid until' 0.285)
+    (["boundaries.right=free"], "boundaries.right = free", "rarefaction starts there at t = 0"),
+    (["boundaries.left={velocity=[0.5]}"], "boundaries.left = {velocity = [0.5]}", "a wave starts there"),
+])
+def test_a_boundary_outside_the_exact_problem_leaves_no_errors_and_says_why(tmp_path, overrides, boundary, phrase):
+    summary = _summary(tmp_path, "sod", *overrides)
+    assert "errors" not in summary
+    reference = summary["exact_reference"]
+    assert reference["valid_until"] == 0.0 and reference["errors"] is False
+    assert reference["limit"].startswith(boundary) and phrase in reference["limit"]
+
+
+def test_the_exact_reference_holds_until_a_wave_reaches_a_wall_and_then_gives_no_errors(tmp_path):
+    within = _summary(tmp_path, "sod")
+    assert within["errors"]["L1_density"] < 0.02
+    assert within["exact_reference"]["limit"].startswith("the fastest wave reaches the right end (wall) at t = 0.28")
+    beyond = _summary(tmp_path, "sod", "t_end=0.3")
+    assert "errors" not in beyond and beyond["exact_reference"]["errors"] is False
+
+
+def test_a_plate_impact_at_an_ambient_pressure_says_why_it_has_no_exact_reference(tmp_path):
+    at_rest = _summary(tmp_path, "plate-impact", "mesh.cells=60")
+    assert at_rest["errors"]["L1_velocity"] > 0
+    ambient = _summary(tmp_path, "plate-impact", "mesh.cells=60", "regions.0.pressure=1e5", "regions.1.pressure=1e5")
+    assert "errors" not in ambient
+    assert ambient["exact_reference"]["limit"].startswith("the plates are at p = 100000 | 100000, not at their "
+                                                          "reference state")

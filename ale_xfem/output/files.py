@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 import tomli_w
 
 from ale_xfem.output.profile import write_profile
@@ -43,7 +44,23 @@ def summary(problem: Problem, result: RunResult) -> dict:
         data["diagnostic"] = result.diagnostic
     if result.errors is not None:
         data["errors"] = result.errors
+    if problem.exact is not None:  # what the reference is, how long it holds, and why
+        data["exact_reference"] = exact_reference_note(problem, result)
     return data
+
+
+def exact_reference_note(problem: Problem, result: RunResult) -> dict:
+    """The exact reference of the scene: its kind, until when it is the solution of the scene
+    as run (``valid_until``), whether the errors were taken against it, and the phrase that
+    says what limits it."""
+    exact = problem.exact
+    return {"kind": exact.kind, "valid_until": _finite_or_none(exact.valid_until),
+            "errors": result.errors is not None, "limit": exact.limit}
+
+
+def _finite_or_none(value: float):
+    """JSON has no infinity: a reference that holds for ever is written null."""
+    return value if np.isfinite(value) else None
 
 
 def write_summary(problem: Problem, result: RunResult, folder: Path) -> Path:

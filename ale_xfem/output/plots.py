@@ -23,7 +23,7 @@ def plot_profile(problem, result, path: Path, title: str | None = None) -> Path:
     centres = 0.5 * (rows["x_left"] + rows["x_right"])
     fig, axes = plt.subplots(2, 2, figsize=(10, 7), sharex=True)
     reference = None
-    if problem.exact is not None and state.time > 0:
+    if problem.exact is not None and state.time > 0 and problem.exact.holds_at(state.time):
         a, b = problem.scene.mesh.extent
         fine = np.linspace(min(a, rows["x_left"].min()), max(b, rows["x_right"].max()), 4001)
         reference = problem.exact.sample(fine, state.time)
@@ -43,6 +43,8 @@ def plot_profile(problem, result, path: Path, title: str | None = None) -> Path:
     status = "" if result.status == "ok" else f"  [{result.status}]"
     fig.suptitle(title or f"{problem.scene.name}: t = {state.time:.4g}, "
                  f"{problem.mesh.n_cells} cells{status}")
+    if problem.exact is not None and reference is None and state.time > 0:  # say why it is not drawn
+        fig.text(0.5, 0.005, f"no exact overlay: {problem.exact.limit}", ha="center", va="bottom", fontsize=8)
     fig.tight_layout()
     path = Path(path)
     fig.savefig(path, dpi=110)

@@ -22,12 +22,20 @@ from ale_xfem.scene.schema import Scene, SceneError
 
 @dataclass
 class ExactReference:
-    kind: str  # "riemann" | "plate_impact" | 2D: "noh" | "piston" | "planar_riemann"
-    solution: object
-    valid_until: float  # first time a wave reaches a boundary (the exact solution is for ∞ domain)
+    """An exact solution of the scene as run, while it holds: errors and overlays are taken
+    only up to ``valid_until``; ``limit`` says in one phrase what ends it (a wave reaching a
+    boundary, or a boundary that is not part of the exact problem: then valid_until = 0)."""
+
+    kind: str  # "riemann" | "plate_impact" | 2D: "noh" | "piston" | "planar_riemann" | "sedov"
+    solution: object  # None when the scene only looks like the exact problem (limit says why)
+    valid_until: float  # the exact solution is for an unbounded domain: until a wave reaches a boundary
     # 2D: (centre, radius) of the disk the L1 errors are taken over (no wave from the walls
     # reaches it before t_end), or None: the whole domain
     window: tuple | None = None
+    limit: str = ""
+
+    def holds_at(self, t: float) -> bool:
+        return self.solution is not None and t <= self.valid_until * (1.0 + 1e-12)
 
     def sample(self, x, t):
         return self.solution.sample(x, t)
@@ -406,8 +414,13 @@ def exact_reference(scene: Scene) -> ExactReference | None:
         at_rest_reference = all(
             abs(r.density - m.parameters["rho0"]) <= 1e-12 * m.parameters["rho0"] and r.pressure == 0.0
             for r, m in ((left, ml), (right, mr)))
-        if not at_rest_reference or not left.velocity[0] > right.velocity[0]:
+        if not left.velocity[0] > right.velocity[0]:
             return None
+        if not at_rest_reference:
+            ambient = [r.pressure for r, _ in ((left, ml), (right, mr))]
+            return ExactReference("plate_impact", None, 0.0, limit=(
+                f"the plates are at p = {ambient[0]:g} | {ambient[1]:g}, not at their reference state (ρ = ρ0, "
+                "p = 0) from which the linear Us–up Hugoniot of the impedance matching starts"))
 
         def plate(region, material):
             p = material.parameters
@@ -416,6 +429,9 @@ def exact_reference(scene: Scene) -> ExactReference | None:
         kind = "plate_impact"
     else:
         return None
+    conflict = _boundary_conflict(scene, left, right)
+    if conflict:
+        return ExactReference(kind, solution, 0.0, limit=conflict)
     # The solution holds until its outermost waves meet the domain's ends, which move with
     # the outer material (free end), the piston, or not at all (wall).
     slow, fast = solution.wave_speeds()
@@ -423,7 +439,30 @@ def exact_reference(scene: Scene) -> ExactReference | None:
     end_right = _end_velocity(scene.boundaries["right"], right.velocity[0])
     times = [(x0 - a) / (end_left - slow) if end_left > slow else np.inf,
              (b - x0) / (fast - end_right) if fast > end_right else np.inf]
-    return ExactReference(kind, solution, float(min(times)))
+    side = "left" if times[0] <= times[1] else "right"
+    valid = float(min(times))
+    return ExactReference(kind, solution, valid, limit=(
+        f"the {'slowest' if side == 'left' else 'fastest'} wave reaches the {side} end "
+        f"({scene.boundaries[side].kind}) at t = {valid:.4g}"))
+
+
+def _boundary_conflict(scene: Scene, left, right) -> str:
+    """The boundary that is not part of the exact (unbounded) problem from t = 0, in one
+    phrase, or "": a wall holds only material at rest, a piston only material moving with
+    it, a free end only material at zero pressure; anything else launches a wave at t = 0."""
+    speed = max(abs(left.velocity[0]), abs(right.velocity[0]))
+    pressure = max(abs(left.pressure), abs(right.pressure))
+    scale = max(pressure + r.density * r.velocity[0] ** 2 for r in (left, right))
+    for side, region in (("left", left), ("right", right)):
+        boundary, u, p = scene.boundaries[side], region.velocity[0], region.pressure
+        if boundary.kind == "wall" and abs(u) > 1e-12 * speed:
+            return f"boundaries.{side} = wall stops material moving at u = {u:g}: a wave starts there at t = 0"
+        if boundary.kind == "velocity" and abs(boundary.velocity[0] - u) > 1e-12 * max(speed, abs(boundary.velocity[0])):
+            return (f"boundaries.{side} = {{velocity = [{boundary.velocity[0]:g}]}} moves material at u = {u:g}: "
+                    "a wave starts there at t = 0")
+        if boundary.kind == "free" and abs(p) > 1e-6 * scale:
+            return f"boundaries.{side} = free releases the pressure p = {p:g}: a rarefaction starts there at t = 0"
+    return ""
 
 
 def exact_reference_2d(scene: Scene) -> ExactReference | None:
@@ -450,11 +489,20 @@ def exact_reference_2d(scene: Scene) -> ExactReference | None:
         if pressure > 1e-6 * density * speed**2:
             return None
         solution = NohSolution((radial[0], radial[1]), density, speed, gamma)
+        sides = {"left": (x0, radial[0]), "right": (x1, radial[0]), "bottom": (y0, radial[1]),
+                 "top": (y1, radial[1])}
+        far = {side: abs(v - c) for side, (v, c) in sides.items() if abs(v - c) > 1e-12}
+        # a side off the centre takes gas flowing in through it: only a free side (the gas
+        # has no pressure) leaves it as the exact solution has it
+        held = [side for side in far if scene.boundaries[side].kind != "free"]
+        if held:
+            return ExactReference("noh", solution, 0.0, limit=(
+                f"boundaries.{held[0]} = {scene.boundaries[held[0]].kind} holds gas that flows in through it: "
+                "a wave starts there at t = 0 (a free side is exact)"))
         # the shock meets the nearest side that is not on the centre (those move in at V)
-        far = [abs(v - c) for v, c in ((x0, radial[0]), (x1, radial[0]), (y0, radial[1]), (y1, radial[1]))
-               if abs(v - c) > 1e-12]
-        valid = min(far) / (solution.shock_speed + speed) if far else np.inf
-        return ExactReference("noh", solution, float(valid))
+        valid = min(far.values()) / (solution.shock_speed + speed) if far else np.inf
+        return ExactReference("noh", solution, float(valid), limit=(
+            f"the shock meets the gas at the nearest far side at t = {valid:.4g}"))
     pistons = [side for side, b in scene.boundaries.items() if b.kind == "velocity"]
     if radial is None and velocity == (0.0, 0.0) and len(pistons) == 1 and all(
             b.kind == "wall" for side, b in scene.boundaries.items() if side != pistons[0]):
@@ -467,7 +515,8 @@ def exact_reference_2d(scene: Scene) -> ExactReference | None:
         origin = {"left": (x0, y0), "right": (x1, y0), "bottom": (x0, y0), "top": (x0, y1)}[side]
         solution = PistonSolution(origin, inward, speed, density, pressure, gamma)
         length = (x1 - x0) if side in ("left", "right") else (y1 - y0)
-        return ExactReference("piston", solution, float(length / solution.shock_speed))
+        valid = float(length / solution.shock_speed)
+        return ExactReference("piston", solution, valid, limit=f"the shock reaches the far wall at t = {valid:.4g}")
     return None
 
 
@@ -497,7 +546,8 @@ def _sedov(scene: Scene) -> ExactReference | None:
     # R(t) = ξ0 (E t²/ρ0)^{1/4} reaches the nearest far side
     reach = min(x1 - x0, y1 - y0)
     valid = (reach / solution.profile.xi0) ** 2 * np.sqrt(background.density / energy)
-    return ExactReference("sedov", solution, float(valid))
+    return ExactReference("sedov", solution, float(valid),
+                          limit=f"the shock reaches the nearest far side at t = {valid:.4g}")
 
 
 def _planar_riemann(scene: Scene) -> ExactReference | None:
@@ -543,8 +593,13 @@ def _planar_riemann(scene: Scene) -> ExactReference | None:
     radius = min(x1 - x0, y1 - y0) / 2 - signal * scene.t_end
     if radius <= 0:
         return None
+    pistons = [side for side, b in scene.boundaries.items() if b.kind == "velocity"]
+    if pistons:  # its wave may outrun the signal bound of the window
+        return ExactReference("planar_riemann", None, 0.0, limit=(
+            f"boundaries.{pistons[0]} is a piston, which the planar Riemann problem does not have"))
     return ExactReference("planar_riemann", PlanarRiemann(solution, last.shape.point, tuple(normal)),
-                          float("inf"), window=(centre, float(radius)))
+                          float("inf"), window=(centre, float(radius)),
+                          limit=f"errors over the disk of radius {radius:.4g} that no wave from a side reaches by t_end")
 
 
 def _merge_identical_states(scene: Scene, pieces):
