@@ -4,7 +4,9 @@
 # a cylindrical shock to R(t) = ξ0 (E t²/ρ)^{1/4}, ξ0 = 1.004, with a density of 6 behind
 # it and an evacuated core.  The similarity solution is integrated from the Euler equations
 # (`ale_xfem/exact/sedov.py`); a quarter of the plane is computed, the energy (0.25)
-# spread over a small box at the corner.
+# spread over a small box at the corner.  The mesh is smoothed (ALE): on a Lagrangian mesh the
+# quadrilateral at the blast's diagonal node turns a corner inside out within 15 steps, and the
+# run stops with that diagnostic.
 #
 # Run as `python demos/sedov.py [--cells 120] [--out out/sedov]`.
 

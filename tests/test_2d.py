@@ -514,6 +514,48 @@ def test_stability_check_flags_a_cell_inverted_at_a_corner_even_with_positive_ar
     assert least_corner(mesh, moved) < 0
 
 
+def test_the_step_stops_on_a_corner_turned_inside_out_and_names_cell_and_corner(tmp_path):
+    """A quadrilateral whose corner folds while its area stays positive is a breakdown (the
+    run ended 'ok' with tangled cells); a triangle folds through a negative area."""
+    from ale_xfem.lagrange.breakdown import Breakdown
+    from ale_xfem.run import make_stepper
+
+    for cell_type, quantity in (("quadrilateral", "corner 0 (node 4) det J"), ("triangle", "volume")):
+        problem = build_problem(load_scene(_uniform_scene(tmp_path, cell_type), ["mesh.cells=[2,2]"]))
+        stepper = make_stepper(problem)
+        moved = problem.state.node_position.copy()
+        middle = int(np.argmin(np.hypot(moved[0] - 0.5, moved[1] - 0.5)))
+        moved[:, middle] = [0.9, 0.9]  # into the upper-right cell: a dart, or folded triangles
+        evaluation = stepper.evaluate(moved, problem.state.node_velocity, problem.state.material_mass,
+                                      problem.state.material_energy)
+        with pytest.raises(Breakdown) as failure:
+            stepper.check(evaluation, moved, problem.state.material_energy, "")
+        assert quantity in str(failure.value), str(failure.value)
+        if cell_type == "quadrilateral":
+            assert np.all(evaluation.volume > 0)  # the areas alone would not have seen it
+            assert str(failure.value).startswith("cell 3 (x, y = ")
+
+
+@pytest.mark.parametrize("scene, overrides", [
+    ("shock-disk", ["mesh.motion=lagrangian", "mesh.cells=[60,30]"]),  # the air shears cells over the disk
+    ("sedov", ["mesh.motion=lagrangian", "mesh.cells=[16,16]"]),  # the blast's diagonal node
+])
+def test_a_run_whose_mesh_tangles_exits_3_with_the_corner_and_its_last_good_state(tmp_path, capsys, scene, overrides):
+    """'ale-xfem run shock-disk --set mesh.motion=lagrangian' ended 'ok', exit 0, with 102
+    cells turned inside out at a corner."""
+    import json
+
+    out = tmp_path / "run"
+    argv = ["run", scene, "--out", str(out), "--quiet", "--no-plot", "--frames", "0"]
+    for override in overrides:
+        argv += ["--set", override]
+    assert main(argv) == 3
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["status"] == "failed" and "det J" in summary["diagnostic"]
+    assert "the corner has turned inside out" in capsys.readouterr().err
+    assert (out / "cells.csv").exists()  # the last good state
+
+
 # -- single-velocity mixed cells in 2D -------------------------------------------------------
 
 

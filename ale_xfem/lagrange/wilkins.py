@@ -51,6 +51,7 @@ class ForceEvaluation:
     length: np.ndarray | None = None  # CFL length of each cell (1D: its volume)
     hourglass_force: QuadHourglass | None = None  # quadrilaterals; iterated: [corner][component]
     corner_velocity: object = None  # what the corner work needs of the velocities (corner_velocities)
+    least_corner: np.ndarray | None = None  # quadrilaterals: each cell's least corner det J (> 0: untangled)
 
 
 class ExplicitWilkins:
@@ -137,9 +138,11 @@ class ExplicitWilkins:
                 corner_positions = corners.quad_corners(node_position)
             gradient = QuadGradient(corner_positions)
             volume, positions = gradient.area, None
+            least_corner = gradient.least_corner_jacobian()  # None for the predicted state
         else:
             positions = corners.gather(node_position)
             volume, gradient = cell_type.volume_and_gradient(positions)
+            least_corner = None  # a triangle's corners all have det J = 2A: the volume says it
         mass0, energy0 = material_mass[:1], material_energy[:1]
         if mixed_view is not None:
             cells = self.mixed.cells
@@ -202,7 +205,7 @@ class ExplicitWilkins:
             length = cell_type.length_scale(volume, positions, gradient)
         return ForceEvaluation(volume, gradient, density, pressure, sound_speed, viscosity,
                                velocity_jump, stress, nodal_force, mixed_sound_speed, mixed_viscosity,
-                               length, hourglass, corner_velocity)
+                               length, hourglass, corner_velocity, least_corner)
 
     def evaluate_state(self, state: State, thermodynamics_known: bool = False) -> ForceEvaluation:
         """Forces of a state; ``thermodynamics_known``: its densities, pressures and sound
@@ -447,6 +450,8 @@ class ExplicitWilkins:
             volumes = volume[None, :]
         else:
             volumes, interface = self.closure.state_for_remap(self, state, solution, x_new, volume, e_new, dt)
+        if self.quadrilaterals:  # the Lagrangian mesh the remap reads must not be tangled
+            self.check_corners(QuadGradient(self.corners.quad_corners(x_new)).least_corner_jacobian(), x_new)
         occupied = volumes[:, self.mixed.cells] if self.mixed is not None else volume
         if not (volume.min() > 0.0 and occupied.min() > 0.0 and np.isfinite(e_new.sum())):
             for name, values, allowed, good in (("volume", volumes, "> 0", lambda v: v > 0.0),
@@ -462,9 +467,12 @@ class ExplicitWilkins:
 
     @staticmethod
     def _healthy(evaluation: ForceEvaluation, energy) -> bool:
-        """Cheap whole-array test: positive volumes, finite energies, sound speeds, stresses."""
+        """Cheap whole-array test: positive volumes, no corner turned inside out
+        (quadrilaterals; a triangle's corners all have det J = 2A), finite energies, sound
+        speeds, stresses."""
         return bool(evaluation.volume.min() > 0.0 and np.isfinite(
-            evaluation.sound_speed[0].sum() + energy.sum() + evaluation.stress.sum()))
+            evaluation.sound_speed[0].sum() + energy.sum() + evaluation.stress.sum())
+            and (evaluation.least_corner is None or evaluation.least_corner.min() > 0.0))
 
     def check(self, evaluation: ForceEvaluation, position, energy, prefix: str) -> None:
         """Raise :class:`Breakdown` naming the first offending cell and quantity, causes
@@ -488,3 +496,20 @@ class ExplicitWilkins:
             if np.any(bad):
                 cell = int(np.flatnonzero(bad)[0])
                 raise Breakdown(prefix + name, cell, float(values[cell]), centroids[cell], allowed)
+            if name == "volume" and evaluation.least_corner is not None:
+                self.check_corners(evaluation.least_corner, position, prefix)
+
+    def check_corners(self, least_corner, position, prefix: str = "") -> None:
+        """Raise :class:`Breakdown` if a quadrilateral's corner has turned inside out (the
+        mesh has tangled, even where every area is still positive), naming the cell and the
+        corner; ``least_corner``: each cell's least corner det J."""
+        if least_corner.min() > 0.0:
+            return
+        cell = int(np.argmin(least_corner))
+        x = self.mesh.cell_vertex_positions(position)[cell]  # (4, 2), corners going round
+        after, before = np.roll(x, -1, axis=0) - x, np.roll(x, 1, axis=0) - x
+        jacobian = after[:, 0] * before[:, 1] - after[:, 1] * before[:, 0]
+        corner = int(np.argmin(jacobian))
+        raise Breakdown(f"{prefix}corner {corner} (node {int(self.mesh.cell_nodes[cell, corner])}) det J",
+                        cell, float(jacobian[corner]), x.mean(axis=0),
+                        "> 0 (the corner has turned inside out: the mesh is tangled)")

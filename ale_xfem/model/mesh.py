@@ -398,6 +398,27 @@ class QuadGradient:
     def __len__(self) -> int:
         return 4
 
+    def least_corner_jacobian(self):
+        """Per cell, the least over its four corners of det J = (x_{i+1} − x_i) × (x_{i−1} − x_i),
+        or None when the positions' hourglass sums h = x_0 − x_1 + x_2 − x_3 were not formed.
+        J_0 + J_2 = J_1 + J_3 = 2A and J_0 − J_2 = h × r, J_1 − J_3 = p × h, so the least is
+        A − ½ max(|h × r|, |h × p|): ≤ 0 when a corner has turned inside out, even while
+        the area A stays positive.  Six products: checked on every state a step ends with."""
+        if self.corners.hourglass is None:
+            return None
+        (px, py), (rx, ry) = self.corners.across02, self.corners.across13
+        hx, hy = self.corners.hourglass
+        across_r = hx * ry
+        across_r -= hy * rx
+        np.abs(across_r, out=across_r)
+        across_p = hx * py
+        across_p -= hy * px
+        np.abs(across_p, out=across_p)
+        np.maximum(across_r, across_p, out=across_r)
+        across_r *= -0.5
+        across_r += self.area
+        return across_r
+
     def __getitem__(self, corner: int):
         if not 0 <= corner < 4:
             raise IndexError(corner)
