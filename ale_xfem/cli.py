@@ -30,7 +30,7 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--xt", action="store_true",
                      help="also write <name>-xt.png, the x–t diagram of density (1D)")
     run.add_argument("--frames", type=int, default=20,
-                     help="2D: states written to the VTX series <name>.bp for ParaView, evenly "
+                     help="2D: states written to the VTK series <name>.pvd (ParaView, pyvista), evenly "
                           "spaced in time (default 20; 0: none)")
     run.add_argument("--explain", action="store_true",
                      help="print which effects the scene switches on and why (which key), and exit "
@@ -256,9 +256,9 @@ def _run(args) -> int:
         history = XTHistory()
     series = None
     if scene.dimension == 2 and args.frames > 0:
-        from ale_xfem.output.cells_2d import VTXSeries
+        from ale_xfem.output.cells_2d import VTKSeries
 
-        series = VTXSeries(problem, out, args.frames)
+        series = VTKSeries(problem, out, args.frames)
     observe = history.observe if history else series.observe if series else None
     result = simulate(problem, progress, observe=observe)
     if series is not None:

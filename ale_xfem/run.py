@@ -13,6 +13,7 @@ import time
 from dataclasses import dataclass, field
 
 import numpy as np
+from tqdm.auto import tqdm
 
 from ale_xfem.lagrange.breakdown import Breakdown
 from ale_xfem.lagrange.memory import keep_freed_memory
@@ -51,26 +52,26 @@ class RunResult:
 
 
 class Progress:
-    """A one-line progress bar on stderr, only when stderr is a terminal."""
+    """The run's progress in simulated time, a tqdm bar on stderr: shown on a terminal or in
+    a notebook, silent when stderr is redirected (``enabled`` None), or as asked."""
 
     def __init__(self, t_end: float, enabled: bool | None = None):
         self.t_end = t_end
-        self.enabled = sys.stderr.isatty() if enabled is None else enabled
-        self.last = 0.0
+        self.bar = tqdm(total=t_end, disable=None if enabled is None else not enabled, file=sys.stderr,
+                        unit="", mininterval=0.2, leave=True,
+                        bar_format="{l_bar}{bar}| t = {n:.4g} / {total:.4g} [{elapsed}<{remaining}]{postfix}")
 
     def update(self, t: float, steps: int, force: bool = False) -> None:
-        now = time.perf_counter()
-        if not self.enabled or (not force and now - self.last < 0.2):
-            return
-        self.last = now
-        fraction = min(t / self.t_end, 1.0)
-        bar = "#" * int(30 * fraction)
-        sys.stderr.write(f"\r[{bar:<30}] {100 * fraction:5.1f}%  t = {t:.4g}  step {steps}")
-        sys.stderr.flush()
+        """``force``: draw now (the last state), not at most five times a second."""
+        self.bar.n = min(t, self.t_end)
+        self.bar.set_postfix_str(f"step {steps}", refresh=False)
+        if force:
+            self.bar.refresh()
+        else:
+            self.bar.update(0)  # redraws when mininterval has passed
 
     def close(self) -> None:
-        if self.enabled:
-            sys.stderr.write("\n")
+        self.bar.close()
 
 
 def make_stepper(problem: Problem) -> ExplicitWilkins:
@@ -191,11 +192,13 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
         result.remaps = {"local": remapper.windows_remapped}
     elif remapper is not None:  # every step; those the swept form did not cover
         result.remaps = {"steps": steps, "general_intersection": remapper.general_remaps}
+    if remapper is not None and getattr(remapper, "energy_limited", 0):
+        result.remaps["energy_limited"] = remapper.energy_limited
     if remapper is not None:
         # The remap conserves mass, momentum and internal energy; it dissipates kinetic
-        # energy, reported here relative to the initial total energy.
-        result.conservation["remap_kinetic_energy_change"] = remap_energy_change / abs(
-            start_totals["total_energy"])
+        # energy, reported on the scale of the total energy's drift.
+        result.conservation["remap_kinetic_energy_change"] = remap_energy_change / result.conservation[
+            "energy_scale"]
     if problem.mixed is not None or stepper.mixed_calls:
         stats = problem.mixed.stats if problem.mixed is not None else {}
         result.mixed_cells = {

@@ -9,7 +9,7 @@ import tomllib
 import pytest
 
 from ale_xfem.cli import main
-from ale_xfem.scene import load_scene
+from ale_xfem.scene import load_scene, resolve_scene_path
 
 CAVITATION = """
 name = "cavitation"
@@ -158,3 +158,17 @@ def test_an_unknown_option_is_reported_with_the_usage_of_its_command(argv, comma
     assert f"usage: {command} " in err
     assert err.strip().splitlines()[-1].startswith(f"{command}: error: unrecognized arguments:")
     assert not any(tmp_path.iterdir())  # nothing ran, nothing written
+
+
+def test_the_progress_bar_reports_simulated_time_and_steps_and_is_silent_when_redirected(capsys):
+    """A tqdm bar in simulated time (it was written by hand): on when asked, off when stderr
+    is not a terminal and nobody asked."""
+    from ale_xfem.problem import build_problem
+    from ale_xfem.run import Progress, simulate
+
+    problem = build_problem(load_scene(resolve_scene_path("sod"), ["mesh.cells=50"]))
+    result = simulate(problem, Progress(problem.scene.t_end, enabled=True))
+    shown = capsys.readouterr().err
+    assert "t = 0.2 / 0.2" in shown and f"step {result.steps}" in shown and "100%" in shown
+    simulate(build_problem(problem.scene), Progress(problem.scene.t_end))  # stderr is captured: not a terminal
+    assert capsys.readouterr().err == ""

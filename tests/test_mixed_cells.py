@@ -273,7 +273,11 @@ def test_assembled_predictor_equals_the_closed_form(scene, overrides):
     assert assembled.mixed_cells["iterations_mean"] == closed.mixed_cells["iterations_mean"]
     scale = np.abs(closed.state.node_velocity).max()
     np.testing.assert_allclose(assembled.state.node_velocity, closed.state.node_velocity, atol=1e-9 * scale)
-    np.testing.assert_allclose(assembled.state.interface_pressure, closed.state.interface_pressure, rtol=1e-9)
+    # relative to the largest interface pressure: an interface the shock has not reached
+    # holds round-off (18 Pa beside 2e10 Pa in flyer-target-backing), not a figure
+    pressure_scale = np.abs(closed.state.interface_pressure).max()
+    np.testing.assert_allclose(assembled.state.interface_pressure, closed.state.interface_pressure, rtol=0,
+                               atol=1e-9 * pressure_scale)
 
 
 @pytest.mark.parametrize("motion", ["lagrangian", "eulerian"])

@@ -94,11 +94,11 @@ def _close(a, b, path: str, scale: float = 0.0) -> list[str]:
     if isinstance(a, dict) and isinstance(b, dict):
         if set(a) != set(b):
             return [f"{path}: keys {sorted(set(a) ^ set(b))} differ"]
-        return [d for k in a for d in _close(a[k], b[k], f"{path}.{k}")]
+        return [d for k in a for d in _close(a[k], b[k], f"{path}.{k}", scale)]
     if isinstance(a, list) and isinstance(b, list):
         if len(a) != len(b):
             return [f"{path}: lengths {len(a)} and {len(b)}"]
-        return [d for i, (x, y) in enumerate(zip(a, b)) for d in _close(x, y, f"{path}[{i}]")]
+        return [d for i, (x, y) in enumerate(zip(a, b)) for d in _close(x, y, f"{path}[{i}]", scale)]
     if isinstance(a, float) or isinstance(b, float):
         # a relative drift at round-off (1e-16) is compared on the scale of 1, not its own
         if not math.isclose(a, b, rel_tol=RTOL, abs_tol=RTOL * max(scale, 1e-300)):

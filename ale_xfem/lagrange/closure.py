@@ -66,8 +66,9 @@ class MixedCellClosure(ABC):
         """The start state with its mixed cells' pressures relaxed, and whether it changed."""
 
     @abstractmethod
-    def viscosity_medium(self, view: MixedView, volume, density, sound_speed):
-        """(density, sound speed) of each mixed cell as its artificial viscosity sees it."""
+    def viscosity_medium(self, view: MixedView, volume, density, sound_speed, node_mass):
+        """(density, sound speed) of each mixed cell as its artificial viscosity sees it
+        (``node_mass``: the lumped nodal masses the viscosity pushes)."""
 
     @abstractmethod
     def predicted_view(self, state: State, first, x_pred, e_pred) -> MixedView:

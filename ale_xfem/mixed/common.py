@@ -43,7 +43,7 @@ class SharedClosure(MixedCellClosure):
         centroid = self.mesh.cell_centroids(node_position)[failure.cell]
         return Breakdown(quantity, failure.cell, float("nan"), centroid, materials=names, detail=failure.detail)
 
-    def viscosity_medium(self, view: MixedView, volume, density, sound_speed):
+    def viscosity_medium(self, view: MixedView, volume, density, sound_speed, node_mass):
         """The viscosity of a mixed cell acts on the whole cell (both materials alike, so it
         does not upset their pressure balance).  Its sound speed is the larger of the two
         materials'; its density the volume-weighted harmonic mean 1/ρ = Σ f_α/ρ_α, which

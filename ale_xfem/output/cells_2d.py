@@ -1,5 +1,6 @@
-"""2D run outputs: ``cells.csv`` for scripts, a VTX time series for ParaView, and a pyvista
-PNG snapshot of the density with the boundaries between materials drawn.
+"""2D run outputs: ``cells.csv`` for scripts, a VTK time series for ParaView and pyvista,
+and a PNG picture: the density on the deformed mesh with the boundaries between materials,
+and, where the scene has an exact solution that still holds, a cut against it.
 
 ``cells.csv`` has a row per cell per material present, columns
 ``x,y,volume,material,volume_fraction,density,velocity_x,velocity_y,pressure,internal_energy``
@@ -8,10 +9,11 @@ mean of the cell's corner velocities, one field for both materials of a single-v
 mixed cell).  A mixed cell's parts are those of its PLIC reconstruction (``ale_xfem.model.plic``):
 their areas are the materials' volumes exactly; rows come cell by cell.
 
-The VTX folder ``<name>.bp`` holds, at each written time, the moving mesh, the nodal
-velocity, and per material m the cell fields ``volume_fraction_m``, ``density_m``,
-``pressure_m``, ``internal_energy_m`` (0 where m is absent), with ``material`` (the index of
-the cell's main material — slot 0 — in the scene's order) and the cell's mean ``density``.
+The series ``<name>.pvd`` (a VTK collection: ParaView opens it, ``pyvista.read`` reads it)
+lists one ``<name>_NNNN.vtu`` per written time: the moving mesh, the nodal ``velocity``,
+and per material m the cell fields ``volume_fraction_m``, ``density_m``, ``pressure_m``,
+``internal_energy_m`` (0 where m is absent), with ``material`` (the index of the cell's
+main material — slot 0 — in the scene's order) and the cell's mean ``density``.
 """
 
 from __future__ import annotations
@@ -81,49 +83,53 @@ def write_cells(problem, state, folder: Path) -> Path:
     return path
 
 
-class VTXSeries:
-    """Writes the state at chosen times to ``<folder>/<name>.bp`` (ADIOS2 VTX, read by
-    ParaView), the mesh moving with the nodes.  ``observe(state, problem)`` fits
-    :func:`ale_xfem.run.simulate`'s observer: it writes the first state at or after each of
-    ``frames`` + 1 evenly spaced times from 0 to t_end."""
+def vtk_grid(mesh, node_position):
+    """The mesh as a pyvista UnstructuredGrid at these positions (our node and cell order)."""
+    import pyvista as pv
+
+    points = np.zeros((mesh.n_nodes, 3))
+    points[:, :2] = node_position.T
+    corners = mesh.cell_type.nodes_per_cell
+    cell_kind = pv.CellType.QUAD if corners == 4 else pv.CellType.TRIANGLE
+    connectivity = np.hstack([np.full((mesh.n_cells, 1), corners), mesh.cell_nodes]).ravel()
+    return pv.UnstructuredGrid(connectivity, np.full(mesh.n_cells, cell_kind), points)
+
+
+def cell_fields(problem, state) -> dict[str, np.ndarray]:
+    """The cell fields of the series (module docstring), (n_cells,) each."""
+    mesh, layout = problem.mesh, problem.layout
+    area = mesh.cell_volumes(state.node_position)
+    fields = {"material": layout.cell_material[0].astype(float),
+              "density": state.material_mass.sum(axis=0) / area}
+    for index, material in enumerate(problem.materials):
+        values = {q: np.zeros(area.size) for q in ("volume_fraction", "density", "pressure", "internal_energy")}
+        for slot in range(layout.cell_material.shape[0]):
+            here = layout.cell_material[slot] == index
+            values["volume_fraction"][here] = state.material_volume[slot, here] / area[here]
+            values["density"][here] = state.material_density[slot, here]
+            values["pressure"][here] = state.material_pressure[slot, here]
+            values["internal_energy"][here] = state.material_energy[slot, here]
+        fields.update({f"{q}_{material.name}": v for q, v in values.items()})
+    return fields
+
+
+class VTKSeries:
+    """Writes the state at chosen times to ``<folder>/<name>.pvd`` and its ``.vtu`` files
+    (module docstring), the mesh moving with the nodes; the collection is rewritten with
+    each frame, so a run that breaks down leaves a readable series.  ``observe(state,
+    problem)`` fits :func:`ale_xfem.run.simulate`'s observer: it writes the first state at
+    or after each of ``frames`` + 1 evenly spaced times from 0 to t_end."""
 
     def __init__(self, problem, folder: Path, frames: int = 20):
-        import dolfinx_solver  # noqa: F401
-        import dolfinx
-        import dolfinx.io
-
-        Path(folder).mkdir(parents=True, exist_ok=True)
-        self.path = Path(folder) / f"{problem.scene.name}.bp"
-        mesh = problem.mesh.dolfinx_mesh
-        self.mesh = mesh
-        velocity_space = dolfinx.fem.functionspace(mesh, ("Lagrange", 1, (2,)))
-        cell_space = dolfinx.fem.functionspace(mesh, ("DG", 0))
-        self.velocity = dolfinx.fem.Function(velocity_space, name="velocity")
-        # the project's node and cell numbers may differ from DOLFINx's (a rectangle is
-        # numbered row by row: MeshArrays.dolfinx_node / dolfinx_cell)
-        arrays = problem.mesh
-        self.geometry_node = (np.arange(arrays.n_nodes) if arrays.dolfinx_node is None
-                              else arrays.dolfinx_node)
-        node_of_geometry = np.empty_like(self.geometry_node)
-        node_of_geometry[self.geometry_node] = np.arange(arrays.n_nodes)
-        node_of_dof = np.empty(velocity_space.dofmap.index_map.size_local, dtype=np.int64)
-        node_of_dof[velocity_space.dofmap.list] = node_of_geometry[mesh.geometry.dofmaps[0]]
-        self.node_of_dof = node_of_dof
-        cell_dof = cell_space.dofmap.list[:, 0]
-        self.cell_dof = (cell_dof if arrays.dolfinx_cell is None else cell_dof[arrays.dolfinx_cell]).copy()
-        names = [m.name for m in problem.materials]
-        self.fields = {"material": dolfinx.fem.Function(cell_space, name="material"),
-                       "density": dolfinx.fem.Function(cell_space, name="density")}
-        for name in names:
-            for quantity in ("volume_fraction", "density", "pressure", "internal_energy"):
-                key = f"{quantity}_{name}"
-                self.fields[key] = dolfinx.fem.Function(cell_space, name=key)
-        self.names = names
-        self.writer = dolfinx.io.VTXWriter(mesh.comm, str(self.path), [self.velocity, *self.fields.values()],
-                                           engine="BP4", mesh_policy=dolfinx.io.VTXMeshPolicy.update)
+        self.folder = Path(folder)
+        self.folder.mkdir(parents=True, exist_ok=True)
+        self.name = problem.scene.name
+        self.path = self.folder / f"{self.name}.pvd"
+        self.grid = vtk_grid(problem.mesh, problem.state.node_position)
         self.times = np.linspace(0.0, problem.scene.t_end, frames + 1)
         self.next = 0
         self.written = 0
+        self.entries = []  # (time, file name)
 
     def observe(self, state, problem) -> None:
         if self.next < self.times.size and state.time >= self.times[self.next] * (1 - 1e-12):
@@ -132,34 +138,23 @@ class VTXSeries:
                 self.next += 1
 
     def write(self, state, problem) -> None:
-        mesh = problem.mesh
-        self.mesh.geometry.x[self.geometry_node, :2] = state.node_position.T
-        self.velocity.x.array[:] = state.node_velocity[:2, self.node_of_dof].T.ravel()
-        material = problem.layout.cell_material[0]
-        area = mesh.cell_volumes(state.node_position)
-
-        def put(key, values):
-            self.fields[key].x.array[self.cell_dof] = values
-
-        put("material", material.astype(float))
-        put("density", state.material_mass.sum(axis=0) / area)
-        for index, name in enumerate(self.names):
-            fraction, density, pressure, energy = (np.zeros(area.size) for _ in range(4))
-            for slot in range(problem.layout.cell_material.shape[0]):
-                here = problem.layout.cell_material[slot] == index
-                fraction[here] = state.material_volume[slot, here] / area[here]
-                density[here] = state.material_density[slot, here]
-                pressure[here] = state.material_pressure[slot, here]
-                energy[here] = state.material_energy[slot, here]
-            put(f"volume_fraction_{name}", fraction)
-            put(f"density_{name}", density)
-            put(f"pressure_{name}", pressure)
-            put(f"internal_energy_{name}", energy)
-        self.writer.write(float(state.time))
+        grid = self.grid
+        grid.points[:, :2] = state.node_position.T
+        grid.point_data["velocity"] = np.column_stack([state.node_velocity[0], state.node_velocity[1],
+                                                       np.zeros(problem.mesh.n_nodes)])
+        for key, values in cell_fields(problem, state).items():
+            grid.cell_data[key] = values
+        file = f"{self.name}_{self.written:04d}.vtu"
+        grid.save(str(self.folder / file))
+        self.entries.append((float(state.time), file))
         self.written += 1
+        datasets = "\n".join(f'    <DataSet timestep="{time!r}" part="0" file="{name}"/>'
+                             for time, name in self.entries)
+        self.path.write_text('<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1">\n'
+                             f"  <Collection>\n{datasets}\n  </Collection>\n</VTKFile>\n")
 
     def close(self) -> None:
-        self.writer.close()
+        """Nothing is held open: each frame is complete on disk."""
 
 
 def material_edges(problem) -> tuple[np.ndarray, np.ndarray]:
@@ -174,40 +169,85 @@ def material_edges(problem) -> tuple[np.ndarray, np.ndarray]:
     return a[differ], b[differ]
 
 
+def exact_cut(problem, state):
+    """Where the scene's exact solution still holds: the coordinate along which it varies
+    for each cell centroid (r from Noh's or Sedov's centre, the distance along the piston's
+    direction or the planar Riemann problem's normal), the exact density at the centroids,
+    a mask of the cells to compare (the planar problem's window) and the axis label; or None."""
+    exact = problem.exact
+    if exact is None or state.time <= 0 or not exact.holds_at(state.time):
+        return None
+    centroid = problem.mesh.cell_centroids(state.node_position)
+    solution = exact.solution
+    if exact.kind in ("noh", "sedov"):
+        coordinate = np.linalg.norm(centroid - np.asarray(solution.center), axis=1)
+        label = "r (distance from the centre)"
+    elif exact.kind == "piston":
+        coordinate = (centroid - np.asarray(solution.origin)) @ np.asarray(solution.direction)
+        label = "distance from the piston's start, along its motion"
+    elif exact.kind == "planar_riemann":
+        coordinate = (centroid - np.asarray(solution.point)) @ np.asarray(solution.normal)
+        label = "distance from the initial interface, along its normal"
+    else:
+        return None
+    keep = np.ones(coordinate.size, dtype=bool)
+    if exact.window is not None:
+        centre, radius = exact.window
+        keep = np.linalg.norm(centroid - np.asarray(centre), axis=1) <= radius
+    density = exact.sample(centroid, state.time)["density"]
+    return coordinate, density, keep, label
+
+
 def plot_density_2d(problem, result, path: Path) -> Path:
-    """PNG of the density (a mixed cell's mean) on the deformed mesh, boundaries between
-    materials in black: mesh lines between pure cells, PLIC segments in mixed cells."""
-    import os
+    """PNG of the density (a mixed cell's mean) on the deformed mesh, with axes and a colour
+    bar, the boundaries between materials in black (mesh lines between pure cells, PLIC
+    segments in mixed cells); beside it, where the exact solution holds, the cells' density
+    along the coordinate the solution varies with, the exact curve overlaid."""
+    import matplotlib
 
-    if not os.environ.get("DISPLAY"):  # headless: render through EGL, not a missing X server
-        os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
-    import pyvista as pv
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.collections import LineCollection, PolyCollection
 
-    pv.OFF_SCREEN = True
     mesh, state = problem.mesh, result.state
-    points = np.zeros((mesh.n_nodes, 3))
-    points[:, :2] = state.node_position.T
-    corners = mesh.cell_type.nodes_per_cell
-    cell_kind = pv.CellType.QUAD if corners == 4 else pv.CellType.TRIANGLE
-    connectivity = np.hstack([np.full((mesh.n_cells, 1), corners), mesh.cell_nodes]).ravel()
-    grid = pv.UnstructuredGrid(connectivity, np.full(mesh.n_cells, cell_kind), points)
-    grid.cell_data["density"] = state.material_mass.sum(axis=0) / mesh.cell_volumes(state.node_position)
-    grid.cell_data["material"] = problem.layout.cell_material[0]
-    plotter = pv.Plotter(off_screen=True, window_size=(900, 800))
-    plotter.add_mesh(grid, scalars="density", cmap="viridis", show_edges=mesh.n_cells <= 2500,
-                     edge_color="grey", scalar_bar_args={"title": "density"})
+    density = state.material_mass.sum(axis=0) / mesh.cell_volumes(state.node_position)
+    cut = exact_cut(problem, state)
+    figure, axes = plt.subplots(1, 2 if cut is not None else 1, figsize=(13 if cut is not None else 7, 5.6),
+                                squeeze=False)
+    field = axes[0, 0]
+    polygons = PolyCollection(mesh.cell_vertex_positions(state.node_position), array=density, cmap="viridis",
+                              edgecolors="grey" if mesh.n_cells <= 2500 else "face", linewidths=0.2)
+    field.add_collection(polygons)
+    segments = []
     first, second = material_edges(problem)
     if first.size:
-        ends = np.zeros((2 * first.size, 3))
-        ends[0::2, :2], ends[1::2, :2] = state.node_position[:, first].T, state.node_position[:, second].T
-        plotter.add_mesh(pv.line_segments_from_points(ends), color="black", line_width=2)
+        segments += list(np.stack([state.node_position[:, first].T, state.node_position[:, second].T], axis=1))
     if problem.mixed is not None:  # the reconstructed interface
         plic = reconstruct_state(problem, state)
-        ends = np.zeros((2 * plic.cells.size, 3))
-        ends[0::2, :2], ends[1::2, :2] = plic.start, plic.end
-        plotter.add_mesh(pv.line_segments_from_points(ends), color="black", line_width=2)
-    plotter.add_text(f"{problem.scene.name}, t = {state.time:.4g}", font_size=12)
-    plotter.view_xy()
-    plotter.screenshot(str(path))
-    plotter.close()
+        segments += list(np.stack([plic.start, plic.end], axis=1))
+    if segments:
+        field.add_collection(LineCollection(segments, colors="black", linewidths=1.2))
+    field.autoscale_view()
+    field.set_aspect("equal")
+    field.set_xlabel("x")
+    field.set_ylabel("y")
+    figure.colorbar(polygons, ax=field, label="density", shrink=0.9)
+    status = "" if result.status == "ok" else f"  [{result.status}]"
+    field.set_title(f"{problem.scene.name}, t = {state.time:.4g}{status}")
+    if cut is not None:
+        coordinate, exact, keep, label = cut
+        order = np.argsort(coordinate[keep])
+        profile = axes[0, 1]
+        profile.plot(coordinate[keep], density[keep], ".", ms=2.5, color="C0", label="cells")
+        profile.plot(coordinate[keep][order], exact[keep][order], "k-", lw=1.0, label=f"exact ({problem.exact.kind})")
+        profile.set_xlabel(label)
+        profile.set_ylabel("density")
+        profile.grid(alpha=0.3)
+        profile.legend(loc="best", fontsize=8)
+        profile.set_title("every cell's density at its centroid" + (" (inside the window)" if not keep.all() else ""))
+    elif problem.exact is not None and state.time > 0:
+        figure.text(0.5, 0.01, f"no exact comparison: {problem.exact.limit}", ha="center", fontsize=8)
+    figure.tight_layout()
+    figure.savefig(path, dpi=110)
+    plt.close(figure)
     return Path(path)

@@ -248,7 +248,7 @@ def remap_1d(order_of_cells, cell_left_node, cell_right_node, node_position, tar
         loss += _handed_over(lump_mass, lump_momentum, old_owner[starts], new_owner[starts], n_nodes)
         energy_new = deposit_kinetic_loss(loss, corner_mass_new, node_mass, cell_left_node, cell_right_node,
                                           cell_material_new, mass_new, energy_new, cells[new_mixed_sorted],
-                                          condensed)
+                                          condensed, positive_only=heat == "positive")
     return RemapResult(cell_material_new, mass_new, energy_new, volume_new, corner_mass_new, node_mass, velocity,
                        cells[new_mixed_sorted], kinetic_after - kinetic_before, momentum)
 

@@ -109,14 +109,30 @@ def component_dot(a, b):
 
 
 def deposit_kinetic_loss(loss, corner_mass, node_mass, left_node, right_node, cell_material, material_mass,
-                         material_energy, mixed_cells, condensed: bool = True, in_order: bool = False):
+                         material_energy, mixed_cells, condensed: bool = True, in_order: bool = False,
+                         positive_only: bool = False):
     """Add each node's kinetic-energy loss to the specific internal energies of the cells
     around it (in place, on the remap's own arrays), in proportion to the lumped (corner)
     masses they give it: the remap then conserves total energy.  The loss of node k is
     ½M u² − ½M'u'² plus the kinetic energy of what came in, less what went out; it sums to
     the discrete kinetic energy lost.  In an enriched mixed cell a corner belongs to its
     node's internal material; a single-velocity mixed cell shares it by mass.
-    ``in_order``: cell j lies between nodes j and j + 1 (slices instead of gathers)."""
+    ``in_order``: cell j lies between nodes j and j + 1 (slices instead of gathers).
+
+    ``positive_only`` (the limiter :class:`ale_xfem.remap.remapper_1d.Remapper` applies when
+    the local deposit would leave a material outside its equation of state's domain): a node
+    that gained kinetic energy cools nothing around it; only the losses are deposited,
+    scaled to their sum, and when the remap made kinetic energy overall it is taken from
+    every internal energy in proportion.  Total energy is conserved either way."""
+    if positive_only:
+        total = float(loss.sum())
+        if total < 0.0:  # kinetic energy made: every internal energy gives its share
+            occupied = material_mass > 0
+            internal = float(np.sum(material_mass[occupied] * material_energy[occupied]))
+            material_energy[occupied] *= 1.0 + total / internal
+            return material_energy
+        positive = np.maximum(loss, 0.0)
+        loss = positive * (total / positive.sum()) if total > 0.0 else np.zeros_like(loss)
     if node_mass.min() > 0:  # every node keeps mass (always in the swept form)
         per_mass = loss / node_mass
     else:

@@ -39,6 +39,9 @@ class Remapper:
         # a piston's work then come from it)
         self.wall_impulse, self.wall_work = 0.0, 0.0
         self.general_remaps = 0  # steps remapped by the general intersection
+        # remaps whose kinetic-energy deposit was limited (a material left outside its
+        # equation of state's domain by the local deposit: deposit_kinetic_loss's positive_only)
+        self.energy_limited = 0
         self.materials = problem.materials
         self.corner_mass = problem.corner_mass
         numerics = problem.scene.numerics
@@ -187,6 +190,16 @@ class Remapper:
                                   material_pressure=pressure, material_sound_speed=sound_speed, **arrays)
         return new_state, layout, mixed, node_mass, kinetic_change
 
+    def _remap_1d(self, arguments, condensed: bool, heat):
+        """The swept form (the same result at a few passes over the cells), or the general
+        intersection for the single-velocity closure and any step the swept form does not
+        cover."""
+        result = remap_1d_swept(*arguments, heat=heat) if condensed else None
+        if result is None:
+            result = remap_1d(*arguments, condensed=condensed, heat=heat)
+            self.general_remaps += 1
+        return result
+
     def _remap_all(self, state, layout, mixed):
         cells = mixed.cells if mixed is not None else np.zeros(0, dtype=np.int64)
         interface_velocity = (state.interface_velocity if mixed is not None
@@ -200,16 +213,20 @@ class Remapper:
                      state.material_volume, self.corner_mass, state.node_velocity, cells,
                      interface_velocity, len(self.materials), self.order)
         condensed = mixed is None or mixed.model == "enriched"
-        # The swept form gives the same result at a few passes over the cells; the general
-        # intersection serves the single-velocity closure and any step it does not cover.
-        result = remap_1d_swept(*arguments, heat=self.heat) if condensed else None
-        if result is None:
-            result = remap_1d(*arguments, condensed=condensed, heat=self.heat)
-            self.general_remaps += 1
-        self.corner_mass = result.corner_mass
+        result = self._remap_1d(arguments, condensed, self.heat)
         new_layout = layout.updated(result.cell_material)
         density = density_of(result.material_mass, result.material_volume)
         pressure, sound_speed = thermodynamics(self.materials, new_layout, density, result.material_energy)
+        if self.heat and not np.all(np.isfinite(sound_speed[result.material_mass > 0])):
+            # The kinetic energy a node gained, taken from the cells around it, left a
+            # material outside its equation of state's domain (cold air beside water at
+            # 1e9 Pa): the remap is done again with only the losses deposited.
+            self.energy_limited += 1
+            result = self._remap_1d(arguments, condensed, "positive")
+            new_layout = layout.updated(result.cell_material)
+            density = density_of(result.material_mass, result.material_volume)
+            pressure, sound_speed = thermodynamics(self.materials, new_layout, density, result.material_energy)
+        self.corner_mass = result.corner_mass
         new_mixed, interface_pressure, new_interface_velocity = None, None, None
         if result.mixed_cells.size:
             c = result.mixed_cells

@@ -165,10 +165,12 @@ class Remapper2D:
                 np.add(energy[m], slot_energy, out=energy[m], where=here)
         old_cell_mass = mass.sum(axis=0)
         # materials already below TRACE of their cell (the set-up's geometry made them, or an
-        # earlier remap kept them): they stay as long as they are there, so that a state
-        # remapped onto an unmoved mesh is left as it is
+        # earlier remap kept them): they stay while the remap leaves them as they are (to
+        # round-off), so that a state remapped onto an unmoved mesh is left as it is
         _, _, area = self._target_geometry(X)
         standing = (volume > 0.0) & (volume <= TRACE * area)
+        standing_where = np.nonzero(standing)
+        standing_volume = volume[standing_where]
 
         # -- the swept regions ------------------------------------------------------------
         a, b, plus, minus = self.a, self.b, self.plus, self.minus
@@ -215,6 +217,10 @@ class Remapper2D:
         for quantity, flux in ((volume, flux_volume), (mass, flux_mass), (energy, flux_energy)):
             for m in range(n_materials):
                 quantity[m] += np.bincount(receiver, flux[m], n_cells) - np.bincount(donor, flux[m], n_cells)
+        # a trace the fluxes changed is a trace this remap made: it moves (kept, traces of a
+        # shock's path took energy below zero on the shock on a disk)
+        touched = np.abs(volume[standing_where] - standing_volume) > 1e-6 * standing_volume
+        standing[tuple(w[touched] for w in standing_where)] = False
         self._move_traces(volume, mass, energy, area, standing)
 
         # -- nodal momentum through the cells -------------------------------------------------

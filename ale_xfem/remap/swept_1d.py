@@ -171,7 +171,7 @@ def remap_1d_swept(order_of_cells, cell_left_node, cell_right_node, node_positio
     if heat:
         deposit_kinetic_loss(loss, result.corner_mass, result.node_mass, cell_left_node, cell_right_node,
                              result.cell_material, result.material_mass, result.material_energy, result.mixed_cells,
-                             in_order=in_order)
+                             in_order=in_order, positive_only=heat == "positive")
     return result
 
 

@@ -152,8 +152,57 @@ def suite(cells: int = 200) -> list[Case]:
                             0.5, 1e9, cells=40, pistons=False)
     long_run.max_steps, long_run.exact, long_run.cells = 100_000, False, 40
     cases.append(long_run)
+    cases += extreme_interface_cases(cells)
     cases += cases_2d(cells)
     return cases
+
+
+AIR, WATER = ("air", 1.4, 0.0), ("water", 4.4, 6e8)  # ideal gas; stiffened gas (γ, p∞)
+
+
+def extreme_case(name: str, air_left: bool, fraction: float, motion: str, air: tuple, water: tuple,
+                 cells: int = 200, model: str = "enriched") -> Case:
+    """Air (ideal gas) against water (stiffened gas) at rest, walls at both ends, the
+    interface inside the middle cell with the left material at ``fraction`` of it; ``air``
+    and ``water``: (density, pressure).  Run until the fastest wave has crossed a fifth of
+    the tube.  A stability check (the exact solution is not compared)."""
+    left, right = (AIR, WATER) if air_left else (WATER, AIR)
+    states = {"air": air, "water": water}
+    gas = [GasState(states[m][0], 0.0, states[m][1], g, p_inf) for m, g, p_inf in (left, right)]
+    fastest = max(np.abs(RiemannSolution.solve(*gas).wave_speeds()))
+    case = riemann_case(name, "", (states[left[0]][0], 0.0, states[left[0]][1]),
+                        (states[right[0]][0], 0.0, states[right[0]][1]), 0.5, 0.2 / fastest,
+                        cells=cells, gammas=(left[1], right[1]), p_infs=(left[2], right[2]), offset=fraction,
+                        pistons=False, motion=motion)
+    case.data["materials"] = {left[0]: case.data["materials"]["left"], right[0]: case.data["materials"]["right"]}
+    case.data["regions"][0]["material"], case.data["regions"][1]["material"] = left[0], right[0]
+    case.data["interface"]["model"] = model
+    ratio = max(air[1], water[1]) / min(air[1], water[1])
+    case.description = (f"{'air | water' if air_left else 'water | air'}: p {air[1]:.0e} | {water[1]:.0e} Pa in "
+                        f"{'air | water' if air_left else 'water | air'} order, density ratio "
+                        f"{water[0] / air[0]:.0e}, left material {fraction:g} of its cell, {motion} mesh"
+                        + ("" if ratio == 1 else f" (pressure ratio {ratio:.0e})"))
+    if not air_left:
+        case.description = case.description.replace(
+            f"p {air[1]:.0e} | {water[1]:.0e} Pa in water | air order", f"p {water[1]:.0e} | {air[1]:.0e} Pa")
+    else:
+        case.description = case.description.replace(" in air | water order", "")
+    case.exact = False
+    return case
+
+
+def extreme_interface_cases(cells: int = 200) -> list[Case]:
+    """Interfaces between air and water at pressure ratios up to 1e9 and density ratios up
+    to 1e4, at small and large volume fractions, in both orders, on every 1D mesh motion."""
+    return [
+        extreme_case("air-water-1e8-eulerian", True, 0.04, "eulerian", (1.2, 1e8), (1000.0, 1e5), cells),
+        extreme_case("air-water-1e8-interface", True, 0.96, "interface", (1.2, 1e8), (1000.0, 1e5), cells),
+        extreme_case("water-air-1e8-smoothed", False, 0.998, "smoothed", (1.2, 1e8), (1000.0, 1e5), cells),
+        extreme_case("water-air-1e9-sliver-eulerian", False, 0.998, "eulerian", (0.1, 1e5), (1000.0, 1e9), cells),
+        extreme_case("water-air-1e9-lagrangian", False, 0.5, "lagrangian", (0.1, 1e5), (1000.0, 1e9), cells),
+        extreme_case("air-water-1e9-eulerian", True, 0.5, "eulerian", (0.1, 1e5), (1000.0, 1e9), cells),
+        extreme_case("air-water-rest-1e4-smoothed", True, 0.002, "smoothed", (0.1, 1e5), (1000.0, 1e5), cells),
+    ]
 
 
 def cases_2d(cells: int = 200) -> list[Case]:
