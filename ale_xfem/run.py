@@ -192,7 +192,7 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
         result.remaps = {"local": remapper.windows_remapped}
     elif remapper is not None:  # every step; those the swept form did not cover
         result.remaps = {"steps": steps, "general_intersection": remapper.general_remaps}
-    if remapper is not None and getattr(remapper, "energy_limited", 0):
+    if remapper is not None and remapper.energy_limited:
         result.remaps["energy_limited"] = remapper.energy_limited
     if remapper is not None:
         # The remap conserves mass, momentum and internal energy; it dissipates kinetic

@@ -96,6 +96,7 @@ class Remapper2D:
             max_iterations=problem.scene.numerics.interface_max_iterations, nonlinear=True,
             model="single_velocity", relaxation=interface is None or interface.relaxation)
         self.general_remaps = 0  # (the 1D remapper's counter; every 2D step is swept)
+        self.energy_limited = 0  # (the 1D remapper's counter: the 2D deposit is always of losses only)
         # walls and pistons hold the remapped velocities inside the remap, so that the kinetic
         # energy they remove is heat like the rest; their impulse is reported here
         self.constraints = [boundary for boundary in problem.boundaries if boundary.kind != "free"]
