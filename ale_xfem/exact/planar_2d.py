@@ -29,6 +29,10 @@ class NohSolution:
     def shocked_density(self) -> float:
         return self.density * ((self.gamma + 1.0) / (self.gamma - 1.0)) ** 2
 
+    def coordinate(self, points):
+        """What the solution varies with: the distance r from the centre."""
+        return np.linalg.norm(np.asarray(points, dtype=float) - np.asarray(self.center), axis=-1)
+
     def sample(self, points, t: float) -> dict[str, np.ndarray]:
         offset = np.asarray(points, dtype=float) - np.asarray(self.center)
         r = np.linalg.norm(offset, axis=-1)
@@ -71,9 +75,13 @@ class PistonSolution:
     def shocked_pressure(self) -> float:
         return self.pressure + self.density * self.shock_speed * self.piston_speed
 
+    def coordinate(self, points):
+        """What the solution varies with: the distance from the piston's start along its motion."""
+        return (np.asarray(points, dtype=float) - np.asarray(self.origin)) @ np.asarray(self.direction, dtype=float)
+
     def sample(self, points, t: float) -> dict[str, np.ndarray]:
         n = np.asarray(self.direction, dtype=float)
-        s = (np.asarray(points, dtype=float) - np.asarray(self.origin)) @ n
+        s = self.coordinate(points)
         shocked = s < self.shock_speed * t
         density = np.where(shocked, self.shocked_density, self.density)
         pressure = np.where(shocked, self.shocked_pressure, self.pressure)
@@ -90,9 +98,13 @@ class PlanarRiemann:
     point: tuple[float, float]
     normal: tuple[float, float]
 
+    def coordinate(self, points):
+        """What the solution varies with: the distance from ``point`` along the normal."""
+        return (np.asarray(points, dtype=float) - np.asarray(self.point)) @ np.asarray(self.normal, dtype=float)
+
     def sample(self, points, t: float) -> dict[str, np.ndarray]:
         n = np.asarray(self.normal, dtype=float)
-        s = (np.asarray(points, dtype=float) - np.asarray(self.point)) @ n
+        s = self.coordinate(points)
         values = self.solution.sample(s, t)
         return {"density": values["density"], "velocity": values["velocity"][..., None] * n,
                 "pressure": values["pressure"]}

@@ -95,6 +95,10 @@ class SedovSolution:
         nu = self.profile.nu
         return self.profile.xi0 * (self.energy * t * t / self.density) ** (1.0 / (nu + 2))
 
+    def coordinate(self, points):
+        """What the solution varies with: the distance r from the centre."""
+        return np.linalg.norm(np.asarray(points, dtype=float) - np.asarray(self.center), axis=-1)
+
     def sample(self, points, t: float) -> dict[str, np.ndarray]:
         offset = np.asarray(points, dtype=float) - np.asarray(self.center)
         r = np.linalg.norm(offset, axis=-1)

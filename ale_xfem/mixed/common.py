@@ -10,7 +10,7 @@ from ale_xfem.lagrange.breakdown import Breakdown
 from ale_xfem.lagrange.closure import MixedCellClosure, MixedView
 from ale_xfem.mixed.equilibrium import MixedCellFailure, PressureEquilibrium
 from ale_xfem.mixed.relaxation import PressureRelaxation
-from ale_xfem.model.mixed_cells import MixedCells
+from ale_xfem.model.mixed_cells import MixedCells, material_names
 
 
 class SharedClosure(MixedCellClosure):
@@ -37,11 +37,9 @@ class SharedClosure(MixedCellClosure):
     def breakdown(self, quantity: str, failure: MixedCellFailure, node_position) -> Breakdown:
         """The diagnostic of a failed mixed-cell solve: the cell, where it is, its materials
         (α | β: slot 0 | slot 1; in 1D left | right) and what failed."""
-        k = failure.index
-        names = " | ".join(self.materials[int(m[k])].name for m in (self.mixed.material_left,
-                                                                     self.mixed.material_right))
         centroid = self.mesh.cell_centroids(node_position)[failure.cell]
-        return Breakdown(quantity, failure.cell, float("nan"), centroid, materials=names, detail=failure.detail)
+        return Breakdown(quantity, failure.cell, float("nan"), centroid,
+                         materials=material_names(self.mixed, failure.index), detail=failure.detail)
 
     def viscosity_medium(self, view: MixedView, volume, density, sound_speed, node_mass):
         """The viscosity of a mixed cell acts on the whole cell (both materials alike, so it

@@ -297,6 +297,15 @@ def mesh_edges(cell_nodes: np.ndarray):
     return start[plus], end[plus], owner[plus], minus
 
 
+def corner_jacobians(vertices):
+    """det J = (x_{i+1} − x_i) × (x_{i−1} − x_i) at each corner of polygons whose vertices
+    (..., corners, 2) go round: positive while every corner is convex-oriented, ≤ 0 at a
+    corner turned inside out even when the area is still positive.  For diagnostics and
+    studies; the step reads the same through QuadGradient.least_corner_jacobian."""
+    after, before = np.roll(vertices, -1, axis=-2) - vertices, np.roll(vertices, 1, axis=-2) - vertices
+    return after[..., 0] * before[..., 1] - after[..., 1] * before[..., 0]
+
+
 def constant_gradient(gradient) -> bool:
     """True when ∂V/∂x_i does not depend on the positions (intervals)."""
     return not isinstance(gradient, QuadGradient) and all(isinstance(g, float) for corner in gradient for g in corner)

@@ -65,6 +65,11 @@ class MixedCells:
         self.max_density_right = self.right_groups.max_density(self.materials)
 
 
+def material_names(mixed: MixedCells, index: int) -> str:
+    """'α | β' of mixed cell ``index`` (slot 0 | slot 1; in 1D left | right), for diagnostics."""
+    return " | ".join(mixed.materials[int(m[index])].name for m in (mixed.material_left, mixed.material_right))
+
+
 def with_mixed_state(state, cells, va, vb, details, interface_velocity, in_place: bool = False):
     """A copy of state with the mixed cells' material arrays replaced (``in_place``: the
     state's own arrays are changed, for a state nothing else refers to yet)."""

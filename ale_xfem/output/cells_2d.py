@@ -177,19 +177,13 @@ def exact_cut(problem, state):
     exact = problem.exact
     if exact is None or state.time <= 0 or not exact.holds_at(state.time):
         return None
-    centroid = problem.mesh.cell_centroids(state.node_position)
-    solution = exact.solution
-    if exact.kind in ("noh", "sedov"):
-        coordinate = np.linalg.norm(centroid - np.asarray(solution.center), axis=1)
-        label = "r (distance from the centre)"
-    elif exact.kind == "piston":
-        coordinate = (centroid - np.asarray(solution.origin)) @ np.asarray(solution.direction)
-        label = "distance from the piston's start, along its motion"
-    elif exact.kind == "planar_riemann":
-        coordinate = (centroid - np.asarray(solution.point)) @ np.asarray(solution.normal)
-        label = "distance from the initial interface, along its normal"
-    else:
+    labels = {"noh": "r (distance from the centre)", "sedov": "r (distance from the centre)",
+              "piston": "distance from the piston's start, along its motion",
+              "planar_riemann": "distance from the initial interface, along its normal"}
+    if exact.kind not in labels:
         return None
+    centroid = problem.mesh.cell_centroids(state.node_position)
+    coordinate, label = exact.solution.coordinate(centroid), labels[exact.kind]
     keep = np.ones(coordinate.size, dtype=bool)
     if exact.window is not None:
         centre, radius = exact.window

@@ -14,7 +14,7 @@ from ale_xfem.geometry.shapes import SHAPES
 from ale_xfem.model.boundaries import Boundary
 from ale_xfem.model.diagnostics import place
 from ale_xfem.model.mesh import MeshArrays, file_mesh, interval_mesh, rectangle_mesh, saltzman_mesh
-from ale_xfem.model.mixed_cells import MixedCells, with_mixed_state
+from ale_xfem.model.mixed_cells import MixedCells, material_names, with_mixed_state
 from ale_xfem.model.state import Material, MaterialLayout, State, density_of, ranked_materials, thermodynamics
 from ale_xfem.scene.effects import Effect, active, scene_effects
 from ale_xfem.scene.schema import Scene, SceneError
@@ -167,9 +167,8 @@ def finish_problem(scene, mesh, materials, layout, node_mass, state, mixed, corn
             try:
                 state = initial_relaxation(mixed, state)
             except MixedCellFailure as failure:  # reported by the run, with this state
-                k = failure.index
-                names = " | ".join(materials[int(m[k])].name for m in (mixed.material_left, mixed.material_right))
-                where = place(failure.cell, mesh.cell_centroids()[failure.cell], names)
+                where = place(failure.cell, mesh.cell_centroids()[failure.cell],
+                              material_names(mixed, failure.index))
                 setup_failure = f"{where}: initial pressure relaxation: {failure.detail}"
         if setup_failure or "pressure_relaxation" not in effects:  # the pressures as given
             cells = mixed.cells

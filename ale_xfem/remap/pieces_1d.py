@@ -9,6 +9,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ale_xfem.remap.kinetic_energy import losses_only, made_kinetic_energy_factor
+
 
 @dataclass
 class RemapResult:
@@ -129,10 +131,9 @@ def deposit_kinetic_loss(loss, corner_mass, node_mass, left_node, right_node, ce
         if total < 0.0:  # kinetic energy made: every internal energy gives its share
             occupied = material_mass > 0
             internal = float(np.sum(material_mass[occupied] * material_energy[occupied]))
-            material_energy[occupied] *= 1.0 + total / internal
+            material_energy[occupied] *= made_kinetic_energy_factor(total, internal)
             return material_energy
-        positive = np.maximum(loss, 0.0)
-        loss = positive * (total / positive.sum()) if total > 0.0 else np.zeros_like(loss)
+        loss = losses_only(loss) if total > 0.0 else np.zeros_like(loss)
     if node_mass.min() > 0:  # every node keeps mass (always in the swept form)
         per_mass = loss / node_mass
     else:

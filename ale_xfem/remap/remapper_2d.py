@@ -47,6 +47,7 @@ import numpy as np
 from ale_xfem.model.mesh import mesh_edges, node_averaged_gradient, node_neighbour_cells
 from ale_xfem.model.mixed_cells import MixedCells
 from ale_xfem.remap.failure import RemapFailure
+from ale_xfem.remap.kinetic_energy import losses_only, made_kinetic_energy_factor
 from ale_xfem.geometry.shapes import clip_convex, clipped_area, corner_centroid, polygon_area
 from ale_xfem.model.state import density_of, ranked_materials, thermodynamics
 
@@ -265,8 +266,7 @@ class Remapper2D:
             # gain a little where its neighbours lose (the cells' momentum is shared by
             # corners): only the losses are deposited, scaled to their sum — cold gas must
             # not be cooled below zero by a neighbour's gain.
-            positive = np.maximum(loss, 0.0)
-            loss = positive * (loss.sum() / positive.sum())
+            loss = losses_only(loss)
             per_mass = loss / node_mass
             gathered = corners.gather(per_mass[None, :])
             heat = sum(g[0] for g in gathered) * (new_cell_mass / k)
@@ -276,7 +276,7 @@ class Remapper2D:
             # The momentum remap through the cells is not dissipative node by node, and now and
             # then not overall either: the kinetic energy it made is taken from the internal
             # energies in proportion (each scaled by the same factor, so none goes below 0).
-            energy *= 1.0 + loss.sum() / energy.sum()
+            energy *= made_kinetic_energy_factor(loss.sum(), energy.sum())
 
         # -- back to slots ---------------------------------------------------------------------
         present = (volume > TRACE * area) | (standing & (mass != 0.0))

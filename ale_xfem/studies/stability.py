@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ale_xfem.exact.riemann import GasState, RiemannSolution
+from ale_xfem.model.mesh import corner_jacobians
 from ale_xfem.scene import Scene, validate
 
 MASS_TOLERANCE = 1e-13
@@ -341,9 +342,7 @@ def least_corner(mesh, node_position) -> float:
     """The least over cells and corners of (x_{i+1} − x_i) × (x_{i−1} − x_i) / A: positive
     while every cell is convex-oriented at every corner; ≤ 0 for an inverted (or folded)
     cell even when its area is still positive."""
-    x = mesh.cell_vertex_positions(node_position)
-    after, before = np.roll(x, -1, axis=1) - x, np.roll(x, 1, axis=1) - x
-    cross = after[..., 0] * before[..., 1] - after[..., 1] * before[..., 0]
+    cross = corner_jacobians(mesh.cell_vertex_positions(node_position))
     return float((cross.min(axis=1) / mesh.cell_volumes(node_position)).min())
 
 
