@@ -90,6 +90,9 @@ def make_stepper(problem: Problem) -> ExplicitWilkins:
 # Steps in a row at a time step too small to reach t_end within numerics.max_steps before a
 # run is stopped as failed (a cell collapsing: dt → 0)
 STALLED_STEPS = 1000
+# A step whose mixed cell breaks down is taken again from the same state with half the time
+# step, at most this many times (then the run stops with the last attempt's diagnostic).
+MIXED_CELL_RETRIES = 12
 
 
 def simulate(problem: Problem, progress: Progress | None = None, t_end: float | None = None,
@@ -117,7 +120,7 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
     growth = problem.scene.numerics.dt_growth
     evaluation = stepper.evaluate_state(state)
     dt_previous, dt_min, dt_max = np.inf, np.inf, 0.0
-    steps, status, diagnostic, stalled = 0, "ok", "", 0
+    steps, status, diagnostic, stalled, halved_steps = 0, "ok", "", 0, 0
     watch_stall = stop_after_steps is None or stop_after_steps > max_steps
     # A remap of the whole state after every step evaluates the remapped state's forces:
     # the step then leaves out those of the Lagrangian state.
@@ -153,7 +156,9 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
                           f"{max_steps}); {stepper.limiting_cell(evaluation, state.node_position)}")
             break
         try:
-            new_state, evaluation, work, impulse = stepper.step(state, dt, evaluation, remapped_next=remap_all)
+            new_state, evaluation, work, impulse, taken = _step(stepper, state, dt, evaluation, remap_all)
+            halved_steps += int(round(np.log2(dt / taken)))
+            dt = taken
             if remapper is not None:
                 remap_clock = time.perf_counter()
                 new_state, evaluation, impulse, kinetic_change = _remap(
@@ -207,10 +212,27 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
             "iterations_mean": stats.get("iterations", 0) / max(stats.get("steps", 0), 1),
             "iterations_max": stats.get("max_iterations", 0),
             "relaxations": stats.get("relaxations", 0),
+            "halved_steps": halved_steps,
         }
     if problem.exact is not None and state.time > 0 and problem.exact.holds_at(state.time):
         result.errors = l1_errors(problem, state)
     return result
+
+
+def _step(stepper, state, dt, evaluation, remapped_next):
+    """One Lagrange step (``stepper.step``), taken again from the same state with dt halved
+    while a mixed cell breaks down in it, at most MIXED_CELL_RETRIES times: an interface
+    solve may have no admissible root at the time step the pure cells allow (a sliver of hot
+    air expanding against water: the cell's nodes open faster than its materials can fill at
+    a pressure ≥ 0).  The run's dt_growth then brings the step back.  Returns the step's
+    results and the dt it took."""
+    for attempt in range(MIXED_CELL_RETRIES + 1):
+        try:
+            return (*stepper.step(state, dt, evaluation, remapped_next=remapped_next), dt)
+        except Breakdown as failure:
+            if attempt == MIXED_CELL_RETRIES or stepper.mixed is None or failure.cell not in stepper.mixed.cells:
+                raise
+            dt *= 0.5
 
 
 def _remap(problem, stepper, remapper, state, evaluation, impulse):

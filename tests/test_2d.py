@@ -981,12 +981,14 @@ def test_the_2d_picture_cuts_the_exact_solution_along_its_coordinate_while_it_ho
     assert exact_cut(problem, result.state) is None
 
 
-@pytest.mark.xfail(strict=True, reason="known limit: water at 1e9 Pa against air at 1e5 Pa (ρ 50) at 30° to an Eulerian "
-                   "60 × 60 mesh, single-velocity mixed cells, breaks down near step 40 where the interface meets the "
-                   "bottom wall: the water cavitates there (p < 0), a trace of near-vacuum air left in its cells is "
-                   "heated by the relaxation (dE = −p* dV) until its sound speed sets a collapsing time step, and "
-                   "with the mixture's sound speed instead the remapped air leaves its EOS domain")
 def test_a_water_air_tube_at_30_degrees_on_an_eulerian_mesh():
+    """Water at 1e9 Pa against air at 1e5 Pa (ρ 50) at 30° to an Eulerian 60 × 60 mesh,
+    single-velocity mixed cells: where Γ meets the bottom wall the water cavitates (p < 0)
+    and a trace of air is drawn to near vacuum.  It broke down at step 40: the cell's
+    hourglass work, shared by volume, heated the air (its sound speed 7e4 m/s, the time step
+    collapsing); then the relaxation found compressed air at a negative energy.  Each
+    material now works against its own pressure (dissipation shared by mass), and the
+    relaxation is a bracketed root of explicit per-material pressures."""
     data = tomllib.loads((Path(__file__).parent.parent / "demos" / "scenes" / "rotated-tube.toml").read_text())
     data.update(t_end=1e-4, description="")
     data["mesh"].update(cells=[60, 60], motion="eulerian")
@@ -995,5 +997,17 @@ def test_a_water_air_tube_at_30_degrees_on_an_eulerian_mesh():
                          "water": {"eos": "stiffened_gas", "gamma": 4.4, "p_inf": 6e8}}
     data["regions"][0].update(material="air", density=50.0, pressure=1e5)
     data["regions"][1].update(material="water", density=1000.0, pressure=1e9)
-    result = simulate(build_problem(validate(data)))
+    problem = build_problem(validate(data))
+    lowest = {"air_energy": np.inf, "air_density": np.inf}
+
+    def watch(state, problem):
+        air = (state.material_volume > 0) & (problem.layout.cell_material == 0)
+        lowest["air_energy"] = min(lowest["air_energy"], state.material_energy[air].min())
+        lowest["air_density"] = min(lowest["air_density"], state.material_density[air].min())
+        assert np.isfinite(state.material_sound_speed[state.material_volume > 0]).all()
+
+    result = simulate(problem, observe=watch)
     assert result.status == "ok", result.diagnostic
+    assert lowest["air_energy"] > 0.0
+    assert lowest["air_density"] < 1e-6  # the cavity formed (near vacuum)
+    assert abs(result.conservation["total_energy"]) < 1e-12 and result.conservation["mass"] < 1e-14

@@ -79,7 +79,7 @@ class MixedCellClosure(ABC):
         """Add the mixed cells' n+1 stress to mean_force; returns the solution or None."""
 
     @abstractmethod
-    def end_of_step(self, state: State, first, x_new, e_new, solution):
+    def end_of_step(self, state: State, first, predicted, x_new, e_new, solution):
         """(V_α, V_β, details) at n+1, details the materials' energies, pressures, densities
         and c²."""
 

@@ -473,7 +473,7 @@ class ExplicitWilkins:
                 material_density=final.density, material_pressure=final.pressure,
                 material_sound_speed=final.sound_speed)
             return new_state, final, boundary_work, boundary_impulse
-        solution = self.closure.end_of_step(state, first, x_new, e_new, solution)
+        solution = self.closure.end_of_step(state, first, predicted, x_new, e_new, solution)
         if remapped_next:
             return self._state_for_remap(state, solution, x_new, u_new, e_new, dt), None, \
                 boundary_work, boundary_impulse

@@ -55,7 +55,7 @@ class EnrichedClosure(SharedClosure):
         mean_force[0, b] += change
         return va, vb, details
 
-    def end_of_step(self, state, first, x_new, e_new, solution):
+    def end_of_step(self, state, first, predicted, x_new, e_new, solution):
         return solution
 
     def viscosity_medium(self, view, volume, density, sound_speed, node_mass):

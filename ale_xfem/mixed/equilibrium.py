@@ -134,7 +134,20 @@ class PressureEquilibrium:
 
         state0: (m_α, m_β, V_α0, V_β0, e_α0, e_β0) at the start; pressure0: first iterate.
         Returns (π, V_α, V_β, details) with details the materials' energies, pressures,
-        densities and c² at the end."""
+        densities and c² at the end.  A root outside a material's EOS domain (c² ≤ 0: a gas
+        at negative pressure) is a failure: at that time step the cell's nodes open faster
+        than its materials can fill at an admissible pressure (the run retries the step
+        with a smaller one)."""
+        result = self._solve(state0, pressure0, volume_affine, work_affine, record, predictor)
+        c2a, c2b = result[3][6], result[3][7]
+        bad = ~((c2a > 0.0) & (c2b > 0.0))
+        if bad.any():
+            index = int(np.flatnonzero(bad)[0])
+            raise MixedCellFailure(self.mixed, index, f"the root leaves the EOS domain (π = {result[0][index]:.6g}, "
+                                   f"c² = {c2a[index]:.3g} | {c2b[index]:.3g})")
+        return result
+
+    def _solve(self, state0, pressure0, volume_affine, work_affine, record, predictor):
         a, b = volume_affine
         w0, w1 = work_affine
         m_a, m_b, va0, vb0, ea0, eb0 = state0
@@ -213,14 +226,84 @@ class PressureEquilibrium:
         self.mixed.stats["iterations"] += iterations
         self.mixed.stats["max_iterations"] = max(self.mixed.stats["max_iterations"], iterations)
 
-    def relax(self, volume, state0, pressure_guess):
-        """Pressure relaxation at fixed cell volume: returns (p*, V_α, V_β, details)."""
+    def relax(self, volume, state0, pressure_guess=None):
+        """Pressure relaxation at fixed cell volume: returns (p*, V_α, V_β, details).
+
+        Each material's energy follows e_α = e_α^0 − p* (V_α − V_α^0)/m_α.  Every equation of
+        state here is affine in e with ∂p/∂e a function of ρ alone, so at a given V_α the
+        common pressure the material would reach is explicit,
+        π_α(V_α) = p_α(ρ_α, e_α^0) / (1 − S_α),  S_α = −∂p/∂e (V_α − V_α^0)/m_α,
+        and defined where 1 − S_α > 0: a gas compressed at its own pressure's work cannot go
+        below (γ − 1)/γ of its volume (at that bound π_α → +∞, the continuation used beyond).
+        The balance π_α(V_α) = π_β(V − V_α) is then a bracketed scalar root in V_α (Newton,
+        bisection when it leaves the bracket), which cannot leave the admissible states.
+        (Newton on p* with a corrector at fixed work pressure converged, for a trace of air
+        against water in tension, to a spurious root of compressed air at negative energy:
+        a water–air tube at 30° on an Eulerian mesh, the air squeezed to 10⁻¹² of its cell.)"""
         self.mixed.stats["relaxations"] += 1
-        saved = self.mixed.nonlinear
-        self.mixed.nonlinear = True  # relaxation always uses the full equations of state
-        try:
-            result = self.solve(state0, pressure_guess, (volume, np.zeros_like(volume)),
-                                 (np.zeros_like(volume), np.ones_like(volume)), record=False)
-        finally:
-            self.mixed.nonlinear = saved
-        return result
+        m_a, m_b, va0, vb0, ea0, eb0 = state0
+        total = volume  # = V_α^0 + V_β^0
+        # The unknown is the volume δ that α takes from β, V_α = V_α^0 + δ, V_β = V_β^0 − δ:
+        # each volume then keeps its own precision (a trace's V_β is not the round-off of
+        # V − V_α, which left 5e-11 between the pressures of a cell with a trace at rest).
+        lo = np.maximum(1e-12 * total, m_a / self.mixed.max_density_left * (1 + 1e-9)) - va0
+        hi = vb0 - np.maximum(1e-12 * total, m_b / self.mixed.max_density_right * (1 + 1e-9))
+        if (lo >= hi).any():
+            bad = int(np.flatnonzero(lo >= hi)[0])
+            raise MixedCellFailure(self.mixed, bad, f"volume {total[bad]:.6g} cannot hold both materials "
+                                   "below their compression limits")
+        delta = np.minimum(np.maximum(0.0, lo), hi)
+        finished = False
+        for _ in range(200):
+            va, vb = va0 + delta, vb0 - delta
+            pi_a, slope_a, coupling_a = self._relaxed_pressure(self.mixed.left_groups, m_a, va, ea0, va0)
+            pi_b, slope_b, coupling_b = self._relaxed_pressure(self.mixed.right_groups, m_b, vb, eb0, vb0)
+            h = pi_a - pi_b  # decreasing in δ
+            # the pressures' scale: the larger of them, or the softer material's bulk modulus
+            scale = np.maximum(np.maximum(np.abs(pi_a), np.abs(pi_b)),
+                               np.minimum(np.abs(slope_a) * va, np.abs(slope_b) * vb))
+            balanced = np.isfinite(h) & (np.abs(h) <= 1e-3 * self.mixed.tolerance * scale)
+            if finished or balanced.all():  # the values just computed are those of the result
+                break
+            lo = np.where(h > 0, delta, lo)
+            hi = np.where(h <= 0, delta, hi)
+            with np.errstate(invalid="ignore", divide="ignore"):
+                newton = delta - h / (slope_a + slope_b)
+            inside = np.isfinite(newton) & (newton > lo) & (newton < hi)
+            new_delta = np.where(balanced, delta, np.where(inside, newton, 0.5 * (lo + hi)))
+            # or round-off bounds what can still change (a few ulps of the smaller volume)
+            resolution = 4e-16 * np.minimum(va, vb)
+            finished = bool((balanced | (np.abs(new_delta - delta) <= resolution) | (hi - lo <= resolution)).all())
+            delta = new_delta
+        else:
+            worst = int(np.argmax(np.abs(h) / scale))
+            raise MixedCellFailure(self.mixed, worst, f"pressure relaxation not converged (pressures "
+                                   f"{pi_a[worst]:.6g} and {pi_b[worst]:.6g})")
+        # p* is the root of the material whose pressure depends most on it (|S| the larger):
+        # its state is then exactly its own balance, the other's pressure within the
+        # tolerance.  (The mean of the two left a near-vacuum trace of air in a cavity,
+        # 10⁻¹⁹ of mass, at a negative energy: p_α = π_α + S_α (p* − π_α) with S_α ~ 1.)
+        pressure = np.where(np.abs(coupling_a) >= np.abs(coupling_b), pi_a, pi_b)
+        if not np.isfinite(pressure).all():
+            bad = int(np.flatnonzero(~np.isfinite(pressure))[0])
+            raise MixedCellFailure(self.mixed, bad, f"pressure relaxation = {pressure[bad]:.6g}")
+        details = self._state_at(state0, va, vb, pressure)
+        return pressure, va, vb, details
+
+    def _relaxed_pressure(self, groups, mass, volume, energy0, volume0):
+        """π(V) of one material (see :meth:`relax`), dπ/dV = (∂p/∂V)_W / (1 − S) and S = ∂p/∂W
+        (π = +∞, dπ/dV = 0 where 1 − S ≤ 0).  (∂p/∂V)_W is taken at the energy of W = π:
+        at e^0 it missed how a trace's ∂p/∂ρ changes with its energy, and Newton, its slope
+        half the true one, swung about the root without converging.)"""
+        rho = mass / volume
+        p0, _, dp_de, _ = groups.eos_values(self.mixed.materials, rho, energy0)
+        coupling = dp_de * (volume0 - volume) / mass  # S
+        keep = 1.0 - coupling
+        admissible = keep > 0.0
+        with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+            keep = np.where(admissible, keep, 1.0)
+            pi = np.where(admissible, p0 / keep, np.inf)
+            work = np.where(admissible, pi, 0.0)
+            dp_drho = groups.eos_values(self.mixed.materials, rho, energy0 - work * (volume - volume0) / mass)[1]
+            slope = np.where(admissible, -(dp_drho * rho + dp_de * work / mass * volume) / (volume * keep), 0.0)
+        return pi, slope, coupling
