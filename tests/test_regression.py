@@ -57,6 +57,8 @@ CASES = {
     "rotated-tube": ("rotated-tube", ["mesh.cells=[16,16]"]),
     "rotated-tube-eulerian-triangles": ("rotated-tube", ["mesh.cells=[14,14]", "mesh.motion=eulerian",
                                                          "mesh.cell_type=triangle"]),
+    "rotated-tube-shear": ("rotated-tube-shear", ["mesh.cells=[16,16]"]),
+    "spinning-disk": ("spinning-disk", ["mesh.cells=[16,16]", "t_end=0.2"]),
     "saltzman": ("saltzman", ["mesh.cells=[16,16]"]),
     "sedov": ("sedov", ["mesh.cells=[16,16]"]),
     "sod-2d": ("sod-2d", ["mesh.cells=[16,16]"]),

@@ -92,11 +92,16 @@ class PistonSolution:
 @dataclass(frozen=True)
 class PlanarRiemann:
     """A 1D Riemann solution laid along the unit normal ``normal`` through ``point``: the
-    left state on (x − point)·n < 0.  Velocities are along n."""
+    left state on (x − point)·n < 0.  The normal velocity is the 1D solution's; the
+    tangential velocity (along t = (−n_y, n_x)) is ``tangential[0]`` left of the contact and
+    ``tangential[1]`` right of it: in inviscid flow the contact is a slip line, and each
+    side keeps its tangential velocity (it is carried with the fluid, across the waves
+    unchanged)."""
 
     solution: object  # ale_xfem.exact.RiemannSolution, x0 = 0
     point: tuple[float, float]
     normal: tuple[float, float]
+    tangential: tuple[float, float] = (0.0, 0.0)
 
     def coordinate(self, points):
         """What the solution varies with: the distance from ``point`` along the normal."""
@@ -104,7 +109,46 @@ class PlanarRiemann:
 
     def sample(self, points, t: float) -> dict[str, np.ndarray]:
         n = np.asarray(self.normal, dtype=float)
+        tangent = np.array([-n[1], n[0]])
         s = self.coordinate(points)
         values = self.solution.sample(s, t)
-        return {"density": values["density"], "velocity": values["velocity"][..., None] * n,
+        shear = np.where(s < self.solution.star.velocity * t, self.tangential[0], self.tangential[1])
+        return {"density": values["density"],
+                "velocity": values["velocity"][..., None] * n + shear[..., None] * tangent,
                 "pressure": values["pressure"]}
+
+
+@dataclass(frozen=True)
+class SpinningDisk:
+    """A disk of radius R (density ρ_d) spinning at ω about its centre inside a fluid
+    (density ρ_o) at rest at pressure p₀: v_θ = ω r and p = p₀ − ½ ρ_d ω² (R² − r²) inside,
+    rest and p₀ outside.  A steady state of the Euler equations (radial equilibrium
+    dp/dr = ρ v_θ²/r, div u = 0, u·∇ of everything zero) with a slip line at r = R: it holds
+    for ever where the interface lets the disk slide."""
+
+    center: tuple[float, float]
+    radius: float
+    angular_velocity: float
+    density: float  # the disk's
+    outer_density: float
+    pressure: float  # p₀, outside and at the rim
+
+    def coordinate(self, points):
+        """What the solution varies with: the distance r from the centre."""
+        return np.linalg.norm(np.asarray(points, dtype=float) - np.asarray(self.center), axis=-1)
+
+    def sample(self, points, t: float) -> dict[str, np.ndarray]:
+        offset = np.asarray(points, dtype=float) - np.asarray(self.center)
+        r = np.linalg.norm(offset, axis=-1)
+        inside = r < self.radius
+        omega = self.angular_velocity
+        swirl = omega * np.stack([-offset[..., 1], offset[..., 0]], axis=-1)
+        return {"density": np.where(inside, self.density, self.outer_density),
+                "velocity": np.where(inside[..., None], swirl, 0.0),
+                "pressure": np.where(inside, self.pressure - 0.5 * self.density * omega**2 * (self.radius**2 - r**2),
+                                     self.pressure)}
+
+    @property
+    def angular_momentum(self) -> float:
+        """The disk's angular momentum about its centre per unit length, ½ π ρ ω R⁴."""
+        return 0.5 * np.pi * self.density * self.angular_velocity * self.radius**4

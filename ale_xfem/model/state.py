@@ -243,6 +243,20 @@ def material_masses(state: State, layout: MaterialLayout) -> np.ndarray:
     return np.array([state.material_mass[layout.cell_material == m].sum() for m in range(layout.n_materials)])
 
 
+def material_angular_momenta(state: State, layout: MaterialLayout, cell_nodes: np.ndarray, centroids: np.ndarray,
+                             center) -> np.ndarray:
+    """Each material's angular momentum about ``center`` (2D, per unit length; (n_materials,)):
+    Σ_K m_α,K (x_K − c) × ū_K, x_K the cell's centroid (n_cells, 2) and ū_K the mean
+    velocity of its nodes (``cell_nodes`` (n_cells, k)).  With one velocity field a mixed
+    cell's materials move alike: what this measures is how much of a spinning material's
+    angular momentum its cells still hold."""
+    velocity = state.node_velocity[:, cell_nodes].mean(axis=2)  # (2, n_cells)
+    arm = centroids - np.asarray(center, dtype=float)
+    moment = arm[:, 0] * velocity[1] - arm[:, 1] * velocity[0]
+    return np.array([np.sum(np.where(layout.cell_material == m, state.material_mass, 0.0) * moment)
+                     for m in range(layout.n_materials)])
+
+
 def totals(state: State, node_mass: np.ndarray) -> dict[str, float]:
     """Mass, momentum (per component) and total energy of a state."""
     kinetic = 0.5 * np.sum(node_mass * state.node_velocity**2)

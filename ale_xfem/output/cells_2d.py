@@ -179,7 +179,8 @@ def exact_cut(problem, state):
         return None
     labels = {"noh": "r (distance from the centre)", "sedov": "r (distance from the centre)",
               "piston": "distance from the piston's start, along its motion",
-              "planar_riemann": "distance from the initial interface, along its normal"}
+              "planar_riemann": "distance from the initial interface, along its normal",
+              "spinning_disk": "r (distance from the centre)"}
     if exact.kind not in labels:
         return None
     centroid = problem.mesh.cell_centroids(state.node_position)

@@ -26,7 +26,7 @@ class ExactReference:
     only up to ``valid_until``; ``limit`` says in one phrase what ends it (a wave reaching a
     boundary, or a boundary that is not part of the exact problem: then valid_until = 0)."""
 
-    kind: str  # "riemann" | "plate_impact" | 2D: "noh" | "piston" | "planar_riemann" | "sedov"
+    kind: str  # "riemann" | "plate_impact" | 2D: "noh" | "piston" | "planar_riemann" | "sedov" | "spinning_disk"
     solution: object  # None when the scene only looks like the exact problem (limit says why)
     valid_until: float  # the exact solution is for an unbounded domain: until a wave reaches a boundary
     # 2D: (centre, radius) of the disk the L1 errors are taken over (no wave from the walls
@@ -269,9 +269,18 @@ def _build_problem_2d(scene: Scene) -> Problem:
         material_mass[m] += region_mass
         if region.total_energy is not None:  # spread evenly over the area the region holds
             material_energy[m] += region.total_energy * region_mass / region_mass.sum()
+        elif region.rotation is not None:  # radial equilibrium: p at each cell's centroid
+            cx, cy, omega = region.rotation
+            r2 = (centroids[:, 0] - cx) ** 2 + (centroids[:, 1] - cy) ** 2
+            material_energy[m] += region_mass * eos.energy(region.density, region.pressure
+                                                           + 0.5 * region.density * omega**2 * r2)
         else:
             material_energy[m] += region_mass * float(eos.energy(region.density, region.pressure))
         velocity = np.broadcast_to(np.array(region.velocity, dtype=float)[:, None, None], (2, corners, n_cells)).copy()
+        if region.rotation is not None:
+            cx, cy, omega = region.rotation
+            velocity[0] -= omega * (node_x[..., 1] - cy).T
+            velocity[1] += omega * (node_x[..., 0] - cx).T
         if region.radial_velocity is not None:
             cx, cy, speed = region.radial_velocity
             offset = node_x - np.array([cx, cy])
@@ -471,6 +480,8 @@ def exact_reference_2d(scene: Scene) -> ExactReference | None:
     from ale_xfem.exact.planar_2d import NohSolution, PistonSolution
 
     states = {(r.material, r.density, r.pressure, r.velocity, r.radial_velocity) for r in scene.regions}
+    if any(r.rotation is not None for r in scene.regions):
+        return _spinning_disk(scene)
     if any(r.total_energy is not None for r in scene.regions):
         return _sedov(scene)
     if len(states) == 2:
@@ -519,6 +530,32 @@ def exact_reference_2d(scene: Scene) -> ExactReference | None:
     return None
 
 
+def _spinning_disk(scene: Scene) -> ExactReference | None:
+    """A disk spinning about its centre (``rotation``) inside a box of fluid at rest that
+    covers the domain, its rim pressure the outer fluid's: the steady state of
+    :class:`ale_xfem.exact.planar_2d.SpinningDisk`, for ever.  Anything else: None."""
+    from ale_xfem.exact.planar_2d import SpinningDisk
+    from ale_xfem.geometry.shapes import Box, Disk
+
+    if len(scene.regions) != 2:
+        return None
+    outer, disk = scene.regions
+    (x0, x1), (y0, y1) = scene.mesh.extent
+    if not (isinstance(outer.shape, Box) and outer.shape.lower == (x0, y0) and outer.shape.upper == (x1, y1)
+            and isinstance(disk.shape, Disk) and disk.rotation is not None and outer.rotation is None
+            and outer.velocity == (0.0, 0.0) and disk.velocity == (0.0, 0.0)
+            and outer.radial_velocity is None and disk.radial_velocity is None
+            and tuple(disk.rotation[:2]) == tuple(disk.shape.center)):
+        return None
+    omega, radius = disk.rotation[2], disk.shape.radius
+    rim = disk.pressure + 0.5 * disk.density * omega**2 * radius**2
+    if abs(rim - outer.pressure) > 1e-9 * max(abs(rim), abs(outer.pressure), disk.density * (omega * radius) ** 2):
+        return ExactReference("spinning_disk", None, 0.0, limit=(
+            f"the disk's rim pressure {rim:.6g} is not the outer fluid's {outer.pressure:.6g}: not a steady state"))
+    solution = SpinningDisk(tuple(disk.shape.center), radius, omega, disk.density, outer.density, outer.pressure)
+    return ExactReference("spinning_disk", solution, float("inf"), limit="a steady state: it holds for ever")
+
+
 def _sedov(scene: Scene) -> ExactReference | None:
     """Sedov's cylindrical blast: one ideal gas at rest at ~zero pressure, and a box at the
     domain's lower-left corner holding ``total_energy`` with walls on the left and bottom
@@ -551,7 +588,8 @@ def _sedov(scene: Scene) -> ExactReference | None:
 
 def _planar_riemann(scene: Scene) -> ExactReference | None:
     """Two gas states, the later one a half-plane over the earlier (a box covering the
-    domain), at rest or moving along the half-plane's normal: a Riemann problem along it.
+    domain): a Riemann problem along the half-plane's normal, each side with its own
+    tangential velocity (which the exact solution carries on its side of the contact).
     Walls reflect its waves in 2D, so the L1 errors are taken over the disk around the
     domain's centre that no signal from a wall reaches before t_end."""
     from ale_xfem.exact.planar_2d import PlanarRiemann
@@ -570,14 +608,15 @@ def _planar_riemann(scene: Scene) -> ExactReference | None:
     normal /= np.linalg.norm(normal)
     tangent = np.array([-normal[1], normal[0]])
     gases = ("ideal_gas", "stiffened_gas")
-    states = []
+    states, tangential = [], []
     for region in (last, first):  # left of the line (the half-plane), then right
         material = scene.materials[region.material]
         velocity = np.array(region.velocity)
-        if material.eos not in gases or abs(velocity @ tangent) > 1e-12 * (1 + np.abs(velocity).max()):
+        if material.eos not in gases:
             return None
         states.append(exact.GasState(region.density, float(velocity @ normal), region.pressure,
                                      material.parameters["gamma"], material.parameters.get("p_inf", 0.0)))
+        tangential.append(float(velocity @ tangent))  # each side keeps its own (a slip line)
     try:
         solution = exact.RiemannSolution.solve(states[0], states[1], 0.0)
     except exact.VacuumError:
@@ -587,7 +626,8 @@ def _planar_riemann(scene: Scene) -> ExactReference | None:
     behind = [exact.GasState(rho, star.velocity, star.pressure, g.gamma, g.p_inf)
               for rho, g in ((star.density_left, states[0]), (star.density_right, states[1]))]
     # a bound on the speed of any signal: the fastest wave plus the largest sound speed
-    signal = max(abs(slow), abs(fast)) + max(g.sound_speed for g in states + behind)
+    # (and the fastest tangential flow, which carries a wall's disturbance along)
+    signal = max(abs(slow), abs(fast)) + max(g.sound_speed for g in states + behind) + max(map(abs, tangential))
     centre = (0.5 * (x0 + x1), 0.5 * (y0 + y1))
     radius = min(x1 - x0, y1 - y0) / 2 - signal * scene.t_end
     if radius <= 0:
@@ -596,7 +636,8 @@ def _planar_riemann(scene: Scene) -> ExactReference | None:
     if pistons:  # its wave may outrun the signal bound of the window
         return ExactReference("planar_riemann", None, 0.0, limit=(
             f"boundaries.{pistons[0]} is a piston, which the planar Riemann problem does not have"))
-    return ExactReference("planar_riemann", PlanarRiemann(solution, last.shape.point, tuple(normal)),
+    reference = PlanarRiemann(solution, last.shape.point, tuple(normal), tuple(tangential))
+    return ExactReference("planar_riemann", reference,
                           float("inf"), window=(centre, float(radius)),
                           limit=f"errors over the disk of radius {radius:.4g} that no wave from a side reaches by t_end")
 

@@ -111,6 +111,9 @@ class RegionSpec:
     shape: object = None  # 2D: a shape of ale_xfem.geometry.shapes
     radial_velocity: tuple[float, float, float] | None = None  # 2D: (cx, cy, speed), u = speed r̂
     total_energy: float | None = None  # 2D: the region's internal energy (instead of its pressure)
+    # 2D: (cx, cy, ω): u += ω ẑ × (x − c), and the region in radial equilibrium about c,
+    # p = pressure + ½ ρ ω² |x − c|² (``pressure``: the pressure at the centre)
+    rotation: tuple[float, float, float] | None = None
 
 
 @dataclass(frozen=True)
@@ -377,12 +380,12 @@ def _validate_regions(regions: Any, materials: dict[str, MaterialSpec], mesh: Me
     specs = []
     for index, table in enumerate(regions):
         where = f"regions[{index}]"
-        interval = shape = radial = None
+        interval = shape = radial = rotation = None
         if dimension == 1:
             _keys(table, where, ("material", "interval", "density", "pressure"), ("velocity",))
         else:
             _keys(table, where, ("material", "density"),
-                  ("pressure", "total_energy", "velocity", "radial_velocity") + shapes.SHAPES)
+                  ("pressure", "total_energy", "velocity", "radial_velocity", "rotation") + shapes.SHAPES)
             if ("pressure" in table) == ("total_energy" in table):
                 raise SceneError(where, ", ".join(k for k in ("pressure", "total_energy") if k in table) or _MISSING,
                                  "exactly one of pressure, total_energy (the region's internal energy)")
@@ -418,6 +421,14 @@ def _validate_regions(regions: Any, materials: dict[str, MaterialSpec], mesh: Me
             spec = _keys(table["radial_velocity"], key, ("center", "speed"))
             center = _reals(spec["center"], f"{key}.center", 2)
             radial = (*center, _real(spec["speed"], f"{key}.speed"))
+        if "rotation" in table:
+            key = f"{where}.rotation"
+            spec = _keys(table["rotation"], key, ("center", "angular_velocity"))
+            center = _reals(spec["center"], f"{key}.center", 2)
+            rotation = (*center, _real(spec["angular_velocity"], f"{key}.angular_velocity"))
+            if "total_energy" in table:
+                raise SceneError(key, table["rotation"], "a region with a pressure (at the centre of rotation), "
+                                 "not total_energy")
         eos = materials[material].make_eos()
         if not density > 0.0:
             raise SceneError(f"{where}.density", density, "a real number > 0")
@@ -427,7 +438,8 @@ def _validate_regions(regions: Any, materials: dict[str, MaterialSpec], mesh: Me
             value = density if key == "density" else pressure
             raise SceneError(f"{where}.{key}", value,
                              f"{reason} for {materials[material].eos} material '{material}'")
-        specs.append(RegionSpec(index, material, interval, density, pressure, velocity, shape, radial, total_energy))
+        specs.append(RegionSpec(index, material, interval, density, pressure, velocity, shape, radial, total_energy,
+                                rotation))
     return tuple(specs)
 
 
