@@ -56,6 +56,13 @@ BAD = {
                             "interface.stabilisation", "2D enriched mixed cells"),
     "solver without enriched cells": (lambda d: d.setdefault("interface", {}).update(
         model="single_velocity", solver="linearised"), "interface.solver", "acts only on enriched"),
+    # accepted and ignored: one velocity field moves both materials alike
+    "slip without enriched cells": (lambda d: d.setdefault("interface", {}).update(
+        model="single_velocity", slip="free"), "interface.slip", "acts only on enriched"),
+    "coulomb friction between fluids": (lambda d: d.setdefault("interface", {}).update(slip="coulomb"),
+                                        "interface.slip", "carry none"),
+    "stick slip": (lambda d: d.setdefault("interface", {}).update(slip="stick"),
+                   "interface.slip", "not available in this version"),
     "unknown material": (lambda d: set_path(d, ["regions", 1, "material"], "steel"),
                          "regions[1].material", "one of the materials"),
     "material boundary inside a cell": (lambda d: [set_path(d, ["regions", 0, "interval"], [0.0, 0.5037]),

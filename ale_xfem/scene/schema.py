@@ -525,7 +525,8 @@ def _choice_int(value: Any, key: str, choices: tuple[int, ...]) -> int:
 
 
 # [interface] keys that act only with enriched mixed cells (the 1D interface solve)
-ENRICHED_ONLY = ("solver", "predictor")
+# (``slip``: a single-velocity cell moves its materials alike, it sticks by construction)
+ENRICHED_ONLY = ("solver", "predictor", "slip")
 
 
 def _validate_interface(table: Any, dimension: int) -> InterfaceSpec:
@@ -554,11 +555,25 @@ def _validate_interface(table: Any, dimension: int) -> InterfaceSpec:
         model=model,
         solver=_choice(table.get("solver", "nonlinear"), "interface.solver", ("nonlinear", "linearised")),
         stabilisation=None,
-        slip=_choice(table["slip"], "interface.slip", ("free",), ("stick", "coulomb")),
+        slip=_slip(table.get("slip"), model),
         relaxation=_boolean(table["relaxation"], "interface.relaxation"),
         predictor=_choice(table.get("predictor", "closed_form"), "interface.predictor",
                           ("closed_form", "assembled")),
     )
+
+
+def _slip(value: Any, model: str) -> str:
+    """The tangential traction at Γ: 'free' (enriched cells; none), and a single-velocity
+    cell's 'stick' (one velocity field), which is not a key.  Coulomb friction is an error
+    that says why: a friction law bounds a shear stress, and the materials here (fluids
+    with an equation of state, no deviatoric stress) carry none."""
+    if model == "single_velocity":
+        return "stick"
+    if value == "coulomb":
+        raise SceneError("interface.slip", value, "'free': Coulomb friction bounds the shear stress the "
+                         "materials transmit across Γ, and these materials (fluids: an equation of state, no "
+                         "deviatoric stress) carry none, so it has nothing to act on")
+    return _choice(value, "interface.slip", ("free",), ("stick",))
 
 
 def _boolean(value: Any, key: str) -> bool:
