@@ -8,4 +8,7 @@ compiled once per run (never inside the time loop).
   velocities and a DG0 interface pressure on the submesh of the mixed cells, the
   linearised constitutive law, interface traction and normal-velocity continuity —
   assembled with DOLFINx and solved with PETSc (``[interface] predictor = "assembled"``).
+- :mod:`forms.cut_quadrature`: a measure of one material's part of cut triangles, exact for
+  P1 products, in forms compiled once (moment-fitted weights refilled as the part moves),
+  for the 2D enriched mixed cells.
 """
