@@ -65,9 +65,9 @@ class CutQuadrature:
         """The measure of the interface Γ instead of a part: the segment Γ_K of each cut
         cell, given by its moments ∫_Γ ξ^a η^b ds in the cell's local coordinates (a line
         integral carried by the cell's interior points, exact for the same monomials)."""
-        self.set_part(np.zeros(0, dtype=np.int64), cut_cells, moments)
+        self.set_part(np.zeros(0, dtype=np.int64), cut_cells, moments, record=False)
 
-    def set_part(self, full_cells, cut_cells, moments) -> None:
+    def set_part(self, full_cells, cut_cells, moments, record: bool = True) -> None:
         """The part covers ``full_cells``, and of each of ``cut_cells`` the region whose
         moments ∫ ξ^a η^b dA are given — ξ, η the cell's local coordinates
         (:meth:`local_frames`), dA the physical area, (len(cut_cells), monomials of
@@ -87,7 +87,8 @@ class CutQuadrature:
             # least-norm weights: Σ_q w'_q x_q^a y_q^b = moment (square here, so exact)
             weights = np.einsum("nqk,nk->nq", np.linalg.pinv(vandermonde), np.asarray(moments, dtype=float))
             values[self._dofs[cut_cells]] = weights / (self.weights * area[:, None])
-            relative = weights / (0.5 * area[:, None])
-            self.stats["min_weight"] = float(min(self.stats["min_weight"], relative.min()))
-            self.stats["negative_weights"] += int(np.sum(weights < 0))
+            if record:  # (a part's weights, relative to the cell's area; not Γ's, which are lengths)
+                relative = weights / (0.5 * area[:, None])
+                self.stats["min_weight"] = float(min(self.stats["min_weight"], relative.min()))
+                self.stats["negative_weights"] += int(np.sum(weights < 0))
         self.ratio.x.scatter_forward()

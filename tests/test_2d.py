@@ -1010,7 +1010,7 @@ def test_a_water_air_tube_at_30_degrees_on_an_eulerian_mesh():
     assert result.status == "ok", result.diagnostic
     assert lowest["air_energy"] > 0.0
     assert lowest["air_density"] < 1e-6  # the cavity formed (near vacuum)
-    assert abs(result.conservation["total_energy"]) < 1e-12 and result.conservation["mass"] < 1e-14
+    assert abs(result.conservation["total_energy"]) < 1e-12 and abs(result.conservation["mass"]) < 1e-14
 
 
 def test_the_planar_riemann_reference_keeps_each_sides_tangential_velocity():
@@ -1081,6 +1081,11 @@ def test_a_spinning_disk_is_in_radial_equilibrium_and_recognised_as_a_steady_sta
     # a rim pressure off the outer fluid's: not a steady state, no errors taken
     off = build_problem(load_scene(resolve_scene_path("spinning-disk"), ["mesh.cells=[20,20]", "regions.1.pressure=0.9"]))
     assert off.exact.valid_until == 0 and "not a steady state" in off.exact.limit
+    # no steady state either: a side not a wall, or the disk reaching a side
+    for overrides, phrase in ((["boundaries.right=free", "mesh.motion=lagrangian"], "boundaries.right = free"),
+                              (["regions.1.disk.radius=0.6", "regions.1.pressure=0.28"], "reaches a side")):
+        other = build_problem(load_scene(resolve_scene_path("spinning-disk"), ["mesh.cells=[20,20]", *overrides]))
+        assert other.exact.valid_until == 0 and phrase in other.exact.limit
     data = tomllib.loads(resolve_scene_path("spinning-disk").read_text())
     del data["regions"][1]["pressure"]
     data["regions"][1]["total_energy"] = 1.0
@@ -1111,5 +1116,5 @@ def test_single_velocity_mixed_cells_hand_a_spinning_disks_angular_momentum_to_t
         assert abs(result.conservation["material_mass"]) < 1e-13
         gained.append((moments(result.state)[outer] - start[outer]) / problem.exact.solution.angular_momentum)
         errors.append(result.errors["L1_velocity"])
-    assert min(gained) > 0.15 and abs(gained[1] - gained[0]) < 0.1
+    assert min(gained) > 0.15 and abs(gained[1] - gained[0]) < 0.05
     assert errors[1] < 0.8 * errors[0]

@@ -26,10 +26,10 @@ def test_polygon_moments_are_exact():
         assert np.isclose(got_triangle[k], factorial(a) * factorial(b) / factorial(a + b + 2), rtol=1e-14)
 
 
-def _cut_measure(mesh, normal, offset):
-    """The CutQuadrature of {x·normal ≤ offset} on ``mesh``, and the region's polygon in
-    the unit square."""
-    cut = CutQuadrature(mesh)
+def _cut_measure(mesh, normal, offset, cut=None):
+    """The CutQuadrature of {x·normal ≤ offset} on ``mesh`` (``cut`` refilled, if given),
+    and the region's polygon in the unit square."""
+    cut = cut or CutQuadrature(mesh)
     nodes = cut._nodes
     corners = mesh.geometry.x[nodes, :2]  # (cells, 3, 2)
     distance = corners @ normal - offset
@@ -55,15 +55,12 @@ def test_cut_integrals_of_p1_products_are_exact_and_refit_without_compiling(size
     x.interpolate(lambda p: p[0])
     y.interpolate(lambda p: p[1])
     u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
-    forms = None
+    cut = forms = None
     for angle, offset in ((0.4, 0.55), (2.0, -0.1)):
         normal = np.array([np.cos(angle), np.sin(angle)])
-        cut, region, cells = _cut_measure(mesh, normal, offset)
+        cut, region, cells = _cut_measure(mesh, normal, offset, cut)  # the second time: refilled
         if forms is None:
             forms = (dolfinx.fem.form(cut.ratio * v * cut.measure), dolfinx.fem.form(cut.ratio * u * v * cut.measure))
-            ratio = cut.ratio
-        else:
-            ratio.x.array[:] = cut.ratio.x.array  # the compiled forms' coefficient, refilled
         load = dolfinx.fem.assemble_vector(forms[0]).array
         mass = dolfinx.fem.assemble_matrix(forms[1]).to_dense()
         exact = polygon_moments(region, 2)[0]  # 1, x, y, x², xy, y²
@@ -71,7 +68,7 @@ def test_cut_integrals_of_p1_products_are_exact_and_refit_without_compiling(size
         assert np.isclose(load @ x.x.array, exact[1], rtol=1e-12)
         assert np.isclose(x.x.array @ mass @ y.x.array, exact[4], rtol=1e-11)
         assert np.isclose(polygon_area(region)[0], exact[0], rtol=1e-14)
-    assert cut.stats["min_weight"] > -0.5  # measured: −0.01 of the cell's area on 8²
+    assert -0.05 < cut.stats["min_weight"] < 0  # measured: −0.024 of the cell's area at worst
 
 
 def test_quadrilaterals_are_refused_with_the_reason():

@@ -235,7 +235,7 @@ class PressureEquilibrium:
         π_α(V_α) = p_α(ρ_α, e_α^0) / (1 − S_α),  S_α = −∂p/∂e (V_α − V_α^0)/m_α,
         and defined where 1 − S_α > 0: a gas compressed at its own pressure's work cannot go
         below (γ − 1)/γ of its volume (at that bound π_α → +∞, the continuation used beyond).
-        The balance π_α(V_α) = π_β(V − V_α) is then a bracketed scalar root in V_α (Newton,
+        The balance π_α(V_α) = π_β(V − V_α) is then a bracketed scalar root in δ below (Newton,
         bisection when it leaves the bracket), which cannot leave the admissible states.
         (Newton on p* with a corrector at fixed work pressure converged, for a trace of air
         against water in tension, to a spurious root of compressed air at negative energy:

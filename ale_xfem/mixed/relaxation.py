@@ -1,8 +1,9 @@
 """Pressure relaxation of mixed cells (paper §3): at the start of each step the materials of
 a mixed cell are brought to one pressure at fixed cell volume, so both compress or expand
-together and the interface cannot leave the cell during the predictor.  The solve is the
-pressure equilibrium of :mod:`ale_xfem.mixed.equilibrium` with B = 0 and the energy
-exchange dE_α = −p* dV_α (p* the final common pressure): energy is conserved."""
+together and the interface cannot leave the cell during the predictor.  The solve is
+:meth:`ale_xfem.mixed.equilibrium.PressureEquilibrium.relax` (a bracketed root in the volume
+one material takes from the other) with the energy exchange dE_α = −p* dV_α (p* the final
+common pressure): energy is conserved."""
 
 from __future__ import annotations
 

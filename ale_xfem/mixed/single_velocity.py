@@ -72,7 +72,8 @@ class SingleVelocityClosure(SharedClosure):
         # as in pure cells (compatible: total energy conserved)
         work = (e_new[0, cells] - state.material_energy[0, cells]) * state.material_mass[0, cells]
         time, pa_pred, pb_pred = self._predicted_pressures
-        assert time == state.time, "end_of_step without the predicted view of its step"
+        if time != state.time:
+            raise RuntimeError("end_of_step without the predicted view of its step")
         viscosity = 0.5 * (first.viscosity[cells] + predicted.viscosity[cells])
         work_left = 0.5 * (state.material_pressure[0, cells] + pa_pred) + viscosity
         work_right = 0.5 * (state.material_pressure[1, cells] + pb_pred) + viscosity

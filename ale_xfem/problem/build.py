@@ -531,8 +531,9 @@ def exact_reference_2d(scene: Scene) -> ExactReference | None:
 
 
 def _spinning_disk(scene: Scene) -> ExactReference | None:
-    """A disk spinning about its centre (``rotation``) inside a box of fluid at rest that
-    covers the domain, its rim pressure the outer fluid's: the steady state of
+    """A disk spinning about its centre (``rotation``), inside the domain, in a box of fluid
+    at rest that covers it, walls on every side, its rim pressure the outer fluid's: the
+    steady state of
     :class:`ale_xfem.exact.planar_2d.SpinningDisk`, for ever.  Anything else: None."""
     from ale_xfem.exact.planar_2d import SpinningDisk
     from ale_xfem.geometry.shapes import Box, Disk
@@ -545,9 +546,18 @@ def _spinning_disk(scene: Scene) -> ExactReference | None:
             and isinstance(disk.shape, Disk) and disk.rotation is not None and outer.rotation is None
             and outer.velocity == (0.0, 0.0) and disk.velocity == (0.0, 0.0)
             and outer.radial_velocity is None and disk.radial_velocity is None
-            and tuple(disk.rotation[:2]) == tuple(disk.shape.center)):
+            and tuple(disk.rotation[:2]) == tuple(disk.shape.center) and outer.total_energy is None):
         return None
     omega, radius = disk.rotation[2], disk.shape.radius
+    (cx, cy) = disk.shape.center
+    if min(cx - x0, x1 - cx, cy - y0, y1 - cy) < radius:
+        return ExactReference("spinning_disk", None, 0.0, limit="the disk reaches a side of the domain: not the "
+                              "steady state of a disk in an unbounded fluid at rest")
+    held = [side for side, b in scene.boundaries.items() if b.kind != "wall"]
+    if held:
+        return ExactReference("spinning_disk", None, 0.0, limit=(
+            f"boundaries.{held[0]} = {scene.boundaries[held[0]].kind}: the fluid at rest is held by walls only "
+            "in the steady state"))
     rim = disk.pressure + 0.5 * disk.density * omega**2 * radius**2
     if abs(rim - outer.pressure) > 1e-9 * max(abs(rim), abs(outer.pressure), disk.density * (omega * radius) ** 2):
         return ExactReference("spinning_disk", None, 0.0, limit=(
