@@ -115,3 +115,12 @@ def test_interface_integrals_of_p1_products_are_exact():
     assert np.isclose(load.sum(), np.linalg.norm(b - a), rtol=1e-12) and np.isclose(load.sum(), exact[0], rtol=1e-12)
     assert np.isclose(load @ x.x.array, exact[1], rtol=1e-12)
     assert np.isclose(x.x.array @ mass @ y.x.array, exact[4], rtol=1e-11)
+
+
+def test_the_measure_fits_the_monomials_in_the_order_the_moments_come_in():
+    """forms/ imports nothing of the package, so CutQuadrature writes its monomials' order
+    itself: it must be geometry.shapes.monomials's, in which polygon_moments and
+    segment_moments return their integrals."""
+    mesh = dolfinx.mesh.create_unit_square(MPI.COMM_WORLD, 2, 2, dolfinx.mesh.CellType.triangle)
+    for degree in (1, 2):
+        assert CutQuadrature(mesh, exact_degree=degree).exponents == monomials(degree)

@@ -200,6 +200,13 @@ class Remapper:
             self.general_remaps += 1
         return result
 
+    def _thermodynamics(self, layout, result):
+        """(layout, density, pressure, sound speed) of a remap's result."""
+        new_layout = layout.updated(result.cell_material)
+        density = density_of(result.material_mass, result.material_volume)
+        return (new_layout, density,
+                *thermodynamics(self.materials, new_layout, density, result.material_energy))
+
     def _remap_all(self, state, layout, mixed):
         cells = mixed.cells if mixed is not None else np.zeros(0, dtype=np.int64)
         interface_velocity = (state.interface_velocity if mixed is not None
@@ -214,18 +221,14 @@ class Remapper:
                      interface_velocity, len(self.materials), self.order)
         condensed = mixed is None or mixed.model == "enriched"
         result = self._remap_1d(arguments, condensed, self.heat)
-        new_layout = layout.updated(result.cell_material)
-        density = density_of(result.material_mass, result.material_volume)
-        pressure, sound_speed = thermodynamics(self.materials, new_layout, density, result.material_energy)
+        new_layout, density, pressure, sound_speed = self._thermodynamics(layout, result)
         if self.heat and not np.all(np.isfinite(sound_speed[result.material_mass > 0])):
             # The kinetic energy a node gained, taken from the cells around it, left a
             # material outside its equation of state's domain (cold air beside water at
             # 1e9 Pa): the remap is done again with only the losses deposited.
             self.energy_limited += 1
             result = self._remap_1d(arguments, condensed, "positive")
-            new_layout = layout.updated(result.cell_material)
-            density = density_of(result.material_mass, result.material_volume)
-            pressure, sound_speed = thermodynamics(self.materials, new_layout, density, result.material_energy)
+            new_layout, density, pressure, sound_speed = self._thermodynamics(layout, result)
         self.corner_mass = result.corner_mass
         new_mixed, interface_pressure, new_interface_velocity = None, None, None
         if result.mixed_cells.size:
