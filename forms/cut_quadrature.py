@@ -49,8 +49,7 @@ class CutQuadrature:
             raise ValueError(f"exact_degree {exact_degree} needs {len(self.exponents)} points; the rule of degree "
                              f"{rule_degree} has {self.weights.size}")
         self.stats = {"min_weight": 1.0, "negative_weights": 0}
-        n_cells = mesh.topology.index_map(2).size_local + mesh.topology.index_map(2).num_ghosts
-        self._dofs = np.array([self.space.dofmap.cell_dofs(c) for c in range(n_cells)])
+        self._dofs = np.asarray(self.space.dofmap.list)  # (cells, points)
         self._nodes = np.asarray(mesh.geometry.dofmaps[0])
 
     def local_frames(self, cut_cells):

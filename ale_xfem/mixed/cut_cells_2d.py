@@ -1,0 +1,205 @@
+"""What the 2D enriched mixed cells need of their cut geometry (triangles): each
+material's part (volume, centroid, exact moments), the interface segment, the edge flux
+G_mi = Σ_e ∫_{e∩m} ψ_i n_e with each edge's parts shared by its two cells, which node
+carries which material's mass (mass condensation, paper fig. 3) — the inputs of the forms
+of ``forms/enriched_interface.py``.
+
+**Edges shared by their two cells.**  The parts of an edge inside each material are read
+the same way from both of its cells: an edge next to a pure cell belongs wholly to that
+cell's material; an edge between two mixed cells (or on the boundary) is cut where a nodal
+level set changes sign, φ_i the mean over the mixed cells around node i of its signed
+distance to their PLIC lines (each cell's own line would cut a shared edge at two
+different points).  A uniform pressure then pushes every node equally from all sides,
+whatever the reconstruction.
+
+**Mass condensation.**  A node *lies in* the material of the pure cells around it; a node
+with none (every cell around it mixed) lies in the material holding the larger share of the
+area around it.  In a mixed cell each material's mass goes to the cell's nodes that lie in
+it, split in proportion to ∫_{K_m} ψ_i (the part's consistent row sums, which carries the
+external nodes' shares onto the internal ones); the other nodes carry none of it: their
+momentum equations are the interface's static equilibrium — but for a small inertia
+(``EXTERNAL_SHARE`` of their consistent share, below).  **Slivers**: a material whose
+part contains none of the cell's nodes (a trace of it, or an interface close to a node)
+gives its whole mass to the cell's node nearest its part (the largest ∫_{K_m} ψ_i): that
+node then carries both materials' masses, one velocity each.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ale_xfem.geometry.shapes import polygon_area, polygon_centroid, polygon_moments, segment_moments
+from ale_xfem.model.plic import Reconstruction
+
+# The share of its consistent mass ∫_{K_m} ρ_m ψ_i an external node keeps (the rest goes to
+# the internal nodes).  Massless external nodes leave the implicit system singular in 2D:
+# their velocities enter only through the parts' volume changes and the normal jump (three
+# conditions a cell), and a bubble per material adds two unknowns a cell that meet the same
+# conditions — velocity modes that change no volume and no jump are free (measured: the
+# bubble system on a disk on 6 × 6 triangles had singular values 1e-14 of its largest, and
+# its solution at rest was 1e18).  A small inertia picks, among those modes, the one closest
+# to the external node's previous velocity; total mass and momentum are exact (every node's
+# mass is counted).
+EXTERNAL_SHARE = 1e-3
+
+
+@dataclass
+class CutCells:
+    """The cut geometry of the mixed cells (arrays over them; material slot m = 0: α, 1: β)."""
+
+    cells: np.ndarray  # (n,)
+    vertices: np.ndarray  # (n, 3, 2) the cells' corners, counter-clockwise
+    reconstruction: Reconstruction
+    volume: np.ndarray  # (2, n) V_m, the parts' areas
+    centroid: np.ndarray  # (2, n, 2)
+    edge_flux: np.ndarray  # (2, n, 3, 2) G_mi for the cell's vertices in cell_nodes order
+
+    @property
+    def normal(self) -> np.ndarray:
+        return self.reconstruction.normal
+
+    def part_moments(self, origin, scale, degree: int = 2) -> np.ndarray:
+        """(2, n, k): ∫_{K_m} ξ^a η^b dA in local coordinates ξ = (x − origin) / scale."""
+        moments = []
+        for polygon in (self.reconstruction.alpha, self.reconstruction.beta):
+            local = (polygon - origin[:, None, :]) / scale[:, None, None]
+            moments.append(polygon_moments(local, degree) * scale[:, None] ** 2)
+        return np.stack(moments)
+
+    def interface_moments(self, origin, scale, degree: int = 2) -> np.ndarray:
+        """(n, k): ∫_{Γ_K} ξ^a η^b ds in local coordinates."""
+        start = (self.reconstruction.start - origin) / scale[:, None]
+        end = (self.reconstruction.end - origin) / scale[:, None]
+        return segment_moments(start, end, degree) * scale[:, None]
+
+    def normal_flux(self, m: int, velocity, nodes) -> np.ndarray:
+        """(n,): ∫_Γ u·n_m = ∫_{K_m} ∇·u − Σ_i G_mi·u_i for a P1 velocity (2, n_nodes) of
+        material m; ``nodes`` (n, 3) the cells' nodes."""
+        x = self.vertices
+        area = 0.5 * ((x[:, 1, 0] - x[:, 0, 0]) * (x[:, 2, 1] - x[:, 0, 1])
+                      - (x[:, 1, 1] - x[:, 0, 1]) * (x[:, 2, 0] - x[:, 0, 0]))
+        u = np.moveaxis(velocity[:, nodes], 0, -1)  # (n, 3, 2)
+        opposite = np.roll(x, -1, axis=1) - np.roll(x, 1, axis=1)  # x_{i+1} − x_{i−1}
+        area_gradient = 0.5 * np.stack([opposite[..., 1], -opposite[..., 0]], axis=-1)  # ∂|K|/∂x_i
+        divergence = np.einsum("nkd,nkd->n", u, area_gradient) / area
+        return self.volume[m] * divergence - np.einsum("nkd,nkd->n", self.edge_flux[m], u)
+
+    def vertex_integrals(self) -> np.ndarray:
+        """(2, n, 3): ∫_{K_m} ψ_i = V_m ψ_i(centroid of K_m) (ψ_i linear)."""
+        x = self.vertices
+        e1, e2 = x[:, 1] - x[:, 0], x[:, 2] - x[:, 0]
+        det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
+        out = np.empty((2,) + x.shape[:2])
+        for m in range(2):
+            d = self.centroid[m] - x[:, 0]
+            l1 = (d[:, 0] * e2[:, 1] - d[:, 1] * e2[:, 0]) / det
+            l2 = (e1[:, 0] * d[:, 1] - e1[:, 1] * d[:, 0]) / det
+            out[m] = self.volume[m][:, None] * np.stack([1.0 - l1 - l2, l1, l2], axis=1)
+        return out
+
+
+def cut_cells(cell_nodes, node_position, cells, reconstruction: Reconstruction, cell_material,
+              alpha_material) -> CutCells:
+    """The cut geometry of the mixed cells ``cells`` of a triangle mesh.  ``cell_material``
+    (n_cells,): each cell's material, −1 for mixed cells; ``alpha_material`` (n,): each mixed
+    cell's α (slot 0) material.  α is {x·n ≤ s} in ``reconstruction``."""
+    cells = np.asarray(cells)
+    nodes = cell_nodes[cells]  # (n, 3)
+    vertices = np.moveaxis(node_position[:, nodes], 0, -1)
+    polygons = (reconstruction.alpha, reconstruction.beta)
+    volume = np.stack([np.abs(polygon_area(p)) for p in polygons])
+    centroid = np.stack([polygon_centroid(p) for p in polygons])
+    # the nodal level set: out of α positive, in a common orientation for the mixed cells
+    # around a node (the material of lower id inside); each cell's sign brings it back
+    orientation = np.where(alpha_material <= np.min(alpha_material), 1.0, -1.0)
+    distance = (np.einsum("nkd,nd->nk", vertices, reconstruction.normal) - reconstruction.offset[:, None])
+    n_nodes = node_position.shape[1]
+    total, count = np.zeros(n_nodes), np.zeros(n_nodes)
+    np.add.at(total, nodes.ravel(), (distance * orientation[:, None]).ravel())
+    np.add.at(count, nodes.ravel(), 1.0)
+    level = total / np.maximum(count, 1.0)
+    d = level[nodes] * orientation[:, None]  # (n, 3) < 0 inside α
+    # each local edge k: vertices k → k+1; α's interval [t0, t1] along it
+    start, end = d, np.roll(d, -1, axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        crossing = np.clip(start / (start - end), 0.0, 1.0)
+    inside_start, inside_end = start < 0.0, end < 0.0
+    t0 = np.where(inside_start, 0.0, np.where(inside_end, crossing, 1.0))
+    t1 = np.where(inside_start, np.where(inside_end, 1.0, crossing), 1.0)
+    # an edge next to a pure cell is that cell's material, wholly
+    neighbour = _edge_neighbours(cell_nodes, cells)  # (n, 3), −1 on the boundary
+    neighbour_material = np.where(neighbour >= 0, cell_material[np.maximum(neighbour, 0)], -1)
+    whole_alpha = neighbour_material == alpha_material[:, None]
+    whole_beta = (neighbour_material >= 0) & ~whole_alpha
+    t0 = np.where(whole_alpha, 0.0, np.where(whole_beta, 1.0, t0))
+    t1 = np.where(whole_alpha | whole_beta, 1.0, t1)
+    along = np.roll(vertices, -1, axis=1) - vertices  # (n, 3, 2)
+    outward = np.stack([along[..., 1], -along[..., 0]], axis=-1)  # |e| n_e for a counter-clockwise cell
+    first = (t1 - t0) - 0.5 * (t1**2 - t0**2)  # ∫ (1 − t) dt over α's interval
+    second = 0.5 * (t1**2 - t0**2)  # ∫ t dt
+    alpha_flux = outward * first[..., None] + np.roll(outward * second[..., None], 1, axis=1)
+    whole = outward * 0.5 + np.roll(outward * 0.5, 1, axis=1)
+    edge_flux = np.stack([alpha_flux, whole - alpha_flux])
+    return CutCells(cells, vertices, reconstruction, volume, centroid, edge_flux)
+
+
+def _edge_neighbours(cell_nodes, cells):
+    """(n, 3): the cell across local edge k (vertices k → k+1) of each of ``cells``."""
+    k = cell_nodes.shape[1]
+    start, end = cell_nodes.ravel(), np.roll(cell_nodes, -1, axis=1).ravel()
+    key = np.minimum(start, end) * (cell_nodes.max() + 1) + np.maximum(start, end)
+    order = np.argsort(key, kind="stable")
+    sorted_key = key[order]
+    owner = np.repeat(np.arange(cell_nodes.shape[0]), k)
+    ours = key.reshape(-1, k)[cells]  # (n, 3)
+    left = np.searchsorted(sorted_key, ours, side="left")
+    right = np.searchsorted(sorted_key, ours, side="right")
+    own = np.asarray(cells)[:, None]
+    first = owner[order[left]]
+    second = np.where(right - left == 2, owner[order[np.minimum(left + 1, key.size - 1)]], -1)
+    return np.where(right - left == 2, np.where(first == own, second, first), -1)
+
+
+def node_materials(cell_nodes, n_nodes, cell_material, cell_volume, material_volume, material_of_slot):
+    """The material each node lies in (module docstring): (n_nodes,) material id, and a
+    flag of the nodes with pure cells of two materials around them.  ``cell_material``:
+    each cell's material (−1: mixed); ``material_volume`` (2, n_cells) and
+    ``material_of_slot`` (2, n_cells) the materials' areas in each cell."""
+    n_materials = int(material_of_slot.max()) + 1
+    pure_count = np.zeros((n_materials, n_nodes))
+    share = np.zeros((n_materials, n_nodes))
+    k = cell_nodes.shape[1]
+    pure = cell_material >= 0
+    np.add.at(pure_count, (np.repeat(cell_material[pure], k), cell_nodes[pure].ravel()), 1.0)
+    for slot in range(material_of_slot.shape[0]):
+        present = material_of_slot[slot] >= 0
+        np.add.at(share, (np.repeat(material_of_slot[slot, present], k), cell_nodes[present].ravel()),
+                  np.repeat(material_volume[slot, present], k))
+    has_pure = pure_count.sum(axis=0) > 0
+    owner = np.where(has_pure, np.argmax(pure_count, axis=0), np.argmax(share, axis=0))
+    two_pure = (pure_count > 0).sum(axis=0) > 1
+    return owner, two_pure
+
+
+def condensed_masses(cut: CutCells, cell_nodes, node_material, mass, materials,
+                     external_share: float = EXTERNAL_SHARE) -> np.ndarray:
+    """(2, n, 3): each material's mass in each mixed cell lumped onto the cell's nodes that
+    lie in it, or onto the node nearest its part when none does (module docstring); the
+    external nodes keep ``external_share`` of their consistent share.  ``mass`` (2, n): the
+    materials' masses in the mixed cells; ``materials`` (2, n) their ids."""
+    nodes = cell_nodes[cut.cells]
+    shares = cut.vertex_integrals()  # (2, n, 3)
+    out = np.zeros_like(shares)
+    for m in range(2):
+        inside = node_material[nodes] == materials[m][:, None]
+        weight = np.where(inside, shares[m], external_share * shares[m])
+        sliver = ~np.any(inside & (shares[m] > 0.0), axis=1)
+        nearest = np.argmax(shares[m], axis=1)
+        weight[sliver, nearest[sliver]] = shares[m][sliver, nearest[sliver]]
+        total = weight.sum(axis=1)
+        # (a part of zero area has no mass to place)
+        out[m] = mass[m][:, None] * np.divide(weight, total[:, None], out=np.zeros_like(weight),
+                                              where=total[:, None] > 0.0)
+    return out

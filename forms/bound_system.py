@@ -1,0 +1,70 @@
+"""A linear system of compiled forms bound to one mesh (the submesh of the mixed cells):
+its forms, matrix, vectors and KSP created once, refilled and solved at every call — what
+the 1D predictor (:mod:`forms.mixed_cell`) and the 2D enriched system
+(:mod:`forms.enriched_interface`) share."""
+
+from __future__ import annotations
+
+import dolfinx_solver  # noqa: F401  (before dolfinx: it loads MPI and PETSc)
+import dolfinx
+import dolfinx.fem.petsc
+from petsc4py import PETSc
+
+REFINEMENTS = 3  # rounds of iterative refinement after the direct solve
+
+
+class BoundSystem:
+    """``compiled_bilinear`` and ``compiled_linear`` (dolfinx.fem.compile_form) bound to
+    ``space`` on ``mesh`` with ``coefficient_map`` (abstract coefficient → Function); a
+    direct LU solve (``factor_solver``: PETSc's own when None) whose KSP options can be
+    overridden by ``petsc_options``."""
+
+    def __init__(self, compiled_bilinear, compiled_linear, space, mesh, coefficient_map,
+                 factor_solver: str | None = None, petsc_options: dict | None = None):
+        self.bilinear = dolfinx.fem.create_form(compiled_bilinear, [space, space], mesh, {}, coefficient_map, {})
+        self.linear = dolfinx.fem.create_form(compiled_linear, [space], mesh, {}, coefficient_map, {})
+        self.matrix = dolfinx.fem.petsc.create_matrix(self.bilinear)
+        self.vector = dolfinx.fem.petsc.create_vector(space)
+        self.solution = self.matrix.createVecRight()
+        self.residual = self.matrix.createVecRight()
+        self.correction = self.matrix.createVecRight()
+        self.solver = PETSc.KSP().create(mesh.comm)
+        self.solver.setOperators(self.matrix)
+        self.solver.setType("preonly")
+        self.solver.getPC().setType("lu")
+        if factor_solver is not None:
+            self.solver.getPC().setFactorSolverType(factor_solver)
+        if petsc_options:
+            prefix = f"ale_xfem_{id(self)}_"
+            self.solver.setOptionsPrefix(prefix)
+            options = PETSc.Options()
+            for key, value in petsc_options.items():
+                options[prefix + key] = value
+            self.solver.setFromOptions()
+
+    def assemble(self):
+        """Assemble the matrix and the forms' right side; returns the right side's array
+        (writable: explicit terms are added to it, then :meth:`solve`)."""
+        self.matrix.zeroEntries()
+        dolfinx.fem.petsc.assemble_matrix(self.matrix, self.bilinear)
+        self.matrix.assemble()
+        with self.vector.localForm() as local:
+            local.set(0.0)
+        dolfinx.fem.petsc.assemble_vector(self.vector, self.linear)
+        return self.vector.getArray(readonly=False)
+
+    def solve(self, right_side, what: str):
+        """Solve with ``right_side`` (the array of :meth:`assemble`, completed) and
+        REFINEMENTS rounds of iterative refinement; returns the solution's array.  ``what``
+        names the system in the error of a failed factorisation."""
+        self.vector.setArray(right_side)
+        self.solver.solve(self.vector, self.solution)
+        reason = self.solver.getConvergedReason()
+        if reason < 0:
+            raise RuntimeError(f"{what}: the KSP failed (PETSc reason {reason})")
+        for _ in range(REFINEMENTS):
+            self.matrix.mult(self.solution, self.residual)
+            self.residual.aypx(-1.0, self.vector)
+            self.solver.solve(self.residual, self.correction)
+            self.solution.axpy(1.0, self.correction)
+        return self.solution.getArray()

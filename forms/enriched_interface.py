@@ -1,0 +1,397 @@
+"""The implicit system of 2D enriched mixed cells as UFL forms (the paper's §2 and §3.2;
+docs/design.md "2D enriched mixed cells"), compiled once per run and bound to the current
+mixed cells without compiling.
+
+Unknowns on the submesh of the mixed cells, for each material m of a cell (α: slot 0, β:
+slot 1): its mean velocity over the step ū_m (vector P1 at every node of every mixed cell:
+the doubled velocities, internal and external nodes), its pressure at the end of the step
+P_m (DG0) and, by stabilisation,
+
+- ``"none"``:   the interface pressure p_Γ (DG0): the natural P1–P0 pair, not inf-sup stable;
+- ``"bubble"``: p_Γ and one massless bubble per material per cell along the normal, b n (a
+  bubble along Γ would have no equation under free slip — a fluid carries no shear — and
+  under stick would meet the tangential condition by itself, inside the cell); zero on ∂K,
+  a bubble touches no neighbour;
+- ``"nitsche"``: no multiplier: the interface pressure is the weighted average of the two
+  materials' pressures plus a penalty on the normal velocity jump,
+  p̂ = w_α P_α + w_β P_β + γ [ū·n],
+  w_m = (V_m/κ_m) / Σ_k (V_k/κ_k), γ = 2 a |Γ_K| / Σ_k (V_k/κ_k), κ_m = ρ_m c_m² dt
+  (Annavarapu, Hautefeuille & Dolbow 2012: the larger part dominates, the penalty stays
+  bounded on slivers), a the factor ``interface.nitsche_penalty``; symmetric.
+
+``slip = "stick"`` constrains the whole velocity jump (vector multiplier; Nitsche: the
+tangential jump penalised too, a fluid having no shear stress to average).
+
+Rows, for material m with test functions v (v₁ its P1 part), r (its pressure):
+
+    (4M_m/dt)(ū₁_m − u_m^n)·v₁ − ∫_{K_m} P_m ∇·v + (interface) = 2F̄ + f^n     (velocity)
+    −∫_{K_m} r ∇·ū_m − ∫_{K_m} g_m (P_m − c_m) r = 0                          (pressure)
+
+with g_m = −1/(D_m dt V_m) > 0, D_m = dp/dV along the material's adiabat, c_m its
+linearisation offset: P_m = c_m + D_m dt ∫_{K_m} ∇·ū_m, the volume of m's part changing by
+dt ∫_{K_m} ∇·ū_m (exact: the part moves with its own velocity).  The velocity row is the
+trapezoidal momentum of an internal node, doubled so that its n+1 force has weight one
+(M_m its condensed mass, the right side the pure cells' time-centred forces and the mixed
+cells' forces at n), and the static equilibrium of an external node (M_m = 0, nothing on
+the right) — the paper's §2.2.1.
+
+**The interface functional.**  ∫_Γ v·n_m enters every multiplier term.  It is written
+
+    I_m(v) = ∫_{K_m} ∇·v − Σ_edges ∫_{e ∩ m} v₁·n_e
+
+(the divergence theorem on m's part; a bubble vanishes on the edges), with the length of
+each edge inside m shared by the two cells of the edge: a pure neighbour's edge is whole,
+and two mixed cells take the mean of their reconstructions' cuts.  The force of a uniform
+pressure on any node then sums to zero around it whatever the reconstruction (PLIC cuts do
+not meet across edges): a state at rest stays at rest.  The edge term enters the forms as a
+DG1 vector E_m with the vertex rule, ∫_K E_m·v₁ = Σ_i G_mi·v_i, G_mi = Σ_e ∫_{e∩m} ψ_i n_e.
+
+Cut-cell integrals use the moment-fitted measures of :mod:`forms.cut_quadrature` (exact
+for the quadratic ∇·(b n) of a bubble and for the P1 products of the Nitsche penalty on Γ).
+"""
+
+from __future__ import annotations
+
+import basix
+import basix.ufl
+import dolfinx_solver  # noqa: F401  (before dolfinx: it loads MPI and PETSc)
+import dolfinx
+import dolfinx.fem.petsc
+import numpy as np
+import ufl
+from petsc4py import PETSc
+
+from forms.cut_quadrature import CutQuadrature
+
+STABILISATIONS = ("none", "bubble", "nitsche")
+SLIPS = ("free", "stick")
+RULE_DEGREE = 4  # the cut measures' rule: six points, weights exact for degree 2
+REFINEMENTS = 3  # rounds of iterative refinement after the direct solve
+
+_MATERIAL_COEFFICIENTS = ("mass", "part", "edge_flux", "compliance", "offset")
+_CELL_COEFFICIENTS = ("normal", "interface", "weight", "penalty")
+
+
+class InterfaceForms:
+    """The bilinear and linear forms of the system (module docstring), written on an
+    abstract triangle mesh and compiled once; :class:`InterfaceSystem` binds them."""
+
+    def __init__(self, comm, stabilisation: str = "bubble", slip: str = "free"):
+        if stabilisation not in STABILISATIONS:
+            raise ValueError(f"stabilisation {stabilisation!r}: one of {', '.join(STABILISATIONS)}")
+        if slip not in SLIPS:
+            raise ValueError(f"slip {slip!r}: one of {', '.join(SLIPS)}")
+        self.stabilisation, self.slip = stabilisation, slip
+        cell = basix.CellType.triangle
+        domain = ufl.Mesh(basix.ufl.element("Lagrange", cell, 1, shape=(2,)))
+        velocity = basix.ufl.element("Lagrange", cell, 1, shape=(2,))
+        scalar0 = basix.ufl.element("DG", cell, 0)
+        stick = slip == "stick"
+        blocks = [velocity, velocity]  # ū₁_α, ū₁_β
+        self.bubbles = stabilisation == "bubble"
+        if self.bubbles:
+            # a normal bubble per material, for stick too: a tangential bubble would meet the
+            # tangential condition by itself, inside the cell, and leave the nodes sliding
+            normal_bubble = basix.ufl.element("Bubble", cell, 3)
+            blocks += [normal_bubble, normal_bubble]
+        blocks += [scalar0, scalar0]  # P_α, P_β
+        self.multiplier = stabilisation != "nitsche"
+        if self.multiplier:
+            blocks.append(basix.ufl.element("DG", cell, 0, shape=(2,)) if stick else scalar0)
+        self.blocks = blocks
+        self.mixed_element = basix.ufl.mixed_element(blocks)
+        space = ufl.FunctionSpace(domain, self.mixed_element)
+
+        def function_space(family, degree, shape=()):
+            return ufl.FunctionSpace(domain, basix.ufl.element(family, cell, degree, shape=shape))
+
+        quadrature = ufl.FunctionSpace(domain, basix.ufl.quadrature_element(
+            "triangle", value_shape=(), scheme="default", degree=RULE_DEGREE))
+        kinds = {"mass": function_space("Lagrange", 1, (2,)), "part": quadrature,
+                 "edge_flux": function_space("DG", 1, (2,)), "compliance": function_space("DG", 0),
+                 "offset": function_space("DG", 0), "normal": function_space("DG", 0, (2,)),
+                 "interface": quadrature, "weight": function_space("DG", 0), "penalty": function_space("DG", 0)}
+        self.coefficients = {}
+        for name in _MATERIAL_COEFFICIENTS:
+            for side in "ab":
+                self.coefficients[f"{name}_{side}"] = ufl.Coefficient(kinds[name])
+        for name in _CELL_COEFFICIENTS:
+            self.coefficients[name] = ufl.Coefficient(kinds[name])
+        c = self.coefficients
+
+        trial, test = ufl.TrialFunctions(space), ufl.TestFunctions(space)
+        n = c["normal"]
+        lumped = ufl.dx(scheme="vertex", degree=1)
+        cut = ufl.dx(metadata={"quadrature_degree": RULE_DEGREE, "quadrature_scheme": "default"})
+
+        def unpack(functions):
+            u1 = list(functions[:2])
+            k = 2
+            total = list(u1)
+            if self.bubbles:
+                for m in range(2):
+                    total[m] = u1[m] + functions[k + m] * n
+                k += 2
+            pressures = list(functions[k:k + 2])
+            multiplier = functions[k + 2] if self.multiplier else None
+            return u1, total, pressures, multiplier
+
+        u1, u, P, lam = unpack(trial)
+        v1, v, R, mu = unpack(test)
+        sides = ("a", "b")
+
+        def interface_functional(factor, m, whole, linear):
+            """factor · I_m(w), I_m(w) = ∫_Γ w·n_m (module docstring), factor constant in K."""
+            return (factor * c[f"part_{sides[m]}"] * ufl.div(whole) * cut
+                    - factor * ufl.dot(c[f"edge_flux_{sides[m]}"], linear) * lumped)
+
+        def turned(w):
+            """J w with (J w)·n = w·t, t = (−n_y, n_x): ∫_Γ w·t_m = I_m(J w)."""
+            return ufl.as_vector([w[1], -w[0]])
+
+        bilinear, linear = 0, 0
+        for m, side in enumerate(sides):
+            part = c[f"part_{side}"]
+            bilinear += ufl.inner(ufl.elem_mult(c[f"mass_{side}"], u1[m]), v1[m]) * lumped
+            bilinear -= part * P[m] * ufl.div(v[m]) * cut
+            bilinear -= part * R[m] * ufl.div(u[m]) * cut
+            bilinear -= part * c[f"compliance_{side}"] * P[m] * R[m] * cut
+            linear -= part * c[f"compliance_{side}"] * c[f"offset_{side}"] * R[m] * cut
+        if self.multiplier:
+            for m in range(2):
+                if stick:  # λ = (λ_n, λ_t): ∫_Γ λ_n [v·n] + λ_t [v·t]
+                    bilinear += interface_functional(lam[0], m, v[m], v1[m])
+                    bilinear += interface_functional(mu[0], m, u[m], u1[m])
+                    bilinear += interface_functional(lam[1], m, turned(v[m]), turned(v1[m]))
+                    bilinear += interface_functional(mu[1], m, turned(u[m]), turned(u1[m]))
+                else:
+                    bilinear += interface_functional(lam, m, v[m], v1[m])
+                    bilinear += interface_functional(mu, m, u[m], u1[m])
+        else:
+            # Nitsche: ∫_Γ p̂ [v·n] with p̂ = Σ_m w_m P_m + γ [ū·n] (symmetric: its adjoint in
+            # the pressure rows)
+            weights = (c["weight"], 1.0 - c["weight"])
+            for m in range(2):
+                for k in range(2):
+                    bilinear += interface_functional(weights[m] * P[m], k, v[k], v1[k])
+                    bilinear += interface_functional(weights[m] * R[m], k, u[k], u1[k])
+            jump_u, jump_v = u[0] - u[1], v[0] - v[1]
+            gamma, on_gamma = c["penalty"], c["interface"]
+            bilinear += gamma * ufl.dot(jump_u, n) * ufl.dot(jump_v, n) * on_gamma * cut
+            if stick:
+                tangent = ufl.as_vector([-n[1], n[0]])
+                bilinear += gamma * ufl.dot(jump_u, tangent) * ufl.dot(jump_v, tangent) * on_gamma * cut
+        self.bilinear = dolfinx.fem.compile_form(comm, bilinear)
+        self.linear = dolfinx.fem.compile_form(comm, linear)
+
+
+class InterfaceSystem:
+    """The forms of :class:`InterfaceForms` bound to the mixed cells ``cells`` of a triangle
+    mesh (their submesh), assembled and solved with PETSc; matrix, vectors and KSP are
+    created here once and refilled at every solve.  ``petsc_options``: the KSP and PC
+    settings (default: a direct LU solve by MUMPS)."""
+
+    def __init__(self, mesh, cells, forms: InterfaceForms, petsc_options: dict | None = None):
+        self.forms = forms
+        mesh.topology.create_connectivity(2, 0)
+        cells = np.asarray(cells, dtype=np.int32)
+        self.submesh, entity_map, _, geometry_map = dolfinx.mesh.create_submesh(mesh, 2, cells)
+        sub = self.submesh
+        n_sub = sub.topology.index_map(2).size_local
+        parent = entity_map.sub_topology_to_topology(np.arange(n_sub, dtype=np.int32), inverse=False)
+        order = np.argsort(cells)
+        # submesh cell s is the input_index[s]-th of ``cells``
+        self.input_index = order[np.searchsorted(cells[order], parent)]
+        self.geometry_map = np.asarray(geometry_map)
+        self.sub_nodes = np.asarray(sub.geometry.dofmaps[0])  # (n_sub, 3) submesh geometry nodes
+        self.parent_nodes = self.geometry_map[self.sub_nodes]  # (n_sub, 3) parent node of each vertex
+        self.space = dolfinx.fem.functionspace(sub, forms.mixed_element)
+        collapsed = [self.space.sub(i).collapse() for i in range(len(forms.blocks))]
+        self.maps = [np.asarray(m).ravel() for _, m in collapsed]
+        V1 = dolfinx.fem.functionspace(sub, ("Lagrange", 1, (2,)))
+        DG0 = dolfinx.fem.functionspace(sub, ("DG", 0))
+        DG1v = dolfinx.fem.functionspace(sub, ("DG", 1, (2,)))
+        DG0v = dolfinx.fem.functionspace(sub, ("DG", 0, (2,)))
+        self.parts = [CutQuadrature(sub, RULE_DEGREE, 2) for _ in range(2)]
+        self.interface = CutQuadrature(sub, RULE_DEGREE, 2)
+        functions = {}
+        for m, side in enumerate("ab"):
+            functions[f"mass_{side}"] = dolfinx.fem.Function(V1)
+            functions[f"part_{side}"] = self.parts[m].ratio
+            functions[f"edge_flux_{side}"] = dolfinx.fem.Function(DG1v)
+            functions[f"compliance_{side}"] = dolfinx.fem.Function(DG0)
+            functions[f"offset_{side}"] = dolfinx.fem.Function(DG0)
+        functions["normal"] = dolfinx.fem.Function(DG0v)
+        functions["interface"] = self.interface.ratio
+        functions["weight"] = dolfinx.fem.Function(DG0)
+        functions["penalty"] = dolfinx.fem.Function(DG0)
+        self.functions = functions
+        coefficient_map = {forms.coefficients[name]: functions[name] for name in forms.coefficients}
+        self.bilinear = dolfinx.fem.create_form(forms.bilinear, [self.space, self.space], sub, {},
+                                                coefficient_map, {})
+        self.linear = dolfinx.fem.create_form(forms.linear, [self.space], sub, {}, coefficient_map, {})
+        self.matrix = dolfinx.fem.petsc.create_matrix(self.bilinear)
+        self.vector = dolfinx.fem.petsc.create_vector(self.space)
+        self.solution = self.matrix.createVecRight()
+        self.residual = self.matrix.createVecRight()
+        self.correction = self.matrix.createVecRight()
+        self.solver = PETSc.KSP().create(sub.comm)
+        self.solver.setOperators(self.matrix)
+        self.solver.setType("preonly")
+        self.solver.getPC().setType("lu")
+        # MUMPS: pivots where the multiplier rows have no diagonal (PETSc's own LU does not)
+        self.solver.getPC().setFactorSolverType("mumps")
+        if petsc_options:
+            prefix = f"ale_xfem_interface_{id(self)}_"
+            self.solver.setOptionsPrefix(prefix)
+            options = PETSc.Options()
+            for key, value in petsc_options.items():
+                options[prefix + key] = value
+            self.solver.setFromOptions()
+        # the parent node of each velocity block (submesh vertex) of the collapsed P1 spaces,
+        # and the cell dofs of the DG spaces, in submesh cell order
+        V1_cells = np.asarray(V1.dofmap.list)
+        self.velocity_parent = np.empty(V1.dofmap.index_map.size_local, dtype=np.int64)
+        self.velocity_parent[V1_cells] = self.parent_nodes
+        # each material's velocity rows (block, component) and the parent node of each block
+        # (the collapsed subspaces number their blocks their own way)
+        self.velocity_block, self.block_parent = [], []
+        for m in range(2):
+            self.velocity_block.append(self.maps[m].reshape(-1, 2))
+            parent = np.empty(self.velocity_block[m].shape[0], dtype=np.int64)
+            parent[np.asarray(collapsed[m][0].dofmap.list)] = self.parent_nodes
+            self.block_parent.append(parent)
+        self._velocity_cells = V1_cells
+        self._dg0 = np.asarray(DG0.dofmap.list)[:, 0]
+        self._dg0v = np.asarray(DG0v.dofmap.list)[:, 0]
+        self._dg1v = np.asarray(DG1v.dofmap.list)  # (n_sub, 3) blocks of each cell's vertices
+        k = 4 if forms.bubbles else 2
+        self.pressure_dofs = [self.maps[k][self._dg0], self.maps[k + 1][self._dg0]]
+        self.bubble_dofs = None
+        if forms.bubbles:
+            self.bubble_dofs = [self.maps[2 + m] for m in range(2)]
+        self.multiplier_dofs = None
+        if forms.multiplier:
+            block = self.maps[k + 2]
+            self.multiplier_dofs = block.reshape(-1, 2)[self._dg0v] if forms.slip == "stick" else block[self._dg0]
+        self.vertex_area = None
+
+    @property
+    def nodes(self) -> np.ndarray:
+        """The parent nodes of the mixed cells (each once), in velocity-block order."""
+        return self.velocity_parent
+
+    def local_frames(self):
+        """(origin (n, 2), scale (n,)) of the local coordinates of each mixed cell, in the
+        order given at construction: cut moments are given in them
+        (:meth:`forms.cut_quadrature.CutQuadrature.set_part`)."""
+        origin, scale = self.parts[0].local_frames(np.arange(self.input_index.size))
+        ordered_origin, ordered_scale = np.empty_like(origin), np.empty_like(scale)
+        ordered_origin[self.input_index], ordered_scale[self.input_index] = origin, scale
+        return ordered_origin, ordered_scale
+
+    def set_geometry(self, part_moments, interface_moments, edge_flux, normal) -> None:
+        """Bind the cut geometry, each array over the mixed cells in the order given at
+        construction: part_moments (2, n, 6) ∫_{K_m} ξ^a η^b dA in :meth:`local_frames`
+        coordinates; interface_moments (n, 6) ∫_{Γ_K} ξ^a η^b ds; edge_flux (2, n, 3, 2)
+        G_mi = Σ_e ∫_{e∩m} ψ_i n_e for the vertices of each cell in the parent's node order
+        ``parent_cell_nodes`` (set by the caller through :meth:`vertex_order`); normal (n, 2)
+        n_α, out of α."""
+        n_sub = self.input_index.size
+        take = self.input_index
+        everything = np.arange(n_sub)
+        for m in range(2):
+            self.parts[m].set_part(np.zeros(0, dtype=np.int64), everything, part_moments[m][take])
+        self.interface.set_interface(everything, interface_moments[take])
+        area = self._cell_areas()
+        for m, side in enumerate("ab"):
+            values = self.functions[f"edge_flux_{side}"].x.array.reshape(-1, 2)
+            flux = edge_flux[m][take][np.arange(n_sub)[:, None], self._vertex_permutation]  # (n_sub, 3, 2)
+            values[self._dg1v.ravel()] = (3.0 * flux / area[:, None, None]).reshape(-1, 2)
+        self.functions["normal"].x.array.reshape(-1, 2)[self._dg0v] = normal[take]
+        self.area = area
+
+    def vertex_order(self, parent_cell_nodes) -> None:
+        """The parent nodes of each mixed cell (n, 3) in the order per-vertex inputs use;
+        records how the submesh's vertices permute them."""
+        given = np.asarray(parent_cell_nodes)[self.input_index]  # (n_sub, 3)
+        self._vertex_permutation = np.argmax(self.parent_nodes[:, :, None] == given[:, None, :], axis=2)
+
+    def set_materials(self, compliance, offset, weight=None, penalty=None) -> None:
+        """Per mixed cell (construction order): compliance (2, n) g_m = −1/(D_m dt V_m),
+        offset (2, n) c_m; Nitsche: weight (n,) w_α and penalty (n,) γ."""
+        take = self.input_index
+        for m, side in enumerate("ab"):
+            self.functions[f"compliance_{side}"].x.array[self._dg0] = compliance[m][take]
+            self.functions[f"offset_{side}"].x.array[self._dg0] = offset[m][take]
+        if weight is not None:
+            self.functions["weight"].x.array[self._dg0] = weight[take]
+            self.functions["penalty"].x.array[self._dg0] = penalty[take]
+
+    def solve(self, mass, rhs):
+        """Assemble and solve.  mass[m], rhs[m]: (2, n_parent_nodes) per material — 4M/dt per
+        component (0 on external nodes; very large on held components) and the explicit
+        right side 4M u^n/dt + 2F̄ + f^n (0 on external nodes).  Returns a dict: ``velocity``
+        [m] (2, n_parent_nodes) ū_m at the mixed cells' nodes (other entries 0), ``pressure``
+        (2, n) P_m per mixed cell, and, by stabilisation, ``interface_pressure`` (n,) p_Γ
+        (free slip; stick: its normal part) and ``bubble`` [m]."""
+        self._set_mass(mass)
+        self.matrix.zeroEntries()
+        dolfinx.fem.petsc.assemble_matrix(self.matrix, self.bilinear)
+        self.matrix.assemble()
+        with self.vector.localForm() as local:
+            local.set(0.0)
+        dolfinx.fem.petsc.assemble_vector(self.vector, self.linear)
+        array = self.vector.getArray(readonly=False)
+        for m in range(2):
+            for d in range(2):
+                array[self.velocity_block[m][:, d]] += rhs[m][d][self.block_parent[m]]
+        self.vector.setArray(array)
+        self.solver.solve(self.vector, self.solution)
+        reason = self.solver.getConvergedReason()
+        if reason < 0:
+            raise RuntimeError(f"interface system: the KSP failed (PETSc reason {reason})")
+        # Massless bubbles and nearly massless external nodes weigh their rows by the parts'
+        # small stiffness against masses of order 4M/dt: iterative refinement recovers the
+        # digits the factorisation loses to that conditioning (slivers).
+        for _ in range(REFINEMENTS):
+            self.matrix.mult(self.solution, self.residual)
+            self.residual.aypx(-1.0, self.vector)
+            self.solver.solve(self.residual, self.correction)
+            self.solution.axpy(1.0, self.correction)
+        values = self.solution.getArray()
+        n = self.input_index.size
+        out = {"velocity": [], "pressure": np.empty((2, n))}
+        for m in range(2):
+            velocity = np.zeros_like(rhs[m])
+            velocity[:, self.block_parent[m]] = values[self.velocity_block[m]].T
+            out["velocity"].append(velocity)
+            out["pressure"][m, self.input_index] = values[self.pressure_dofs[m]]
+        if self.multiplier_dofs is not None:
+            interface = np.empty(n)
+            dofs = self.multiplier_dofs[:, 0] if self.multiplier_dofs.ndim == 2 else self.multiplier_dofs
+            interface[self.input_index] = values[dofs]
+            out["interface_pressure"] = interface
+        if self.bubble_dofs is not None:
+            out["bubble"] = [values[dofs] for dofs in self.bubble_dofs]
+        return out
+
+    def _set_mass(self, mass):
+        """The vertex rule gives Σ_{K ∋ i} (|K|/3) m(x_i) u_i·v_i: the P1 density that lumps
+        M_i on node i is M_i / Σ_{K ∋ i} |K|/3 (K over the mixed cells)."""
+        if self.vertex_area is None or self.vertex_area.size != self.velocity_parent.size:
+            self.vertex_area = np.zeros(self.velocity_parent.size)
+        self.vertex_area[:] = 0.0
+        np.add.at(self.vertex_area, self._velocity_cells.ravel(), np.repeat(self._cell_areas() / 3.0, 3))
+        for m, side in enumerate("ab"):
+            density = mass[m][:, self.velocity_parent] / self.vertex_area
+            self.functions[f"mass_{side}"].x.array.reshape(-1, 2)[:] = density.T
+
+    def move(self, node_position) -> None:
+        """Follow the mesh: node_position (2, n_parent_nodes)."""
+        self.submesh.geometry.x[:, :2] = node_position[:, self.geometry_map].T
+
+    def _cell_areas(self):
+        x = self.submesh.geometry.x[self.sub_nodes, :2]
+        e1, e2 = x[:, 1] - x[:, 0], x[:, 2] - x[:, 0]
+        return 0.5 * np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
