@@ -56,17 +56,15 @@ import basix
 import basix.ufl
 import dolfinx_solver  # noqa: F401  (before dolfinx: it loads MPI and PETSc)
 import dolfinx
-import dolfinx.fem.petsc
 import numpy as np
 import ufl
-from petsc4py import PETSc
 
+from forms.bound_system import BoundSystem
 from forms.cut_quadrature import CutQuadrature
 
 STABILISATIONS = ("none", "bubble", "nitsche")
 SLIPS = ("free", "stick")
 RULE_DEGREE = 4  # the cut measures' rule: six points, weights exact for degree 2
-REFINEMENTS = 3  # rounds of iterative refinement after the direct solve
 
 _MATERIAL_COEFFICIENTS = ("mass", "part", "edge_flux", "compliance", "offset")
 _CELL_COEFFICIENTS = ("normal", "interface", "weight", "penalty")
@@ -227,27 +225,9 @@ class InterfaceSystem:
         functions["penalty"] = dolfinx.fem.Function(DG0)
         self.functions = functions
         coefficient_map = {forms.coefficients[name]: functions[name] for name in forms.coefficients}
-        self.bilinear = dolfinx.fem.create_form(forms.bilinear, [self.space, self.space], sub, {},
-                                                coefficient_map, {})
-        self.linear = dolfinx.fem.create_form(forms.linear, [self.space], sub, {}, coefficient_map, {})
-        self.matrix = dolfinx.fem.petsc.create_matrix(self.bilinear)
-        self.vector = dolfinx.fem.petsc.create_vector(self.space)
-        self.solution = self.matrix.createVecRight()
-        self.residual = self.matrix.createVecRight()
-        self.correction = self.matrix.createVecRight()
-        self.solver = PETSc.KSP().create(sub.comm)
-        self.solver.setOperators(self.matrix)
-        self.solver.setType("preonly")
-        self.solver.getPC().setType("lu")
-        # MUMPS: pivots where the multiplier rows have no diagonal (PETSc's own LU does not)
-        self.solver.getPC().setFactorSolverType("mumps")
-        if petsc_options:
-            prefix = f"ale_xfem_interface_{id(self)}_"
-            self.solver.setOptionsPrefix(prefix)
-            options = PETSc.Options()
-            for key, value in petsc_options.items():
-                options[prefix + key] = value
-            self.solver.setFromOptions()
+        # MUMPS: it pivots where the multiplier rows have no diagonal (PETSc's own LU does not)
+        self.system = BoundSystem(forms.bilinear, forms.linear, self.space, sub, coefficient_map,
+                                  factor_solver="mumps", petsc_options=petsc_options)
         # the parent node of each velocity block (submesh vertex) of the collapsed P1 spaces,
         # and the cell dofs of the DG spaces, in submesh cell order
         V1_cells = np.asarray(V1.dofmap.list)
@@ -336,30 +316,13 @@ class InterfaceSystem:
         (2, n) P_m per mixed cell, and, by stabilisation, ``interface_pressure`` (n,) p_Γ
         (free slip; stick: its normal part) and ``bubble`` [m]."""
         self._set_mass(mass)
-        self.matrix.zeroEntries()
-        dolfinx.fem.petsc.assemble_matrix(self.matrix, self.bilinear)
-        self.matrix.assemble()
-        with self.vector.localForm() as local:
-            local.set(0.0)
-        dolfinx.fem.petsc.assemble_vector(self.vector, self.linear)
-        array = self.vector.getArray(readonly=False)
+        array = self.system.assemble()
         for m in range(2):
             for d in range(2):
                 array[self.velocity_block[m][:, d]] += rhs[m][d][self.block_parent[m]]
-        self.vector.setArray(array)
-        self.solver.solve(self.vector, self.solution)
-        reason = self.solver.getConvergedReason()
-        if reason < 0:
-            raise RuntimeError(f"interface system: the KSP failed (PETSc reason {reason})")
         # Massless bubbles and nearly massless external nodes weigh their rows by the parts'
-        # small stiffness against masses of order 4M/dt: iterative refinement recovers the
-        # digits the factorisation loses to that conditioning (slivers).
-        for _ in range(REFINEMENTS):
-            self.matrix.mult(self.solution, self.residual)
-            self.residual.aypx(-1.0, self.vector)
-            self.solver.solve(self.residual, self.correction)
-            self.solution.axpy(1.0, self.correction)
-        values = self.solution.getArray()
+        # small stiffness against masses of order 4M/dt: BoundSystem.solve refines
+        values = self.system.solve(array, "interface system")
         n = self.input_index.size
         out = {"velocity": [], "pressure": np.empty((2, n))}
         for m in range(2):

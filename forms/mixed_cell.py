@@ -28,10 +28,10 @@ from __future__ import annotations
 import basix.ufl
 import dolfinx_solver  # noqa: F401  (before dolfinx: it loads MPI and PETSc)
 import dolfinx
-import dolfinx.fem.petsc
 import numpy as np
 import ufl
-from petsc4py import PETSc
+
+from forms.bound_system import BoundSystem
 
 
 _COEFFICIENTS = ("mass_a", "mass_b", "fraction_a", "fraction_b", "stiffness_a", "stiffness_b",
@@ -119,18 +119,7 @@ class MixedCellPredictor:
                      "offset_a": self.offset[0], "offset_b": self.offset[1], "normal": self.normal,
                      "interface": self.interface, "interface_measure": self.interface_measure}
         coefficient_map = {forms.coefficients[name]: functions[name] for name in _COEFFICIENTS}
-        self.bilinear = dolfinx.fem.create_form(forms.bilinear, [self.space, self.space], sub, {},
-                                                coefficient_map, {})
-        self.linear = dolfinx.fem.create_form(forms.linear, [self.space], sub, {}, coefficient_map, {})
-        self.matrix = dolfinx.fem.petsc.create_matrix(self.bilinear)
-        self.vector = dolfinx.fem.petsc.create_vector(self.space)
-        self.solution = self.matrix.createVecRight()
-        self.residual = self.matrix.createVecRight()
-        self.correction = self.matrix.createVecRight()
-        self.solver = PETSc.KSP().create(sub.comm)
-        self.solver.setOperators(self.matrix)
-        self.solver.setType("preonly")
-        self.solver.getPC().setType("lu")
+        self.system = BoundSystem(forms.bilinear, forms.linear, self.space, sub, coefficient_map)
         # submesh vertex dofs ↔ parent geometry nodes, and DG0 dofs ↔ mixed cells
         self.parent_node_of_p1 = np.empty(P1.dofmap.index_map.size_local, dtype=np.int64)
         self.parent_node_of_p1[P1.dofmap.list] = self.geometry_map[sub.geometry.dofmaps[0]]
@@ -174,29 +163,16 @@ class MixedCellPredictor:
         self.normal.x.array[blocks] = np.asarray(normal).reshape(-1, gdim)[self.input_index].ravel()
         self.interface.x.array[blocks] = np.asarray(interface).reshape(-1, gdim)[self.input_index].ravel()
         self.interface_measure.x.array[self.dg0_of_cell] = interface_measure[self.input_index]
-        self.matrix.zeroEntries()
-        dolfinx.fem.petsc.assemble_matrix(self.matrix, self.bilinear)
-        self.matrix.assemble()
-        with self.vector.localForm() as local:
-            local.set(0.0)
-        dolfinx.fem.petsc.assemble_vector(self.vector, self.linear)
+        array = self.system.assemble()
         # explicit nodal terms: added to the velocity rows of each material
-        array = self.vector.getArray(readonly=False)
         for k in range(2):
             rows = self.maps[k].reshape(-1, gdim)  # (block, component) → W dof
             for d in range(gdim):
                 array[rows[:, d]] += nodal_rhs[k][d][self.velocity_parent[k]]
-        self.vector.setArray(array)
-        self.solver.solve(self.vector, self.solution)
         # The external nodes' rows weigh the velocity by the small stiffness D dt f²|K|
-        # against masses of order 4M/dt: iterative refinement recovers the digits the
-        # factorisation loses to that conditioning.
-        for _ in range(3):
-            self.matrix.mult(self.solution, self.residual)
-            self.residual.aypx(-1.0, self.vector)
-            self.solver.solve(self.residual, self.correction)
-            self.solution.axpy(1.0, self.correction)
-        values = self.solution.getArray()
+        # against masses of order 4M/dt: the iterative refinement of BoundSystem.solve
+        # recovers the digits the factorisation loses to that conditioning.
+        values = self.system.solve(array, "mixed-cell predictor")
         pressure = np.empty(self.input_index.size)
         pressure[self.input_index] = values[self.pressure_of_cell]
         velocities = [(self.velocity_parent[k], values[self.maps[k].reshape(-1, gdim)].T) for k in range(2)]
