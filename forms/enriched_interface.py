@@ -66,8 +66,10 @@ STABILISATIONS = ("none", "bubble", "nitsche")
 SLIPS = ("free", "stick")
 RULE_DEGREE = 4  # the cut measures' rule: six points, weights exact for degree 2
 
+# a tied node's spring, relative to its inertia 4M/dt: the two velocities agree to ~1e-8
+TIE_STIFFNESS = 1e8
 _MATERIAL_COEFFICIENTS = ("mass", "part", "edge_flux", "compliance", "offset")
-_CELL_COEFFICIENTS = ("normal", "interface", "weight", "penalty")
+_CELL_COEFFICIENTS = ("normal", "interface", "weight", "penalty", "tie")
 
 
 class InterfaceForms:
@@ -108,7 +110,8 @@ class InterfaceForms:
         kinds = {"mass": function_space("Lagrange", 1, (2,)), "part": quadrature,
                  "edge_flux": function_space("DG", 1, (2,)), "compliance": function_space("DG", 0),
                  "offset": function_space("DG", 0), "normal": function_space("DG", 0, (2,)),
-                 "interface": quadrature, "weight": function_space("DG", 0), "penalty": function_space("DG", 0)}
+                 "interface": quadrature, "weight": function_space("DG", 0), "penalty": function_space("DG", 0),
+                 "tie": function_space("Lagrange", 1)}
         self.coefficients = {}
         for name in _MATERIAL_COEFFICIENTS:
             for side in "ab":
@@ -147,7 +150,10 @@ class InterfaceForms:
             """J w with (J w)·n = w·t, t = (−n_y, n_x): ∫_Γ w·t_m = I_m(J w)."""
             return ufl.as_vector([w[1], -w[0]])
 
-        bilinear, linear = 0, 0
+        # tied nodes (pure cells of both materials around them: no mixed cell carries an
+        # interface there) move as one: a stiff spring between their two velocities
+        bilinear = c["tie"] * ufl.inner(u1[0] - u1[1], v1[0] - v1[1]) * lumped
+        linear = 0
         for m, side in enumerate(sides):
             part = c[f"part_{side}"]
             bilinear += ufl.inner(ufl.elem_mult(c[f"mass_{side}"], u1[m]), v1[m]) * lumped
@@ -223,6 +229,10 @@ class InterfaceSystem:
         functions["interface"] = self.interface.ratio
         functions["weight"] = dolfinx.fem.Function(DG0)
         functions["penalty"] = dolfinx.fem.Function(DG0)
+        P1 = dolfinx.fem.functionspace(sub, ("Lagrange", 1))
+        functions["tie"] = dolfinx.fem.Function(P1)
+        self._tie_parent = np.empty(P1.dofmap.index_map.size_local, dtype=np.int64)
+        self._tie_parent[np.asarray(P1.dofmap.list)] = self.parent_nodes
         self.functions = functions
         coefficient_map = {forms.coefficients[name]: functions[name] for name in forms.coefficients}
         # MUMPS: it pivots where the multiplier rows have no diagonal (PETSc's own LU does not)
@@ -308,14 +318,15 @@ class InterfaceSystem:
             self.functions["weight"].x.array[self._dg0] = weight[take]
             self.functions["penalty"].x.array[self._dg0] = penalty[take]
 
-    def solve(self, mass, rhs):
+    def solve(self, mass, rhs, tied=None):
         """Assemble and solve.  mass[m], rhs[m]: (2, n_parent_nodes) per material — 4M/dt per
-        component (0 on external nodes; very large on held components) and the explicit
-        right side 4M u^n/dt + 2F̄ + f^n (0 on external nodes).  Returns a dict: ``velocity``
+        component (very large on held components) and the explicit right side
+        4M u^n/dt + 2F̄ + f^n; ``tied`` (n_parent_nodes,) bool: nodes whose two velocities
+        are one (pure cells of both materials around them).  Returns a dict: ``velocity``
         [m] (2, n_parent_nodes) ū_m at the mixed cells' nodes (other entries 0), ``pressure``
         (2, n) P_m per mixed cell, and, by stabilisation, ``interface_pressure`` (n,) p_Γ
         (free slip; stick: its normal part) and ``bubble`` [m]."""
-        self._set_mass(mass)
+        self._set_mass(mass, tied)
         array = self.system.assemble()
         for m in range(2):
             for d in range(2):
@@ -339,7 +350,7 @@ class InterfaceSystem:
             out["bubble"] = [values[dofs] for dofs in self.bubble_dofs]
         return out
 
-    def _set_mass(self, mass):
+    def _set_mass(self, mass, tied):
         """The vertex rule gives Σ_{K ∋ i} (|K|/3) m(x_i) u_i·v_i: the P1 density that lumps
         M_i on node i is M_i / Σ_{K ∋ i} |K|/3 (K over the mixed cells)."""
         if self.vertex_area is None or self.vertex_area.size != self.velocity_parent.size:
@@ -349,6 +360,14 @@ class InterfaceSystem:
         for m, side in enumerate("ab"):
             density = mass[m][:, self.velocity_parent] / self.vertex_area
             self.functions[f"mass_{side}"].x.array.reshape(-1, 2)[:] = density.T
+        tie = self.functions["tie"].x.array
+        tie[:] = 0.0
+        if tied is not None:
+            nodes = self._tie_parent
+            stiffness = TIE_STIFFNESS * (mass[0].min(axis=0) + mass[1].min(axis=0))[nodes]
+            block = np.empty(self.velocity_parent.max() + 1, dtype=np.int64)
+            block[self.velocity_parent] = np.arange(self.velocity_parent.size)
+            tie[:] = np.where(tied[nodes], stiffness, 0.0) / self.vertex_area[block[nodes]]
 
     def move(self, node_position) -> None:
         """Follow the mesh: node_position (2, n_parent_nodes)."""
