@@ -8,10 +8,18 @@ then integrates f over the part — 1 on a cell the part covers, 0 where it is a
 a cut cell the weights w'_q with Σ_q w'_q x_q^a y_q^b = ∫_part x^a y^b dA for the monomials
 of total degree ≤ ``exact_degree``.  Moving the part refills ``ratio``: nothing compiles.
 
-Triangles only: their map is affine, so a P1 integrand of degree k in the reference cell is
-a polynomial of degree k in x, y and the physical moments make it exact.  On a
-non-affine quadrilateral the integrands (Q1 products over |det J|) are not polynomials in
-x, y: that needs moments in the reference cell over the preimage of the cut.
+Two ways to give the part.  ``set_part`` (triangles): its moments in the cell's local
+physical coordinates, the map being affine.  ``set_part_polygons`` /
+``set_interface_segments`` (triangles and quadrilaterals): its polygon or segment, the
+weights fitted in the cell's *reference* coordinates.  On a non-affine quadrilateral the
+integrands of Q1 forms are not polynomials in x, y, but f |det J| is one in ξ, η (∇ψ |det J|
+= adj(J)ᵀ ∇̂ψ̂): the weights ω_q with Σ_q ω_q ξ_q^a η_q^b = ∫_preimage ξ^a η^b dξ make
+Σ_q ω_q |det J_q| f(x_q) = ∫_part f dx exact for them.  Those moments are
+∫_part ξ^a η^b / |det J| dx, integrated over the polygon's fan of triangles by a degree-20
+rule with the inverse map (smooth integrand: round-off, measured against a degree-30 brute
+force in tests/test_cut_quadrature.py).  A tensor rule of 4 × 4 points fits the monomials
+of degree ≤ 3 in each reference coordinate (it cannot fit ξ⁴: the Vandermonde of total
+degree 4 had condition 10¹⁸).
 
 With the default rule (degree 4: six points) and exact_degree 2 (six monomials) the
 system is square; its weights can be negative (on a straight cut about 1.3 a cut cell,
@@ -29,22 +37,39 @@ import numpy as np
 import ufl
 
 
+# per cell type: (the rule's degree, the monomials' degree the weights are exact for).
+# Triangles: six points, degree 2 (P1 products, the quadratic ∇·(b n) of a cubic bubble).
+# Quadrilaterals: sixteen points (4 × 4), degree 3 in each of ξ and η (adj(J)ᵀ∇̂b̂ of the Q2
+# bubble, Q1 products on Γ; a tensor rule of 4 × 4 points cannot fit ξ⁴).
+RULES = {"triangle": (4, 2), "quadrilateral": (6, 3)}
+POLYGON_RULE = 20  # the rule on the triangles of a fanned polygon (reference moments)
+SEGMENT_POINTS = 12  # Gauss–Legendre points along an interface segment
+NEWTON_STEPS = 30  # at most, for the inverse bilinear map
+
+
 class CutQuadrature:
     """The measure ``ratio * measure`` of one material's part of the cells of ``mesh``, or
     of the interface segments in them (:meth:`set_interface`)."""
 
-    def __init__(self, mesh, rule_degree: int = 4, exact_degree: int = 2):
-        if mesh.topology.cell_name() != "triangle":
-            raise ValueError(f"cut-cell quadrature on {mesh.topology.cell_name()} cells: built for triangles "
-                             "only (an affine map; see the module docstring)")
+    def __init__(self, mesh, rule_degree: int | None = None, exact_degree: int | None = None):
+        cell_name = mesh.topology.cell_name()
+        if cell_name not in RULES:
+            raise ValueError(f"cut-cell quadrature on {cell_name} cells: one of {', '.join(RULES)}")
+        default_rule, default_exact = RULES[cell_name]
+        rule_degree = default_rule if rule_degree is None else rule_degree
+        exact_degree = default_exact if exact_degree is None else exact_degree
+        self.cell_name = cell_name
         self.mesh, self.exact_degree = mesh, exact_degree
-        element = basix.ufl.quadrature_element("triangle", value_shape=(), scheme="default", degree=rule_degree)
+        element = basix.ufl.quadrature_element(cell_name, value_shape=(), scheme="default", degree=rule_degree)
         self.space = dolfinx.fem.functionspace(mesh, element)
         self.ratio = dolfinx.fem.Function(self.space)
         self.measure = ufl.Measure("dx", domain=mesh, metadata={"quadrature_degree": rule_degree,
                                                                 "quadrature_scheme": "default"})
-        self.points, self.weights = basix.make_quadrature(basix.CellType.triangle, rule_degree)
-        self.exponents = [(total - b, b) for total in range(exact_degree + 1) for b in range(total + 1)]
+        self.points, self.weights = basix.make_quadrature(basix.CellType[cell_name], rule_degree)
+        if cell_name == "triangle":  # total degree ≤ exact_degree
+            self.exponents = [(total - b, b) for total in range(exact_degree + 1) for b in range(total + 1)]
+        else:  # degree ≤ exact_degree in each reference coordinate (a tensor rule fits no more)
+            self.exponents = [(a, b) for a in range(exact_degree + 1) for b in range(exact_degree + 1)]
         if len(self.exponents) > self.weights.size:
             raise ValueError(f"exact_degree {exact_degree} needs {len(self.exponents)} points; the rule of degree "
                              f"{rule_degree} has {self.weights.size}")
@@ -91,3 +116,125 @@ class CutQuadrature:
                 self.stats["min_weight"] = float(min(self.stats["min_weight"], relative.min()))
                 self.stats["negative_weights"] += int(np.sum(weights < 0))
         self.ratio.x.scatter_forward()
+
+    # -- from the cut geometry, in each cell's reference coordinates (both cell types) ------
+
+    def set_part_polygons(self, full_cells, cut_cells, polygons) -> None:
+        """The part covers ``full_cells`` and, of each of ``cut_cells``, the polygon given
+        (n, m, 2) (physical coordinates, padding vertices allowed).  Weights are fitted in
+        the cell's reference coordinates: Σ_q ω_q ξ_q^a η_q^b = ∫_preimage ξ^a η^b dξ, so
+        that Σ_q ω_q |det J_q| f(x_q) = ∫_part f dx for every f with f |det J| a polynomial
+        of degree ≤ exact_degree in ξ — on a quadrilateral the integrands of P1/Q1 forms
+        (∇ψ |det J| = adj(J)ᵀ ∇̂ψ̂ is polynomial) — exactly."""
+        cut_cells = np.asarray(cut_cells, dtype=np.int64)
+        moments = self._polygon_moments(cut_cells, np.asarray(polygons, dtype=float))
+        self._fill(full_cells, cut_cells, moments, with_jacobian=False)
+
+    def set_interface_segments(self, cut_cells, start, end) -> None:
+        """The measure of the interface: the segment [start, end] (n, 2) of each cut cell
+        (a line integral carried by the cell's interior points): Σ_q ν_q p(ξ_q) =
+        ∫_Γ p(ξ(x)) ds for the reference monomials p of degree ≤ exact_degree."""
+        cut_cells = np.asarray(cut_cells, dtype=np.int64)
+        t, w = np.polynomial.legendre.leggauss(SEGMENT_POINTS)
+        t, w = 0.5 * (t + 1.0), 0.5 * w
+        start, end = np.asarray(start, dtype=float), np.asarray(end, dtype=float)
+        points = start[:, None, :] + t[None, :, None] * (end - start)[:, None, :]  # (n, k, 2)
+        length = np.linalg.norm(end - start, axis=1)
+        xi = self.reference_coordinates(cut_cells, points)
+        moments = np.stack([np.sum(xi[..., 0] ** a * xi[..., 1] ** b * w, axis=1) * length
+                            for a, b in self.exponents], axis=1)
+        self._fill(np.zeros(0, dtype=np.int64), cut_cells, moments, with_jacobian=True, record=False)
+
+    def cell_vertices(self, cells):
+        """(n, k, 2) the cells' geometry nodes in DOLFINx's order (quadrilaterals: tensor
+        order (0,0), (1,0), (0,1), (1,1))."""
+        return self.mesh.geometry.x[self._nodes[np.asarray(cells, dtype=np.int64)], :2]
+
+    def reference_coordinates(self, cells, points):
+        """ξ (n, k, 2) of physical points (n, k, 2) in each of ``cells``: the affine inverse
+        on triangles, Newton's method on the bilinear map of quadrilaterals."""
+        x = self.cell_vertices(cells)
+        if self.cell_name == "triangle":
+            axes = np.stack([x[:, 1] - x[:, 0], x[:, 2] - x[:, 0]], axis=-1)  # (n, 2, 2) columns
+            return np.einsum("nij,nkj->nki", np.linalg.inv(axes), points - x[:, None, 0])
+        return inverse_bilinear_map(x, points)
+
+    def _polygon_moments(self, cells, polygons):
+        """∫_preimage ξ^a η^b dξ = ∫_polygon ξ^a η^b / |det J| dx: each polygon fanned into
+        triangles from its first vertex, a degree-POLYGON_RULE rule on each (exact on
+        triangles, where the integrand is a polynomial; on quadrilaterals the integrand is
+        smooth and the rule converges to round-off: measured in tests/test_cut_quadrature.py)."""
+        points, weights = basix.make_quadrature(basix.CellType.triangle, POLYGON_RULE)
+        n, m, _ = polygons.shape
+        total = np.zeros((n, len(self.exponents)))
+        x = self.cell_vertices(cells)
+        for j in range(1, m - 1):
+            a, b, c = polygons[:, 0], polygons[:, j], polygons[:, j + 1]
+            e1, e2 = b - a, c - a
+            area = np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])  # 2 × the triangle's area
+            if not np.any(area > 0.0):
+                continue
+            physical = a[:, None, :] + points[None, :, 0, None] * e1[:, None, :] + points[None, :, 1, None] * e2[:, None, :]
+            xi = self.reference_coordinates(cells, physical)
+            if self.cell_name == "triangle":
+                det = _triangle_jacobians(x)[:, None]
+            else:
+                det = np.abs(np.linalg.det(bilinear_map(x, xi)[1]))
+            scale = weights[None, :] * area[:, None] / det
+            total += np.stack([np.sum(xi[..., 0] ** a * xi[..., 1] ** b * scale, axis=1)
+                               for a, b in self.exponents], axis=1)
+        return total
+
+    def _fill(self, full_cells, cut_cells, moments, with_jacobian: bool, record: bool = True) -> None:
+        """ratio = ω/w (parts) or ν/(w |det J|) (the interface), ω fitted to ``moments``."""
+        values = self.ratio.x.array
+        values[:] = 0.0
+        values[self._dofs[np.asarray(full_cells, dtype=np.int64)]] = 1.0
+        if cut_cells.size:
+            vandermonde = np.stack([self.points[:, 0] ** a * self.points[:, 1] ** b for a, b in self.exponents])
+            fitted = moments @ np.linalg.pinv(vandermonde).T  # (n, points)
+            ratio = fitted / self.weights
+            if with_jacobian:
+                x = self.cell_vertices(cut_cells)
+                if self.cell_name == "triangle":
+                    det = _triangle_jacobians(x)[:, None]
+                else:
+                    det = np.abs(np.linalg.det(bilinear_map(x, np.broadcast_to(self.points, (x.shape[0],) +
+                                                                              self.points.shape))[1]))
+                ratio = ratio / det
+            values[self._dofs[cut_cells]] = ratio
+            if record:  # relative to the reference cell's measure
+                reference = 0.5 if self.cell_name == "triangle" else 1.0
+                self.stats["min_weight"] = float(min(self.stats["min_weight"], (fitted / reference).min()))
+                self.stats["negative_weights"] += int(np.sum(fitted < 0))
+        self.ratio.x.scatter_forward()
+
+
+def bilinear_map(x, xi):
+    """The bilinear map of quadrilaterals with nodes x (n, 4, 2) in tensor order, at ξ (n,
+    k, 2): (positions (n, k, 2), Jacobians (n, k, 2, 2))."""
+    s, t = xi[..., 0, None], xi[..., 1, None]
+    x0, x1, x2, x3 = (x[:, None, i] for i in range(4))
+    mapped = x0 * (1 - s) * (1 - t) + x1 * s * (1 - t) + x2 * (1 - s) * t + x3 * s * t
+    d_s = (x1 - x0) * (1 - t) + (x3 - x2) * t
+    d_t = (x2 - x0) * (1 - s) + (x3 - x1) * s
+    return mapped, np.stack([d_s, d_t], axis=-1)
+
+
+def inverse_bilinear_map(x, points):
+    """ξ (n, k, 2) of physical points (n, k, 2) in quadrilaterals with nodes x (n, 4, 2) in
+    tensor order, by Newton's method from the centre."""
+    xi = np.full(points.shape, 0.5)
+    for _ in range(NEWTON_STEPS):
+        mapped, jacobian = bilinear_map(x, xi)
+        step = np.linalg.solve(jacobian, (points - mapped)[..., None])[..., 0]
+        xi += step
+        if np.abs(step).max() < 1e-15:
+            break
+    return xi
+
+
+def _triangle_jacobians(x):
+    """|det J| of triangles with nodes x (n, 3, 2)."""
+    e1, e2 = x[:, 1] - x[:, 0], x[:, 2] - x[:, 0]
+    return np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])

@@ -60,11 +60,13 @@ import numpy as np
 import ufl
 
 from forms.bound_system import BoundSystem
-from forms.cut_quadrature import CutQuadrature
+from forms.cut_quadrature import RULES, CutQuadrature, bilinear_map
 
 STABILISATIONS = ("none", "bubble", "nitsche")
 SLIPS = ("free", "stick")
-RULE_DEGREE = 4  # the cut measures' rule: six points, weights exact for degree 2
+# the bubble of each cell type: the cubic λ₁λ₂λ₃ of a triangle, the Q2 ξ(1−ξ)η(1−η) of a
+# quadrilateral (its ∇·(b n) |det J| is of degree ≤ 3 in each of ξ, η: the cut rules are exact)
+BUBBLE_DEGREE = {"triangle": 3, "quadrilateral": 2}
 
 # a tied node's spring, relative to its inertia 4M/dt: the two velocities agree to ~1e-8
 TIE_STIFFNESS = 1e8
@@ -74,15 +76,19 @@ _CELL_COEFFICIENTS = ("normal", "interface", "weight", "penalty", "tie")
 
 class InterfaceForms:
     """The bilinear and linear forms of the system (module docstring), written on an
-    abstract triangle mesh and compiled once; :class:`InterfaceSystem` binds them."""
+    abstract mesh of triangles or quadrilaterals and compiled once; :class:`InterfaceSystem`
+    binds them."""
 
-    def __init__(self, comm, stabilisation: str = "bubble", slip: str = "free"):
+    def __init__(self, comm, stabilisation: str = "bubble", slip: str = "free", cell_name: str = "triangle"):
         if stabilisation not in STABILISATIONS:
             raise ValueError(f"stabilisation {stabilisation!r}: one of {', '.join(STABILISATIONS)}")
         if slip not in SLIPS:
             raise ValueError(f"slip {slip!r}: one of {', '.join(SLIPS)}")
-        self.stabilisation, self.slip = stabilisation, slip
-        cell = basix.CellType.triangle
+        if cell_name not in RULES:
+            raise ValueError(f"cell {cell_name!r}: one of {', '.join(RULES)}")
+        self.stabilisation, self.slip, self.cell_name = stabilisation, slip, cell_name
+        cell = basix.CellType[cell_name]
+        rule_degree = RULES[cell_name][0]
         domain = ufl.Mesh(basix.ufl.element("Lagrange", cell, 1, shape=(2,)))
         velocity = basix.ufl.element("Lagrange", cell, 1, shape=(2,))
         scalar0 = basix.ufl.element("DG", cell, 0)
@@ -92,7 +98,7 @@ class InterfaceForms:
         if self.bubbles:
             # a normal bubble per material, for stick too: a tangential bubble would meet the
             # tangential condition by itself, inside the cell, and leave the nodes sliding
-            normal_bubble = basix.ufl.element("Bubble", cell, 3)
+            normal_bubble = basix.ufl.element("Bubble", cell, BUBBLE_DEGREE[cell_name])
             blocks += [normal_bubble, normal_bubble]
         blocks += [scalar0, scalar0]  # P_α, P_β
         self.multiplier = stabilisation != "nitsche"
@@ -106,7 +112,7 @@ class InterfaceForms:
             return ufl.FunctionSpace(domain, basix.ufl.element(family, cell, degree, shape=shape))
 
         quadrature = ufl.FunctionSpace(domain, basix.ufl.quadrature_element(
-            "triangle", value_shape=(), scheme="default", degree=RULE_DEGREE))
+            cell_name, value_shape=(), scheme="default", degree=rule_degree))
         kinds = {"mass": function_space("Lagrange", 1, (2,)), "part": quadrature,
                  "edge_flux": function_space("DG", 1, (2,)), "compliance": function_space("DG", 0),
                  "offset": function_space("DG", 0), "normal": function_space("DG", 0, (2,)),
@@ -123,7 +129,7 @@ class InterfaceForms:
         trial, test = ufl.TrialFunctions(space), ufl.TestFunctions(space)
         n = c["normal"]
         lumped = ufl.dx(scheme="vertex", degree=1)
-        cut = ufl.dx(metadata={"quadrature_degree": RULE_DEGREE, "quadrature_scheme": "default"})
+        cut = ufl.dx(metadata={"quadrature_degree": rule_degree, "quadrature_scheme": "default"})
 
         def unpack(functions):
             u1 = list(functions[:2])
@@ -190,8 +196,8 @@ class InterfaceForms:
 
 
 class InterfaceSystem:
-    """The forms of :class:`InterfaceForms` bound to the mixed cells ``cells`` of a triangle
-    mesh (their submesh), assembled and solved with PETSc; matrix, vectors and KSP are
+    """The forms of :class:`InterfaceForms` bound to the mixed cells ``cells`` of a mesh of
+    their cell type (their submesh), assembled and solved with PETSc; matrix, vectors and KSP are
     created here once and refilled at every solve.  ``petsc_options``: the KSP and PC
     settings (default: a direct LU solve by MUMPS)."""
 
@@ -207,8 +213,8 @@ class InterfaceSystem:
         # submesh cell s is the input_index[s]-th of ``cells``
         self.input_index = order[np.searchsorted(cells[order], parent)]
         self.geometry_map = np.asarray(geometry_map)
-        self.sub_nodes = np.asarray(sub.geometry.dofmaps[0])  # (n_sub, 3) submesh geometry nodes
-        self.parent_nodes = self.geometry_map[self.sub_nodes]  # (n_sub, 3) parent node of each vertex
+        self.sub_nodes = np.asarray(sub.geometry.dofmaps[0])  # (n_sub, k) submesh geometry nodes
+        self.parent_nodes = self.geometry_map[self.sub_nodes]  # (n_sub, k) parent node of each vertex
         self.space = dolfinx.fem.functionspace(sub, forms.mixed_element)
         collapsed = [self.space.sub(i).collapse() for i in range(len(forms.blocks))]
         self.maps = [np.asarray(m).ravel() for _, m in collapsed]
@@ -216,8 +222,8 @@ class InterfaceSystem:
         DG0 = dolfinx.fem.functionspace(sub, ("DG", 0))
         DG1v = dolfinx.fem.functionspace(sub, ("DG", 1, (2,)))
         DG0v = dolfinx.fem.functionspace(sub, ("DG", 0, (2,)))
-        self.parts = [CutQuadrature(sub, RULE_DEGREE, 2) for _ in range(2)]
-        self.interface = CutQuadrature(sub, RULE_DEGREE, 2)
+        self.parts = [CutQuadrature(sub) for _ in range(2)]
+        self.interface = CutQuadrature(sub)
         functions = {}
         for m, side in enumerate("ab"):
             functions[f"mass_{side}"] = dolfinx.fem.Function(V1)
@@ -271,40 +277,30 @@ class InterfaceSystem:
         """The parent nodes of the mixed cells (each once), in velocity-block order."""
         return self.velocity_parent
 
-    def local_frames(self):
-        """(origin (n, 2), scale (n,)) of the local coordinates of each mixed cell, in the
-        order given at construction: cut moments are given in them
-        (:meth:`forms.cut_quadrature.CutQuadrature.set_part`)."""
-        origin, scale = self.parts[0].local_frames(np.arange(self.input_index.size))
-        ordered_origin, ordered_scale = np.empty_like(origin), np.empty_like(scale)
-        ordered_origin[self.input_index], ordered_scale[self.input_index] = origin, scale
-        return ordered_origin, ordered_scale
-
-    def set_geometry(self, part_moments, interface_moments, edge_flux, normal) -> None:
+    def set_geometry(self, parts, start, end, edge_flux, normal) -> None:
         """Bind the cut geometry, each array over the mixed cells in the order given at
-        construction: part_moments (2, n, 6) ∫_{K_m} ξ^a η^b dA in :meth:`local_frames`
-        coordinates; interface_moments (n, 6) ∫_{Γ_K} ξ^a η^b ds; edge_flux (2, n, 3, 2)
-        G_mi = Σ_e ∫_{e∩m} ψ_i n_e for the vertices of each cell in the parent's node order
-        ``parent_cell_nodes`` (set by the caller through :meth:`vertex_order`); normal (n, 2)
+        construction: parts (2, n, m, 2) each material's polygon in the cell; start, end
+        (n, 2) the interface segment; edge_flux (2, n, k, 2) G_mi = Σ_e ∫_{e∩m} ψ_i n_e for
+        the vertices of each cell in the order given to :meth:`vertex_order`; normal (n, 2)
         n_α, out of α."""
         n_sub = self.input_index.size
         take = self.input_index
         everything = np.arange(n_sub)
         for m in range(2):
-            self.parts[m].set_part(np.zeros(0, dtype=np.int64), everything, part_moments[m][take])
-        self.interface.set_interface(everything, interface_moments[take])
-        area = self._cell_areas()
+            self.parts[m].set_part_polygons(np.zeros(0, dtype=np.int64), everything, parts[m][take])
+        self.interface.set_interface_segments(everything, start[take], end[take])
+        weights = self._vertex_weights()  # the vertex rule's weight of each vertex
         for m, side in enumerate("ab"):
             values = self.functions[f"edge_flux_{side}"].x.array.reshape(-1, 2)
-            flux = edge_flux[m][take][np.arange(n_sub)[:, None], self._vertex_permutation]  # (n_sub, 3, 2)
-            values[self._dg1v.ravel()] = (3.0 * flux / area[:, None, None]).reshape(-1, 2)
+            flux = edge_flux[m][take][np.arange(n_sub)[:, None], self._vertex_permutation]  # (n_sub, k, 2)
+            # the DG1 dofs of a cell follow its geometry nodes' order (P1 / Q1 alike)
+            values[self._dg1v.ravel()] = (flux / weights[..., None]).reshape(-1, 2)
         self.functions["normal"].x.array.reshape(-1, 2)[self._dg0v] = normal[take]
-        self.area = area
 
     def vertex_order(self, parent_cell_nodes) -> None:
         """The parent nodes of each mixed cell (n, 3) in the order per-vertex inputs use;
         records how the submesh's vertices permute them."""
-        given = np.asarray(parent_cell_nodes)[self.input_index]  # (n_sub, 3)
+        given = np.asarray(parent_cell_nodes)[self.input_index]  # (n_sub, k)
         self._vertex_permutation = np.argmax(self.parent_nodes[:, :, None] == given[:, None, :], axis=2)
 
     def set_materials(self, compliance, offset, weight=None, penalty=None) -> None:
@@ -356,7 +352,7 @@ class InterfaceSystem:
         if self.vertex_area is None or self.vertex_area.size != self.velocity_parent.size:
             self.vertex_area = np.zeros(self.velocity_parent.size)
         self.vertex_area[:] = 0.0
-        np.add.at(self.vertex_area, self._velocity_cells.ravel(), np.repeat(self._cell_areas() / 3.0, 3))
+        np.add.at(self.vertex_area, self._velocity_cells.ravel(), self._vertex_weights().ravel())
         for m, side in enumerate("ab"):
             density = mass[m][:, self.velocity_parent] / self.vertex_area
             self.functions[f"mass_{side}"].x.array.reshape(-1, 2)[:] = density.T
@@ -373,7 +369,14 @@ class InterfaceSystem:
         """Follow the mesh: node_position (2, n_parent_nodes)."""
         self.submesh.geometry.x[:, :2] = node_position[:, self.geometry_map].T
 
-    def _cell_areas(self):
+    def _vertex_weights(self):
+        """(n_sub, k): the vertex rule's weight at each vertex of each cell, in the order of
+        its geometry nodes: |K|/3 on a triangle, |det J(vertex)|/4 on a quadrilateral."""
         x = self.submesh.geometry.x[self.sub_nodes, :2]
-        e1, e2 = x[:, 1] - x[:, 0], x[:, 2] - x[:, 0]
-        return 0.5 * np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
+        if x.shape[1] == 3:
+            e1, e2 = x[:, 1] - x[:, 0], x[:, 2] - x[:, 0]
+            area = 0.5 * np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
+            return np.repeat(area[:, None] / 3.0, 3, axis=1)
+        corners = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [1.0, 1.0]])  # tensor order
+        jacobian = bilinear_map(x, np.broadcast_to(corners, (x.shape[0], 4, 2)))[1]
+        return 0.25 * np.abs(np.linalg.det(jacobian))

@@ -71,10 +71,76 @@ def test_cut_integrals_of_p1_products_are_exact_and_refit_without_compiling(size
     assert -0.05 < cut.stats["min_weight"] < 0  # measured: −0.024 of the cell's area at worst
 
 
-def test_quadrilaterals_are_refused_with_the_reason():
-    mesh = dolfinx.mesh.create_unit_square(MPI.COMM_WORLD, 2, 2, dolfinx.mesh.CellType.quadrilateral)
-    with pytest.raises(ValueError, match="triangles only"):
-        CutQuadrature(mesh)
+def _skewed_quadrilaterals(n):
+    """A unit square of n × n quadrilaterals, interior nodes moved so that no cell is a
+    parallelogram (non-affine maps)."""
+    mesh = dolfinx.mesh.create_unit_square(MPI.COMM_WORLD, n, n, dolfinx.mesh.CellType.quadrilateral)
+    x = mesh.geometry.x
+    inner = (x[:, 0] > 1e-9) & (x[:, 0] < 1 - 1e-9) & (x[:, 1] > 1e-9) & (x[:, 1] < 1 - 1e-9)
+    x[inner, 0] += 0.2 / n * np.sin(7.0 * x[inner, 1] + 3.0 * x[inner, 0])
+    x[inner, 1] += 0.2 / n * np.cos(5.0 * x[inner, 0] - 2.0 * x[inner, 1])
+    return mesh
+
+
+def _brute_force(cut, cells, polygons, integrand):
+    """Σ over the polygons of ∫ integrand(ξ, J) dx by a degree-30 rule on their fans."""
+    import basix
+
+    points, weights = basix.make_quadrature(basix.CellType.triangle, 30)
+    total = 0.0
+    for j in range(1, polygons.shape[1] - 1):
+        a, e1, e2 = polygons[:, 0], polygons[:, j] - polygons[:, 0], polygons[:, j + 1] - polygons[:, 0]
+        area = np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
+        physical = a[:, None] + points[None, :, :1] * e1[:, None] + points[None, :, 1:] * e2[:, None]
+        xi = cut.reference_coordinates(cells, physical)
+        total = total + np.einsum("nq...,q,n->n...", integrand(cells, xi), weights, area)
+    return total
+
+
+def test_cut_integrals_on_non_affine_quadrilaterals_are_exact():
+    """On skewed quadrilaterals the integrands of Q1 forms are not polynomials in x, y; the
+    weights are fitted in each cell's reference coordinates (to ∫ ξ^a η^b over the part's
+    preimage), where ∫_part ∇ψ_i dx = ∫ adj(J)ᵀ ∇̂ψ̂_i dξ is a polynomial: assembled with
+    one compiled form it matches a degree-30 brute-force integration to 1e-12."""
+    mesh = _skewed_quadrilaterals(6)
+    cut = CutQuadrature(mesh)
+    nodes = np.asarray(mesh.geometry.dofmaps[0])
+    going_round = mesh.geometry.x[nodes][:, [0, 1, 3, 2], :2]
+    normal, offset = np.array([np.cos(0.7), np.sin(0.7)]), 0.8
+    distance = going_round @ normal - offset
+    full = np.flatnonzero((distance <= 0).all(axis=1))
+    cells = np.flatnonzero((distance < 0).any(axis=1) & (distance > 0).any(axis=1))
+    parts = clip_half_plane(going_round[cells], normal, np.full(cells.size, offset))
+    cut.set_part_polygons(full, cells, parts)
+    V = dolfinx.fem.functionspace(mesh, ("Lagrange", 1))
+    v = ufl.TestFunction(V)
+    gradient_form = dolfinx.fem.form([cut.ratio * v.dx(0) * cut.measure, cut.ratio * v.dx(1) * cut.measure])
+    area_form = dolfinx.fem.form(cut.ratio * cut.measure)
+    area = dolfinx.fem.assemble_scalar(area_form)
+    exact_area = np.abs(polygon_area(parts)).sum() + np.abs(polygon_area(going_round[full])).sum()
+    assert abs(area - exact_area) < 1e-13
+    # ∫_part ∂ψ_i/∂x_d over the cut cells, node by node, against brute force
+    everything = np.r_[full, cells]
+    polygons = np.concatenate([np.pad(going_round[full], ((0, 0), (0, parts.shape[1] - 4), (0, 0)), mode="edge"),
+                               parts]) if parts.shape[1] >= 4 else None
+    cell_dofs = np.asarray(V.dofmap.list)[everything]  # tensor order, as the geometry
+
+    def shape_gradients(cells_, xi):
+        x = cut.cell_vertices(cells_)
+        s, t = xi[..., 0], xi[..., 1]
+        ref = np.stack([np.stack([-(1 - t), -(1 - s)], -1), np.stack([1 - t, -s], -1),
+                        np.stack([-t, 1 - s], -1), np.stack([t, s], -1)], axis=-2)  # (n, q, 4, 2)
+        d_s = (x[:, None, 1] - x[:, None, 0]) * (1 - t)[..., None] + (x[:, None, 3] - x[:, None, 2]) * t[..., None]
+        d_t = (x[:, None, 2] - x[:, None, 0]) * (1 - s)[..., None] + (x[:, None, 3] - x[:, None, 1]) * s[..., None]
+        jacobian = np.stack([d_s, d_t], axis=-1)
+        return np.einsum("nqij,nqkj->nqki", np.linalg.inv(jacobian).transpose(0, 1, 3, 2), ref)
+
+    reference = _brute_force(cut, everything, polygons, shape_gradients)  # (n, 4, 2)
+    for d, form in enumerate(gradient_form):
+        assembled = dolfinx.fem.assemble_vector(form).array
+        expected = np.zeros_like(assembled)
+        np.add.at(expected, cell_dofs.ravel(), reference[..., d].ravel())
+        assert np.abs(assembled - expected).max() < 1e-12
 
 
 def test_interface_integrals_of_p1_products_are_exact():
@@ -124,3 +190,43 @@ def test_the_measure_fits_the_monomials_in_the_order_the_moments_come_in():
     mesh = dolfinx.mesh.create_unit_square(MPI.COMM_WORLD, 2, 2, dolfinx.mesh.CellType.triangle)
     for degree in (1, 2):
         assert CutQuadrature(mesh, exact_degree=degree).exponents == monomials(degree)
+
+
+def test_interface_integrals_on_non_affine_quadrilaterals_are_exact():
+    """∫_Γ ψ_i ψ_j (the Nitsche penalty's integrand, of degree 2 in each reference
+    coordinate) over the segments of a line across skewed quadrilaterals, assembled with
+    the interface weights, against 40 Gauss–Legendre points along each segment."""
+    mesh = _skewed_quadrilaterals(6)
+    cut = CutQuadrature(mesh)
+    nodes = np.asarray(mesh.geometry.dofmaps[0])
+    going_round = mesh.geometry.x[nodes][:, [0, 1, 3, 2], :2]
+    normal, offset = np.array([np.cos(0.7), np.sin(0.7)]), 0.8
+    distance = going_round @ normal - offset
+    cells = np.flatnonzero((distance < 0).any(axis=1) & (distance > 0).any(axis=1))
+    # the segment: where the cell's edges cross the line
+    start, end = np.empty((cells.size, 2)), np.empty((cells.size, 2))
+    for row, cell in enumerate(cells):
+        crossings = []
+        for k in range(4):
+            a, b = going_round[cell, k], going_round[cell, (k + 1) % 4]
+            da, db = a @ normal - offset, b @ normal - offset
+            if (da < 0) != (db < 0):
+                crossings.append(a + da / (da - db) * (b - a))
+        start[row], end[row] = crossings[0], crossings[-1]
+    cut.set_interface_segments(cells, start, end)
+    V = dolfinx.fem.functionspace(mesh, ("Lagrange", 1))
+    u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
+    matrix = dolfinx.fem.assemble_matrix(dolfinx.fem.form(cut.ratio * u * v * cut.measure)).to_dense()
+    t, w = np.polynomial.legendre.leggauss(40)
+    t, w = 0.5 * (t + 1.0), 0.5 * w
+    points = start[:, None] + t[None, :, None] * (end - start)[:, None]
+    xi = cut.reference_coordinates(cells, points)
+    s_, t_ = xi[..., 0], xi[..., 1]
+    psi = np.stack([(1 - s_) * (1 - t_), s_ * (1 - t_), (1 - s_) * t_, s_ * t_], axis=-1)  # tensor order
+    length = np.linalg.norm(end - start, axis=1)
+    local = np.einsum("nqi,nqj,q,n->nij", psi, psi, w, length)
+    expected = np.zeros_like(matrix)
+    dofs = np.asarray(V.dofmap.list)[cells]
+    for row in range(cells.size):
+        expected[np.ix_(dofs[row], dofs[row])] += local[row]
+    assert np.abs(matrix - expected).max() < 1e-13

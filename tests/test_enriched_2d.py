@@ -1,5 +1,6 @@
 """The implicit system of 2D enriched mixed cells (forms/enriched_interface.py with the cut
-geometry of ale_xfem/mixed/cut_cells_2d.py), one step at a time on triangles: a uniform
+geometry of ale_xfem/mixed/cut_cells_2d.py), one step at a time on triangles and
+quadrilaterals: a uniform
 pressure at rest stays at rest whatever the reconstruction, free slip leaves each
 material's tangential velocity alone, stick couples it, and the unstabilised P1–P0 pair
 checkerboards its interface pressure where bubbles and Nitsche do not."""
@@ -22,20 +23,21 @@ DENSITY, BULK = (1.0, 10.0), (1.0, 10.0)  # ρ_m and κ_m = ρ_m c_m² of α (in
 _FORMS = {}
 
 
-def _forms(stabilisation, slip):
-    key = (stabilisation, slip)
+def _forms(stabilisation, slip, cell):
+    key = (stabilisation, slip, cell)
     if key not in _FORMS:
-        _FORMS[key] = InterfaceForms(MPI.COMM_WORLD, stabilisation, slip)
+        _FORMS[key] = InterfaceForms(MPI.COMM_WORLD, stabilisation, slip, cell)
     return _FORMS[key]
 
 
 class Cut:
-    """A unit square of n × n triangles, walls on all sides, α inside a disk or below a
+    """A unit square of n × n triangles or quadrilaterals, walls on all sides, α inside a disk or below a
     straight line, exact volume fractions, PLIC (the disk with Youngs' normals, the line
     with its own)."""
 
-    def __init__(self, n, shape="disk", offset=0.55, angle=0.3):
-        self.dolfinx_mesh = dolfinx.mesh.create_unit_square(MPI.COMM_WORLD, n, n, dolfinx.mesh.CellType.triangle)
+    def __init__(self, n, shape="disk", offset=0.55, angle=0.3, cell="triangle"):
+        self.cell = cell
+        self.dolfinx_mesh = dolfinx.mesh.create_unit_square(MPI.COMM_WORLD, n, n, dolfinx.mesh.CellType[cell])
         mesh = self.mesh = from_dolfinx(self.dolfinx_mesh)
         x = mesh.node_position
         vertices = np.moveaxis(x[:, mesh.cell_nodes], 0, -1)
@@ -79,7 +81,8 @@ class Cut:
         self.node_mass = np.zeros((2, mesh.n_nodes))
         for m in range(2):
             pure = material == m
-            np.add.at(self.node_mass[m], mesh.cell_nodes[pure].ravel(), np.repeat(DENSITY[m] * area[pure] / 3, 3))
+            k = mesh.cell_nodes.shape[1]
+            np.add.at(self.node_mass[m], mesh.cell_nodes[pure].ravel(), np.repeat(DENSITY[m] * area[pure] / k, k))
             np.add.at(self.node_mass[m], mesh.cell_nodes[mixed].ravel(), masses[m].ravel())
         self.held = np.stack([(np.abs(x[0]) < 1e-12) | (np.abs(x[0] - 1) < 1e-12),
                               (np.abs(x[1]) < 1e-12) | (np.abs(x[1] - 1) < 1e-12)])
@@ -88,12 +91,13 @@ class Cut:
         """(F̄, f^n) of material m under the uniform pressure (pure cells: P ∂|K|/∂x_i;
         mixed cells at n, P_m = p_Γ: P G_mi)."""
         mesh = self.mesh
-        _, gradient = mesh.cell_type.volume_and_gradient(mesh.corners.gather(mesh.node_position))
+        x = np.moveaxis(mesh.node_position[:, mesh.cell_nodes], 0, -1)  # (cells, k, 2) going round
+        after, before = np.roll(x, -1, axis=1), np.roll(x, 1, axis=1)
+        gradient = 0.5 * np.stack([after[..., 1] - before[..., 1], before[..., 0] - after[..., 0]], axis=-1)
         pure = np.zeros((2, mesh.n_nodes))
         cells = self.cell_material == m
-        for k in range(3):
-            for d in range(2):
-                np.add.at(pure[d], mesh.cell_nodes[cells, k], PRESSURE * gradient[k][d][cells])
+        for d in range(2):
+            np.add.at(pure[d], mesh.cell_nodes[cells].ravel(), PRESSURE * gradient[cells][..., d].ravel())
         mixed = np.zeros((2, mesh.n_nodes))
         for d in range(2):
             np.add.at(mixed[d], mesh.cell_nodes[self.mixed].ravel(), PRESSURE * self.cut.edge_flux[m][..., d].ravel())
@@ -105,11 +109,11 @@ class Cut:
         (otherwise a pressure p acts on them from outside).  Returns (the solution, the
         interface pressure)."""
         mesh, cut = self.mesh, self.cut
-        system = InterfaceSystem(self.dolfinx_mesh, self.mixed, _forms(stabilisation, slip))
+        system = InterfaceSystem(self.dolfinx_mesh, self.mixed, _forms(stabilisation, slip, self.cell))
         system.vertex_order(mesh.cell_nodes[self.mixed])
-        origin, scale = system.local_frames()
-        system.set_geometry(cut.part_moments(origin, scale), cut.interface_moments(origin, scale), cut.edge_flux,
-                            cut.normal)
+        reconstruction = cut.reconstruction
+        system.set_geometry((reconstruction.alpha, reconstruction.beta), reconstruction.start, reconstruction.end,
+                            cut.edge_flux, cut.normal)
         n = self.mixed.size
         bulk = np.array(BULK)[:, None] * np.ones((2, n))
         compliance = cut.volume / (bulk * DT)  # V_m / κ_m dt
@@ -142,11 +146,12 @@ class Cut:
 @pytest.mark.parametrize("stabilisation", ["bubble", "nitsche"])
 @pytest.mark.parametrize("slip", ["free", "stick"])
 @pytest.mark.parametrize("shape", ["disk", "line"])
-def test_a_uniform_pressure_at_rest_stays_at_rest(stabilisation, slip, shape):
+@pytest.mark.parametrize("cell", ["triangle", "quadrilateral"])
+def test_a_uniform_pressure_at_rest_stays_at_rest(stabilisation, slip, shape, cell):
     """The PLIC lines of neighbouring cells do not meet on their shared edges (the disk);
     the edge parts shared by both cells make the forces of a uniform pressure cancel at
     every node anyway.  Velocities stay 0 and pressures p to round-off."""
-    case = Cut(12, shape)
+    case = Cut(12, shape, cell=cell)
     out, interface = case.solve(stabilisation, slip)
     scale = PRESSURE * DT / (DENSITY[0] * 1.0 / 12)  # the velocity a p-sized force imparts in a step
     assert max(np.abs(u).max() for u in out["velocity"]) < 1e-9 * scale
@@ -155,7 +160,8 @@ def test_a_uniform_pressure_at_rest_stays_at_rest(stabilisation, slip, shape):
 
 
 @pytest.mark.parametrize("stabilisation", ["bubble", "nitsche"])
-def test_slivers_rest_and_give_their_mass_to_the_nearest_node(stabilisation):
+@pytest.mark.parametrize("cell", ["triangle", "quadrilateral"])
+def test_slivers_rest_and_give_their_mass_to_the_nearest_node(stabilisation, cell):
     """A line through the mesh 3e-4 of a cell's width from a node: cut fractions below
     1e-6.  A sliver holding none of its cell's nodes gives its mass to the node
     nearest it (the other nodes keep a share EXTERNAL_SHARE of their consistent one).  The
@@ -168,7 +174,7 @@ def test_slivers_rest_and_give_their_mass_to_the_nearest_node(stabilisation):
     angle = 0.3
     normal = np.array([np.cos(angle), np.sin(angle)])
     node = np.array([6, 6]) / n
-    case = Cut(n, "line", offset=float(normal @ node) + 3e-4 / n, angle=angle)
+    case = Cut(n, "line", offset=float(normal @ node) + 3e-4 / n, angle=angle, cell=cell)
     smallest = np.minimum(case.fraction[case.mixed], 1 - case.fraction[case.mixed]).min()
     assert smallest < 1e-6
     # every material's mass in every mixed cell is on the cell's nodes, each positive
@@ -199,12 +205,13 @@ def _sliding(case, speed):
 
 
 @pytest.mark.parametrize("stabilisation", ["none", "bubble", "nitsche"])
-def test_free_slip_keeps_each_materials_tangential_velocity_and_stick_couples_them(stabilisation):
+@pytest.mark.parametrize("cell", ["triangle", "quadrilateral"])
+def test_free_slip_keeps_each_materials_tangential_velocity_and_stick_couples_them(stabilisation, cell):
     """Two materials sliding past each other along a straight interface (no walls: the
     outside pressure holds the box).  Free slip: a steady state — each
     material keeps its velocity, pressures stay.  Stick: the tangential jump averaged on
     each Γ_K vanishes (multipliers) or falls (Nitsche's penalty)."""
-    case = Cut(12, "line")
+    case = Cut(12, "line", cell=cell)
     velocity, tangent = _sliding(case, 0.1)
     nodes = np.unique(case.mesh.cell_nodes[case.mixed])
     x = case.mesh.node_position[:, nodes]
@@ -227,13 +234,15 @@ def test_free_slip_keeps_each_materials_tangential_velocity_and_stick_couples_th
         assert np.abs(jump[interior]).max() < 1e-9
 
 
-def test_the_unstabilised_pair_checkerboards_its_interface_pressure_and_both_cures_fix_it():
+@pytest.mark.parametrize("cell", ["triangle", "quadrilateral"])
+def test_the_unstabilised_pair_checkerboards_its_interface_pressure_and_both_cures_fix_it(cell):
     """α striking β across a straight line at 17° to the mesh, one implicit step: the rise
     of p_Γ should be the same all along Γ (interior cells).  Its spread (standard deviation
-    over |mean|) on 24²: the P1–P0 pair 5.3 (its mean even negative), bubbles 0.21,
-    Nitsche 0.37 / 0.60 / 0.83 / 1.06 with penalty factors 0.1 / 1 / 10 / 100 (on 48²: 12,
-    0.10, 0.32 / 0.56 / 0.75 / 1.02): a larger penalty tends to the unstabilised constraint."""
-    case = Cut(24, "line")
+    over |mean|) on 24², triangles: the P1–P0 pair 5.3 (its mean even negative), bubbles
+    0.21, Nitsche 0.37 / 0.60 / 0.83 / 1.06 with penalty factors 0.1 / 1 / 10 / 100;
+    quadrilaterals: 1.5, 0.16, 0.24 / 0.43 / 0.67 / 0.94.  A larger penalty tends to the
+    unstabilised constraint."""
+    case = Cut(24, "line", cell=cell)
     velocity = [0.1 * case.normal_line[:, None] * np.ones((2, case.mesh.n_nodes)),
                 np.zeros((2, case.mesh.n_nodes))]
     centroid = case.cut.reconstruction.centroid
@@ -246,7 +255,7 @@ def test_the_unstabilised_pair_checkerboards_its_interface_pressure_and_both_cur
         if stabilisation != "none":
             assert rise.mean() > 0.0  # the interface is compressed
         spread[stabilisation, penalty] = rise.std() / abs(rise.mean())
-    assert spread["none", 1.0] > 2.0
+    assert spread["none", 1.0] > 1.0
     assert spread["bubble", 1.0] < 0.3
     assert spread["nitsche", 1.0] < 0.7
     assert spread["nitsche", 0.1] < spread["nitsche", 1.0] < spread["nitsche", 100.0]
@@ -256,7 +265,7 @@ def test_binding_to_other_cells_compiles_nothing(monkeypatch):
     """The forms compile once (InterfaceForms); binding them to another set of mixed cells
     creates spaces and functions only."""
     case = Cut(8, "disk")
-    forms = _forms("bubble", "free")
+    forms = _forms("bubble", "free", "triangle")
 
     def refuse(*args, **kwargs):
         raise AssertionError("compiled while binding")
@@ -267,13 +276,14 @@ def test_binding_to_other_cells_compiles_nothing(monkeypatch):
 
 
 @pytest.mark.parametrize("stabilisation", ["bubble", "nitsche"])
-def test_a_node_between_pure_cells_of_both_materials_is_tied(stabilisation):
+@pytest.mark.parametrize("cell", ["triangle", "quadrilateral"])
+def test_a_node_between_pure_cells_of_both_materials_is_tied(stabilisation, cell):
     """An interface along mesh edges that turns into cut cells: at the turn pure cells of
     both materials meet along an edge,
     where no mixed cell carries an interface; each material's share of a uniform pressure
     does not balance there, only their sum.  The node's two velocities are tied (a stiff
     spring, TIE_STIFFNESS): the state at rest stays at rest; untied, it would not."""
-    case = Cut(12, "kink")  # along mesh edges left of (½, ½), through cells right of it
+    case = Cut(12, "kink", cell=cell)  # along mesh edges left of (½, ½), through cells right of it
     assert case.tied.any()
     out, interface = case.solve(stabilisation)
     assert max(np.abs(u).max() for u in out["velocity"]) < 1e-9

@@ -1,4 +1,5 @@
-"""What the 2D enriched mixed cells need of their cut geometry (triangles): each
+"""What the 2D enriched mixed cells need of their cut geometry (triangles and
+quadrilaterals): each
 material's part (volume, centroid, exact moments), the interface segment, the edge flux
 G_mi = Σ_e ∫_{e∩m} ψ_i n_e with each edge's parts shared by its two cells, which node
 carries which material's mass (mass condensation, paper fig. 3) — the inputs of the forms
@@ -30,8 +31,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ale_xfem.geometry.shapes import polygon_area, polygon_centroid, polygon_moments, segment_moments
+import basix
+
+from ale_xfem.geometry.shapes import polygon_area, polygon_centroid
 from ale_xfem.model.plic import Reconstruction
+from forms.cut_quadrature import bilinear_map, inverse_bilinear_map
+
+PART_RULE = 12  # the rule on the triangles of a part's fan (∫ ψ_i, ∫ ∇ψ_i)
 
 # The share of its consistent mass ∫_{K_m} ρ_m ψ_i an external node keeps (the rest goes to
 # the internal nodes).  Massless external nodes leave the implicit system singular in 2D:
@@ -50,63 +56,60 @@ class CutCells:
     """The cut geometry of the mixed cells (arrays over them; material slot m = 0: α, 1: β)."""
 
     cells: np.ndarray  # (n,)
-    vertices: np.ndarray  # (n, 3, 2) the cells' corners, counter-clockwise
+    vertices: np.ndarray  # (n, k, 2) the cells' corners, counter-clockwise
     reconstruction: Reconstruction
     volume: np.ndarray  # (2, n) V_m, the parts' areas
     centroid: np.ndarray  # (2, n, 2)
-    edge_flux: np.ndarray  # (2, n, 3, 2) G_mi for the cell's vertices in cell_nodes order
+    edge_flux: np.ndarray  # (2, n, k, 2) G_mi for the cell's vertices in cell_nodes order
+    _part_integrals: tuple | None = None
 
     @property
     def normal(self) -> np.ndarray:
         return self.reconstruction.normal
 
-    def part_moments(self, origin, scale, degree: int = 2) -> np.ndarray:
-        """(2, n, k): ∫_{K_m} ξ^a η^b dA in local coordinates ξ = (x − origin) / scale."""
-        moments = []
-        for polygon in (self.reconstruction.alpha, self.reconstruction.beta):
-            local = (polygon - origin[:, None, :]) / scale[:, None, None]
-            moments.append(polygon_moments(local, degree) * scale[:, None] ** 2)
-        return np.stack(moments)
-
-    def interface_moments(self, origin, scale, degree: int = 2) -> np.ndarray:
-        """(n, k): ∫_{Γ_K} ξ^a η^b ds in local coordinates."""
-        start = (self.reconstruction.start - origin) / scale[:, None]
-        end = (self.reconstruction.end - origin) / scale[:, None]
-        return segment_moments(start, end, degree) * scale[:, None]
-
     def normal_flux(self, m: int, velocity, nodes) -> np.ndarray:
-        """(n,): ∫_Γ u·n_m = ∫_{K_m} ∇·u − Σ_i G_mi·u_i for a P1 velocity (2, n_nodes) of
-        material m; ``nodes`` (n, 3) the cells' nodes."""
-        x = self.vertices
-        area = 0.5 * ((x[:, 1, 0] - x[:, 0, 0]) * (x[:, 2, 1] - x[:, 0, 1])
-                      - (x[:, 1, 1] - x[:, 0, 1]) * (x[:, 2, 0] - x[:, 0, 0]))
-        u = np.moveaxis(velocity[:, nodes], 0, -1)  # (n, 3, 2)
-        opposite = np.roll(x, -1, axis=1) - np.roll(x, 1, axis=1)  # x_{i+1} − x_{i−1}
-        area_gradient = 0.5 * np.stack([opposite[..., 1], -opposite[..., 0]], axis=-1)  # ∂|K|/∂x_i
-        divergence = np.einsum("nkd,nkd->n", u, area_gradient) / area
-        return self.volume[m] * divergence - np.einsum("nkd,nkd->n", self.edge_flux[m], u)
+        """(n,): ∫_Γ u·n_m = ∫_{K_m} ∇·u − Σ_i G_mi·u_i for a P1/Q1 velocity (2, n_nodes) of
+        material m; ``nodes`` (n, k) the cells' nodes."""
+        u = np.moveaxis(velocity[:, nodes], 0, -1)  # (n, k, 2)
+        gradient = self.part_integrals()[1][m]  # (n, k, 2): ∫_{K_m} ∇ψ_i
+        return np.einsum("nkd,nkd->n", u, gradient) - np.einsum("nkd,nkd->n", self.edge_flux[m], u)
 
     def vertex_integrals(self) -> np.ndarray:
-        """(2, n, 3): ∫_{K_m} ψ_i = V_m ψ_i(centroid of K_m) (ψ_i linear)."""
-        x = self.vertices
-        e1, e2 = x[:, 1] - x[:, 0], x[:, 2] - x[:, 0]
-        det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
-        out = np.empty((2,) + x.shape[:2])
-        for m in range(2):
-            d = self.centroid[m] - x[:, 0]
-            l1 = (d[:, 0] * e2[:, 1] - d[:, 1] * e2[:, 0]) / det
-            l2 = (e1[:, 0] * d[:, 1] - e1[:, 1] * d[:, 0]) / det
-            out[m] = self.volume[m][:, None] * np.stack([1.0 - l1 - l2, l1, l2], axis=1)
-        return out
+        """(2, n, k): ∫_{K_m} ψ_i."""
+        return self.part_integrals()[0]
+
+    def part_integrals(self):
+        """(∫_{K_m} ψ_i (2, n, k), ∫_{K_m} ∇ψ_i (2, n, k, 2)) over each material's polygon,
+        fanned into triangles, by a degree-PART_RULE rule (exact on triangles; on
+        quadrilaterals, through the inverse bilinear map, to round-off)."""
+        if self._part_integrals is None:
+            points, weights = basix.make_quadrature(basix.CellType.triangle, PART_RULE)
+            k = self.vertices.shape[1]
+            values = np.zeros((2,) + self.vertices.shape[:2])
+            gradients = np.zeros((2,) + self.vertices.shape)
+            polygons = (self.reconstruction.alpha, self.reconstruction.beta)
+            for m in range(2):
+                polygon = polygons[m]
+                for j in range(1, polygon.shape[1] - 1):
+                    a, e1, e2 = polygon[:, 0], polygon[:, j] - polygon[:, 0], polygon[:, j + 1] - polygon[:, 0]
+                    area = 0.5 * np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
+                    physical = (a[:, None] + points[None, :, :1] * e1[:, None] + points[None, :, 1:] * e2[:, None])
+                    psi, grad = _shape_functions(self.vertices, physical, k)
+                    scale = 2.0 * area[:, None] * weights[None, :]
+                    values[m] += np.einsum("nqk,nq->nk", psi, scale)
+                    gradients[m] += np.einsum("nqkd,nq->nkd", grad, scale)
+            self._part_integrals = (values, gradients)
+        return self._part_integrals
 
 
 def cut_cells(cell_nodes, node_position, cells, reconstruction: Reconstruction, cell_material,
               alpha_material) -> CutCells:
-    """The cut geometry of the mixed cells ``cells`` of a triangle mesh.  ``cell_material``
+    """The cut geometry of the mixed cells ``cells`` of a mesh of triangles or
+    quadrilaterals (corners going round in ``cell_nodes``).  ``cell_material``
     (n_cells,): each cell's material, −1 for mixed cells; ``alpha_material`` (n,): each mixed
     cell's α (slot 0) material.  α is {x·n ≤ s} in ``reconstruction``."""
     cells = np.asarray(cells)
-    nodes = cell_nodes[cells]  # (n, 3)
+    nodes = cell_nodes[cells]  # (n, k)
     vertices = np.moveaxis(node_position[:, nodes], 0, -1)
     polygons = (reconstruction.alpha, reconstruction.beta)
     volume = np.stack([np.abs(polygon_area(p)) for p in polygons])
@@ -120,7 +123,7 @@ def cut_cells(cell_nodes, node_position, cells, reconstruction: Reconstruction, 
     np.add.at(total, nodes.ravel(), (distance * orientation[:, None]).ravel())
     np.add.at(count, nodes.ravel(), 1.0)
     level = total / np.maximum(count, 1.0)
-    d = level[nodes] * orientation[:, None]  # (n, 3) < 0 inside α
+    d = level[nodes] * orientation[:, None]  # (n, k) < 0 inside α
     # each local edge k: vertices k → k+1; α's interval [t0, t1] along it
     start, end = d, np.roll(d, -1, axis=1)
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -129,13 +132,13 @@ def cut_cells(cell_nodes, node_position, cells, reconstruction: Reconstruction, 
     t0 = np.where(inside_start, 0.0, np.where(inside_end, crossing, 1.0))
     t1 = np.where(inside_start, np.where(inside_end, 1.0, crossing), 1.0)
     # an edge next to a pure cell is that cell's material, wholly
-    neighbour = _edge_neighbours(cell_nodes, cells)  # (n, 3), −1 on the boundary
+    neighbour = _edge_neighbours(cell_nodes, cells)  # (n, k), −1 on the boundary
     neighbour_material = np.where(neighbour >= 0, cell_material[np.maximum(neighbour, 0)], -1)
     whole_alpha = neighbour_material == alpha_material[:, None]
     whole_beta = (neighbour_material >= 0) & ~whole_alpha
     t0 = np.where(whole_alpha, 0.0, np.where(whole_beta, 1.0, t0))
     t1 = np.where(whole_alpha | whole_beta, 1.0, t1)
-    along = np.roll(vertices, -1, axis=1) - vertices  # (n, 3, 2)
+    along = np.roll(vertices, -1, axis=1) - vertices  # (n, k, 2)
     outward = np.stack([along[..., 1], -along[..., 0]], axis=-1)  # |e| n_e for a counter-clockwise cell
     first = (t1 - t0) - 0.5 * (t1**2 - t0**2)  # ∫ (1 − t) dt over α's interval
     second = 0.5 * (t1**2 - t0**2)  # ∫ t dt
@@ -146,14 +149,14 @@ def cut_cells(cell_nodes, node_position, cells, reconstruction: Reconstruction, 
 
 
 def _edge_neighbours(cell_nodes, cells):
-    """(n, 3): the cell across local edge k (vertices k → k+1) of each of ``cells``."""
+    """(n, k): the cell across local edge j (vertices j → j+1) of each of ``cells``."""
     k = cell_nodes.shape[1]
     start, end = cell_nodes.ravel(), np.roll(cell_nodes, -1, axis=1).ravel()
     key = np.minimum(start, end) * (cell_nodes.max() + 1) + np.maximum(start, end)
     order = np.argsort(key, kind="stable")
     sorted_key = key[order]
     owner = np.repeat(np.arange(cell_nodes.shape[0]), k)
-    ours = key.reshape(-1, k)[cells]  # (n, 3)
+    ours = key.reshape(-1, k)[cells]  # (n, k)
     left = np.searchsorted(sorted_key, ours, side="left")
     right = np.searchsorted(sorted_key, ours, side="right")
     own = np.asarray(cells)[:, None]
@@ -185,12 +188,12 @@ def node_materials(cell_nodes, n_nodes, cell_material, cell_volume, material_vol
 
 def condensed_masses(cut: CutCells, cell_nodes, node_material, mass, materials,
                      external_share: float = EXTERNAL_SHARE) -> np.ndarray:
-    """(2, n, 3): each material's mass in each mixed cell lumped onto the cell's nodes that
+    """(2, n, k): each material's mass in each mixed cell lumped onto the cell's nodes that
     lie in it, or onto the node nearest its part when none does (module docstring); the
     external nodes keep ``external_share`` of their consistent share.  ``mass`` (2, n): the
     materials' masses in the mixed cells; ``materials`` (2, n) their ids."""
     nodes = cell_nodes[cut.cells]
-    shares = cut.vertex_integrals()  # (2, n, 3)
+    shares = cut.vertex_integrals()  # (2, n, k)
     out = np.zeros_like(shares)
     for m in range(2):
         inside = node_material[nodes] == materials[m][:, None]
@@ -203,3 +206,30 @@ def condensed_masses(cut: CutCells, cell_nodes, node_material, mass, materials,
         out[m] = mass[m][:, None] * np.divide(weight, total[:, None], out=np.zeros_like(weight),
                                               where=total[:, None] > 0.0)
     return out
+
+
+def _shape_functions(vertices, points, k):
+    """P1 (k = 3) or Q1 (k = 4) shape functions and their gradients at physical points
+    (n, q, 2) of cells with corners ``vertices`` (n, k, 2) going round: (n, q, k), (n, q, k, 2)."""
+    if k == 3:
+        x = vertices
+        e1, e2 = x[:, 1] - x[:, 0], x[:, 2] - x[:, 0]
+        det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
+        d = points - x[:, None, 0]
+        l1 = (d[..., 0] * e2[:, None, 1] - d[..., 1] * e2[:, None, 0]) / det[:, None]
+        l2 = (e1[:, None, 0] * d[..., 1] - e1[:, None, 1] * d[..., 0]) / det[:, None]
+        psi = np.stack([1.0 - l1 - l2, l1, l2], axis=-1)
+        g1 = np.stack([e2[:, 1], -e2[:, 0]], axis=-1) / det[:, None]  # ∇λ₁
+        g2 = np.stack([-e1[:, 1], e1[:, 0]], axis=-1) / det[:, None]  # ∇λ₂
+        grad = np.stack([-g1 - g2, g1, g2], axis=1)[:, None].repeat(points.shape[1], axis=1)
+        return psi, grad
+    tensor = vertices[:, [0, 1, 3, 2]]  # going round → tensor order
+    xi = inverse_bilinear_map(tensor, points)
+    s, t = xi[..., 0], xi[..., 1]
+    # going-round order: (0,0), (1,0), (1,1), (0,1)
+    psi = np.stack([(1 - s) * (1 - t), s * (1 - t), s * t, (1 - s) * t], axis=-1)
+    reference = np.stack([np.stack([-(1 - t), -(1 - s)], -1), np.stack([1 - t, -s], -1),
+                          np.stack([t, s], -1), np.stack([-t, 1 - s], -1)], axis=-2)  # (n, q, 4, 2)
+    jacobian = bilinear_map(tensor, xi)[1]  # (n, q, 2, 2): columns ∂x/∂ξ, ∂x/∂η
+    grad = np.einsum("nqji,nqkj->nqki", np.linalg.inv(jacobian), reference)
+    return psi, grad
