@@ -62,6 +62,15 @@ def _parser() -> argparse.ArgumentParser:
     stability.add_argument("--out", type=Path, default=Path("out") / "study-stability",
                            help="output folder (default: out/study-stability)")
 
+    interface = kinds.add_parser(
+        "interface", help="the 2D enriched interface system on its own: bubbles, Nitsche (several penalty "
+                          "factors) and the unstabilised pair under a uniform impact, triangles and "
+                          "quadrilaterals, then slivers down to a cut fraction of 1e-8")
+    interface.add_argument("--cells", default=None,
+                           help="comma-separated cells per side (default 24,48,96)")
+    interface.add_argument("--out", type=Path, default=Path("out") / "study-interface",
+                           help="output folder (default: out/study-interface)")
+
     bench = commands.add_parser("bench", help="zone-cycles per second of the explicit loop")
     bench.add_argument("--cells", default="1000,10000,100000,1000000",
                        help="comma-separated mesh sizes (default: 1000,...,1000000)")
@@ -79,7 +88,7 @@ def _parser() -> argparse.ArgumentParser:
     bench.add_argument("--out", type=Path, default=Path("out") / "bench-peers",
                        help="with --peers: output folder (default: out/bench-peers)")
     # an unknown option is reported with the usage of the (sub)command it was given to
-    for command_parser in (run, commands.choices["list"], accuracy, stability, bench):
+    for command_parser in (run, commands.choices["list"], accuracy, stability, interface, bench):
         command_parser.set_defaults(command_parser=command_parser)
     return parser
 
@@ -131,6 +140,8 @@ def _cells(text: str, option: str = "--cells") -> list[int]:
 def _study(args) -> int:
     if args.kind == "stability":
         return _stability(args)
+    if args.kind == "interface":
+        return _interface_study(args)
     from ale_xfem.scene import SceneError, resolve_scene_path
     from ale_xfem.studies.accuracy import (DEFAULT_CELLS, study_path, check_study, load_study,
                                   run_accuracy_study, study_from_vary)
@@ -197,6 +208,22 @@ def _bench(args) -> int:
         run_bench(sizes if args.cells != "1000,10000,100000,1000000" else (10_000, 100_000, 1_000_000), "sod-2d")
     else:
         run_bench(sizes)
+    return EXIT_OK
+
+
+def _interface_study(args) -> int:
+    try:
+        cells = _cells(args.cells) if args.cells is not None else None
+        if cells is not None and min(cells) < 8:
+            raise ValueError(f"--cells = {args.cells!r}: at least 8 cells per side (the interface must "
+                             "cross cells away from the walls)")
+    except ValueError as error:
+        print(f"error: {error}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    from ale_xfem.studies.interface import DEFAULT_CELLS, run_interface_study
+
+    run_interface_study(args.out, tuple(cells) if cells else DEFAULT_CELLS)
+    print(f"written: {args.out}/interface.csv, slivers.csv, interface.md, interface.png")
     return EXIT_OK
 
 

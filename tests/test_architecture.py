@@ -27,7 +27,7 @@ MAY_IMPORT = {
     "remap": {"model", "geometry"},
     "run": {"problem", "model", "lagrange", "mixed", "remap"},
     "output": {"run", "problem", "model", "geometry", "scene"},
-    "studies": {"run", "problem", "scene", "output", "model", "exact", "eos", "geometry"},
+    "studies": {"run", "problem", "scene", "output", "model", "exact", "eos", "geometry", "mixed", "forms"},
     "cli": {"run", "problem", "scene", "output", "studies"},
 }
 STEPPERS = {"lagrange", "mixed", "remap", "run", "output", "studies", "cli"}
