@@ -1,7 +1,7 @@
 """A linear system of compiled forms bound to one mesh (the submesh of the mixed cells):
 its forms, matrix, vectors and KSP created once, refilled and solved at every call — what
-the 1D predictor (:mod:`forms.mixed_cell`) and the 2D enriched system
-(:mod:`forms.enriched_interface`) share."""
+the systems of :mod:`forms.enriched_interface` (and any other forms of a mixed-cell
+submesh) rely on."""
 
 from __future__ import annotations
 

@@ -41,7 +41,8 @@ import ufl
 # Triangles: six points, degree 2 (P1 products, the quadratic ∇·(b n) of a cubic bubble).
 # Quadrilaterals: sixteen points (4 × 4), degree 3 in each of ξ and η (adj(J)ᵀ∇̂b̂ of the Q2
 # bubble, Q1 products on Γ; a tensor rule of 4 × 4 points cannot fit ξ⁴).
-RULES = {"triangle": (4, 2), "quadrilateral": (6, 3)}
+# Intervals: three points, degree 2 (the 1D mixed cell as the same forms' case).
+RULES = {"interval": (4, 2), "triangle": (4, 2), "quadrilateral": (6, 3)}
 POLYGON_RULE = 20  # the rule on the triangles of a fanned polygon (reference moments)
 SEGMENT_POINTS = 12  # Gauss–Legendre points along an interface segment
 NEWTON_STEPS = 30  # at most, for the inverse bilinear map
@@ -66,7 +67,9 @@ class CutQuadrature:
         self.measure = ufl.Measure("dx", domain=mesh, metadata={"quadrature_degree": rule_degree,
                                                                 "quadrature_scheme": "default"})
         self.points, self.weights = basix.make_quadrature(basix.CellType[cell_name], rule_degree)
-        if cell_name == "triangle":  # total degree ≤ exact_degree
+        if cell_name == "interval":
+            self.exponents = [(a,) for a in range(exact_degree + 1)]
+        elif cell_name == "triangle":  # total degree ≤ exact_degree
             self.exponents = [(total - b, b) for total in range(exact_degree + 1) for b in range(total + 1)]
         else:  # degree ≤ exact_degree in each reference coordinate (a tensor rule fits no more)
             self.exponents = [(a, b) for a in range(exact_degree + 1) for b in range(exact_degree + 1)]
@@ -127,7 +130,13 @@ class CutQuadrature:
         of degree ≤ exact_degree in ξ — on a quadrilateral the integrands of P1/Q1 forms
         (∇ψ |det J| = adj(J)ᵀ ∇̂ψ̂ is polynomial) — exactly."""
         cut_cells = np.asarray(cut_cells, dtype=np.int64)
-        moments = self._polygon_moments(cut_cells, np.asarray(polygons, dtype=float))
+        polygons = np.asarray(polygons, dtype=float)
+        if self.cell_name == "interval":  # the part [x₀, x₁] (n, 2, 1): ∫ ξ^a dξ exactly
+            ends = np.sort(self.reference_coordinates(cut_cells, polygons)[..., 0], axis=1)
+            moments = np.stack([(ends[:, 1] ** (a + 1) - ends[:, 0] ** (a + 1)) / (a + 1)
+                                for (a,) in self.exponents], axis=1)
+        else:
+            moments = self._polygon_moments(cut_cells, polygons)
         self._fill(full_cells, cut_cells, moments, with_jacobian=False)
 
     def set_interface_segments(self, cut_cells, start, end) -> None:
@@ -135,6 +144,11 @@ class CutQuadrature:
         (a line integral carried by the cell's interior points): Σ_q ν_q p(ξ_q) =
         ∫_Γ p(ξ(x)) ds for the reference monomials p of degree ≤ exact_degree."""
         cut_cells = np.asarray(cut_cells, dtype=np.int64)
+        if self.cell_name == "interval":  # Γ a point: ∫_Γ p = p(ξ_Γ)
+            xi = self.reference_coordinates(cut_cells, np.asarray(start, dtype=float)[:, None, :])[:, 0, 0]
+            moments = np.stack([xi ** a for (a,) in self.exponents], axis=1)
+            self._fill(np.zeros(0, dtype=np.int64), cut_cells, moments, with_jacobian=True, record=False)
+            return
         t, w = np.polynomial.legendre.leggauss(SEGMENT_POINTS)
         t, w = 0.5 * (t + 1.0), 0.5 * w
         start, end = np.asarray(start, dtype=float), np.asarray(end, dtype=float)
@@ -146,14 +160,17 @@ class CutQuadrature:
         self._fill(np.zeros(0, dtype=np.int64), cut_cells, moments, with_jacobian=True, record=False)
 
     def cell_vertices(self, cells):
-        """(n, k, 2) the cells' geometry nodes in DOLFINx's order (quadrilaterals: tensor
+        """(n, k, gdim) the cells' geometry nodes in DOLFINx's order (quadrilaterals: tensor
         order (0,0), (1,0), (0,1), (1,1))."""
-        return self.mesh.geometry.x[self._nodes[np.asarray(cells, dtype=np.int64)], :2]
+        gdim = 1 if self.cell_name == "interval" else 2
+        return self.mesh.geometry.x[self._nodes[np.asarray(cells, dtype=np.int64)], :gdim]
 
     def reference_coordinates(self, cells, points):
         """ξ (n, k, 2) of physical points (n, k, 2) in each of ``cells``: the affine inverse
         on triangles, Newton's method on the bilinear map of quadrilaterals."""
         x = self.cell_vertices(cells)
+        if self.cell_name == "interval":
+            return (points - x[:, None, 0]) / (x[:, None, 1] - x[:, None, 0])
         if self.cell_name == "triangle":
             axes = np.stack([x[:, 1] - x[:, 0], x[:, 2] - x[:, 0]], axis=-1)  # (n, 2, 2) columns
             return np.einsum("nij,nkj->nki", np.linalg.inv(axes), points - x[:, None, 0])
@@ -191,12 +208,14 @@ class CutQuadrature:
         values[:] = 0.0
         values[self._dofs[np.asarray(full_cells, dtype=np.int64)]] = 1.0
         if cut_cells.size:
-            vandermonde = np.stack([self.points[:, 0] ** a * self.points[:, 1] ** b for a, b in self.exponents])
+            vandermonde = np.stack([np.prod(self.points ** np.asarray(e), axis=1) for e in self.exponents])
             fitted = moments @ np.linalg.pinv(vandermonde).T  # (n, points)
             ratio = fitted / self.weights
             if with_jacobian:
                 x = self.cell_vertices(cut_cells)
-                if self.cell_name == "triangle":
+                if self.cell_name == "interval":
+                    det = np.abs(x[:, 1] - x[:, 0])
+                elif self.cell_name == "triangle":
                     det = _triangle_jacobians(x)[:, None]
                 else:
                     det = np.abs(np.linalg.det(bilinear_map(x, np.broadcast_to(self.points, (x.shape[0],) +
@@ -204,7 +223,7 @@ class CutQuadrature:
                 ratio = ratio / det
             values[self._dofs[cut_cells]] = ratio
             if record:  # relative to the reference cell's measure
-                reference = 0.5 if self.cell_name == "triangle" else 1.0
+                reference = {"interval": 1.0, "triangle": 0.5, "quadrilateral": 1.0}[self.cell_name]
                 self.stats["min_weight"] = float(min(self.stats["min_weight"], (fitted / reference).min()))
                 self.stats["negative_weights"] += int(np.sum(fitted < 0))
         self.ratio.x.scatter_forward()

@@ -1,6 +1,8 @@
-"""The implicit system of 2D enriched mixed cells as UFL forms (the paper's §2 and §3.2;
-docs/design.md "2D enriched mixed cells"), compiled once per run and bound to the current
-mixed cells without compiling.
+"""The implicit system of enriched mixed cells as UFL forms (the paper's §2 and §3.2;
+docs/design.md §4), compiled once per run and bound to the current mixed cells without
+compiling; triangles and quadrilaterals, and intervals: the 1D mixed cell is this
+system's 1D case (unstabilised: in 1D the natural pair is stable), assembled as the 1D
+closure's predictor (``mixed/assembled_predictor.py``).
 
 Unknowns on the submesh of the mixed cells, for each material m of a cell (α: slot 0, β:
 slot 1): its mean velocity over the step ū_m (vector P1 at every node of every mixed cell:
@@ -66,7 +68,7 @@ STABILISATIONS = ("none", "bubble", "nitsche")
 SLIPS = ("free", "stick")
 # the bubble of each cell type: the cubic λ₁λ₂λ₃ of a triangle, the Q2 ξ(1−ξ)η(1−η) of a
 # quadrilateral (its ∇·(b n) |det J| is of degree ≤ 3 in each of ξ, η: the cut rules are exact)
-BUBBLE_DEGREE = {"triangle": 3, "quadrilateral": 2}
+BUBBLE_DEGREE = {"interval": 2, "triangle": 3, "quadrilateral": 2}
 
 # a tied node's spring, relative to its inertia 4M/dt: the two velocities agree to ~1e-8
 TIE_STIFFNESS = 1e8
@@ -86,11 +88,14 @@ class InterfaceForms:
             raise ValueError(f"slip {slip!r}: one of {', '.join(SLIPS)}")
         if cell_name not in RULES:
             raise ValueError(f"cell {cell_name!r}: one of {', '.join(RULES)}")
+        if cell_name == "interval" and slip == "stick":
+            raise ValueError("slip 'stick' on intervals: in 1D the interface has no tangent")
         self.stabilisation, self.slip, self.cell_name = stabilisation, slip, cell_name
         cell = basix.CellType[cell_name]
         rule_degree = RULES[cell_name][0]
-        domain = ufl.Mesh(basix.ufl.element("Lagrange", cell, 1, shape=(2,)))
-        velocity = basix.ufl.element("Lagrange", cell, 1, shape=(2,))
+        gdim = self.gdim = 1 if cell_name == "interval" else 2
+        domain = ufl.Mesh(basix.ufl.element("Lagrange", cell, 1, shape=(gdim,)))
+        velocity = basix.ufl.element("Lagrange", cell, 1, shape=(gdim,))
         scalar0 = basix.ufl.element("DG", cell, 0)
         stick = slip == "stick"
         blocks = [velocity, velocity]  # ū₁_α, ū₁_β
@@ -113,9 +118,9 @@ class InterfaceForms:
 
         quadrature = ufl.FunctionSpace(domain, basix.ufl.quadrature_element(
             cell_name, value_shape=(), scheme="default", degree=rule_degree))
-        kinds = {"mass": function_space("Lagrange", 1, (2,)), "part": quadrature,
-                 "edge_flux": function_space("DG", 1, (2,)), "compliance": function_space("DG", 0),
-                 "offset": function_space("DG", 0), "normal": function_space("DG", 0, (2,)),
+        kinds = {"mass": function_space("Lagrange", 1, (gdim,)), "part": quadrature,
+                 "edge_flux": function_space("DG", 1, (gdim,)), "compliance": function_space("DG", 0),
+                 "offset": function_space("DG", 0), "normal": function_space("DG", 0, (gdim,)),
                  "interface": quadrature, "weight": function_space("DG", 0), "penalty": function_space("DG", 0),
                  "tie": function_space("Lagrange", 1)}
         self.coefficients = {}
@@ -203,11 +208,13 @@ class InterfaceSystem:
 
     def __init__(self, mesh, cells, forms: InterfaceForms, petsc_options: dict | None = None):
         self.forms = forms
-        mesh.topology.create_connectivity(2, 0)
+        tdim = mesh.topology.dim
+        gdim = self.gdim = forms.gdim
+        mesh.topology.create_connectivity(tdim, 0)
         cells = np.asarray(cells, dtype=np.int32)
-        self.submesh, entity_map, _, geometry_map = dolfinx.mesh.create_submesh(mesh, 2, cells)
+        self.submesh, entity_map, _, geometry_map = dolfinx.mesh.create_submesh(mesh, tdim, cells)
         sub = self.submesh
-        n_sub = sub.topology.index_map(2).size_local
+        n_sub = sub.topology.index_map(tdim).size_local
         parent = entity_map.sub_topology_to_topology(np.arange(n_sub, dtype=np.int32), inverse=False)
         order = np.argsort(cells)
         # submesh cell s is the input_index[s]-th of ``cells``
@@ -218,10 +225,10 @@ class InterfaceSystem:
         self.space = dolfinx.fem.functionspace(sub, forms.mixed_element)
         collapsed = [self.space.sub(i).collapse() for i in range(len(forms.blocks))]
         self.maps = [np.asarray(m).ravel() for _, m in collapsed]
-        V1 = dolfinx.fem.functionspace(sub, ("Lagrange", 1, (2,)))
+        V1 = dolfinx.fem.functionspace(sub, ("Lagrange", 1, (gdim,)))
         DG0 = dolfinx.fem.functionspace(sub, ("DG", 0))
-        DG1v = dolfinx.fem.functionspace(sub, ("DG", 1, (2,)))
-        DG0v = dolfinx.fem.functionspace(sub, ("DG", 0, (2,)))
+        DG1v = dolfinx.fem.functionspace(sub, ("DG", 1, (gdim,)))
+        DG0v = dolfinx.fem.functionspace(sub, ("DG", 0, (gdim,)))
         self.parts = [CutQuadrature(sub) for _ in range(2)]
         self.interface = CutQuadrature(sub)
         functions = {}
@@ -253,7 +260,7 @@ class InterfaceSystem:
         # (the collapsed subspaces number their blocks their own way)
         self.velocity_block, self.block_parent = [], []
         for m in range(2):
-            self.velocity_block.append(self.maps[m].reshape(-1, 2))
+            self.velocity_block.append(self.maps[m].reshape(-1, gdim))
             parent = np.empty(self.velocity_block[m].shape[0], dtype=np.int64)
             parent[np.asarray(collapsed[m][0].dofmap.list)] = self.parent_nodes
             self.block_parent.append(parent)
@@ -289,13 +296,14 @@ class InterfaceSystem:
         for m in range(2):
             self.parts[m].set_part_polygons(np.zeros(0, dtype=np.int64), everything, parts[m][take])
         self.interface.set_interface_segments(everything, start[take], end[take])
+        gdim = self.gdim
         weights = self._vertex_weights()  # the vertex rule's weight of each vertex
         for m, side in enumerate("ab"):
-            values = self.functions[f"edge_flux_{side}"].x.array.reshape(-1, 2)
-            flux = edge_flux[m][take][np.arange(n_sub)[:, None], self._vertex_permutation]  # (n_sub, k, 2)
+            values = self.functions[f"edge_flux_{side}"].x.array.reshape(-1, gdim)
+            flux = edge_flux[m][take][np.arange(n_sub)[:, None], self._vertex_permutation]  # (n_sub, k, gdim)
             # the DG1 dofs of a cell follow its geometry nodes' order (P1 / Q1 alike)
-            values[self._dg1v.ravel()] = (flux / weights[..., None]).reshape(-1, 2)
-        self.functions["normal"].x.array.reshape(-1, 2)[self._dg0v] = normal[take]
+            values[self._dg1v.ravel()] = (flux / weights[..., None]).reshape(-1, gdim)
+        self.functions["normal"].x.array.reshape(-1, gdim)[self._dg0v] = normal[take]
 
     def vertex_order(self, parent_cell_nodes) -> None:
         """The parent nodes of each mixed cell (n, 3) in the order per-vertex inputs use;
@@ -325,7 +333,7 @@ class InterfaceSystem:
         self._set_mass(mass, tied)
         array = self.system.assemble()
         for m in range(2):
-            for d in range(2):
+            for d in range(self.gdim):
                 array[self.velocity_block[m][:, d]] += rhs[m][d][self.block_parent[m]]
         # Massless bubbles and nearly massless external nodes weigh their rows by the parts'
         # small stiffness against masses of order 4M/dt: BoundSystem.solve refines
@@ -355,7 +363,7 @@ class InterfaceSystem:
         np.add.at(self.vertex_area, self._velocity_cells.ravel(), self._vertex_weights().ravel())
         for m, side in enumerate("ab"):
             density = mass[m][:, self.velocity_parent] / self.vertex_area
-            self.functions[f"mass_{side}"].x.array.reshape(-1, 2)[:] = density.T
+            self.functions[f"mass_{side}"].x.array.reshape(-1, self.gdim)[:] = density.T
         tie = self.functions["tie"].x.array
         tie[:] = 0.0
         if tied is not None:
@@ -366,13 +374,16 @@ class InterfaceSystem:
             tie[:] = np.where(tied[nodes], stiffness, 0.0) / self.vertex_area[block[nodes]]
 
     def move(self, node_position) -> None:
-        """Follow the mesh: node_position (2, n_parent_nodes)."""
-        self.submesh.geometry.x[:, :2] = node_position[:, self.geometry_map].T
+        """Follow the mesh: node_position (gdim, n_parent_nodes)."""
+        self.submesh.geometry.x[:, :self.gdim] = node_position[:, self.geometry_map].T
 
     def _vertex_weights(self):
         """(n_sub, k): the vertex rule's weight at each vertex of each cell, in the order of
-        its geometry nodes: |K|/3 on a triangle, |det J(vertex)|/4 on a quadrilateral."""
+        its geometry nodes: |K|/2 on an interval, |K|/3 on a triangle, |det J(vertex)|/4 on a
+        quadrilateral."""
         x = self.submesh.geometry.x[self.sub_nodes, :2]
+        if x.shape[1] == 2:
+            return np.repeat(np.abs(x[:, 1, :1] - x[:, 0, :1]) / 2.0, 2, axis=1)
         if x.shape[1] == 3:
             e1, e2 = x[:, 1] - x[:, 0], x[:, 2] - x[:, 0]
             area = 0.5 * np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])

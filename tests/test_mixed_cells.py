@@ -262,8 +262,9 @@ def test_the_interface_solve_converges_like_newton(scene, overrides):
     ("sod-two-gamma-enriched", ["mesh.cells=60", "mesh.motion=eulerian", "t_end=0.1"]),
 ])
 def test_assembled_predictor_equals_the_closed_form(scene, overrides):
-    """The predictor assembled from the UFL forms of forms/mixed_cell.py on the mixed-cell
-    submesh and solved with PETSc is the same linear system as the 1D elimination: the
+    """The predictor assembled from the UFL forms of forms/enriched_interface.py (the 2D
+    enriched cells' forms, on intervals) on the mixed-cell submesh and solved with PETSc is
+    the same linear system as the 1D elimination: the
     runs agree to round-off, iteration counts included (also when a remap moves the
     interface to another cell and the submesh is rebuilt)."""
     closed_problem, closed = run_scene(scene, *overrides)

@@ -1,60 +1,78 @@
-"""The binding of the UFL forms of ``forms/mixed_cell.py`` to the current mixed cells: the
-enriched closure's predictor as the assembled FE system (PETSc), instead of its closed form.
-The forms are compiled once per run; a remap that moves an interface only rebinds them."""
+"""The enriched 1D closure's predictor as the assembled FE system, instead of its closed
+form: the forms of the 2D enriched mixed cells (``forms/enriched_interface.py``) on
+intervals, without stabilisation (in 1D the interface conditions hold strongly, and the
+natural pair is stable).  The 1D mixed cell is thus the 1D case of the same forms; its
+closed-form elimination (:mod:`ale_xfem.mixed.equilibrium`) is the fast path, tested equal
+to this one.  The forms are compiled once per run; a remap that moves an interface only
+rebinds them."""
 
 from __future__ import annotations
 
 import numpy as np
+
+# a held node: its row fixes the velocity to its prescribed value
+HELD_INERTIA = 1e30
 
 
 class AssembledPredictor:
     """The compiled forms of the predictor on the current mixed cells."""
 
     def __init__(self, dolfinx_mesh, cells):
-        from forms.mixed_cell import MixedCellForms
+        from forms.enriched_interface import InterfaceForms
 
         self.mesh = dolfinx_mesh
-        self.forms = MixedCellForms(dolfinx_mesh.comm, dolfinx_mesh.topology.cell_name(),
-                                    dolfinx_mesh.geometry.dim)  # compiled once per run
+        self.forms = InterfaceForms(dolfinx_mesh.comm, "none", "free", "interval")  # compiled once per run
         self.rebuild(cells)
 
     def rebuild(self, cells):
         """Bind the compiled forms to the current mixed cells (no compilation)."""
-        from forms.mixed_cell import MixedCellPredictor
+        from forms.enriched_interface import InterfaceSystem
 
         self.cells = cells
-        self.predictor = MixedCellPredictor(self.mesh, cells, self.forms)
+        self.system = InterfaceSystem(self.mesh, cells, self.forms)
 
     def predictor_for(self, mixed, state, predicted, mean_force, dt, mobility_a, mobility_b, start):
-        """The predictor as the assembled FE system of forms/mixed_cell.py: returns a
-        callable (iterate → material pressure π) for PressureEquilibrium.solve."""
-        forms = self
-        if not np.array_equal(forms.cells, mixed.cells):  # a remap moved an interface: new submesh
-            forms.rebuild(mixed.cells)
+        """The predictor as the assembled FE system: returns a callable (iterate → material
+        pressure π) for PressureEquilibrium.solve.
+
+        Each mixed cell K = [x_a, x_b] holds α on [x_a, x_Γ] and β on [x_Γ, x_b]; node a is
+        internal to α, b to β (the external nodes are massless: in 1D the system stays
+        regular).  Rows: the doubled trapezoidal momentum of the internal nodes,
+        (4M/dt)(ū − u^n) = 2F̄ ± (π^n + q*) (the explicit mean force holds the cell as a whole
+        at π^n + q*), and the static equilibrium of the external ones; each material's
+        pressure linearised about the iterate, P = π + D (V − V_iterate) + q*."""
+        if not np.array_equal(self.cells, mixed.cells):  # a remap moved an interface: new submesh
+            self.rebuild(mixed.cells)
+        system = self.system
         a, b = mixed.node_left, mixed.node_right
-        forms.predictor.move(state.node_position)
+        system.move(state.node_position)
+        system.vertex_order(np.stack([a, b], axis=1))
         pi_n = state.interface_pressure
         q_star = predicted.mixed_viscosity
         n_nodes = state.node_position.shape[1]
-        held = 1e30  # a held node: its row fixes ū to its prescribed value
-        mass = [np.zeros(n_nodes), np.zeros(n_nodes)]
+        mass = [np.zeros((1, n_nodes)), np.zeros((1, n_nodes))]
         rhs = [np.zeros((1, n_nodes)), np.zeros((1, n_nodes))]
         u0 = state.node_velocity[0]
         for k, node, mobility, sign in ((0, a, mobility_a, 1.0), (1, b, mobility_b, -1.0)):
-            m4 = np.where(mobility > 0, 4.0 / np.where(mobility > 0, mobility, 1.0), held)  # 4M/dt
-            mass[k][node] = m4
-            # 4M u^n/dt + 2F̄ + F^n: the doubled trapezoidal row (module docstring there)
+            inertia = np.where(mobility > 0, 4.0 / np.where(mobility > 0, mobility, 1.0), HELD_INERTIA)  # 4M/dt
+            mass[k][0, node] = inertia
             explicit = np.where(mobility > 0, 2.0 * mean_force[0, node] + sign * (pi_n + q_star), 0.0)
-            rhs[k][0, node] = m4 * u0[node] + explicit
-        m_a, m_b, va0, vb0, _, _ = start
-        volume = va0 + vb0
-        x_gamma = state.node_position[0, a] + va0
+            rhs[k][0, node] = inertia * u0[node] + explicit
+        _, _, va0, vb0, _, _ = start
+        x_a, x_b = state.node_position[0, a], state.node_position[0, b]
+        x_gamma = x_a + va0
+        parts = (np.stack([x_a, x_gamma], axis=1)[..., None], np.stack([x_gamma, x_b], axis=1)[..., None])
+        # G: α's part ends at node a (outward normal −1), β's at node b (+1)
+        edge_flux = np.zeros((2, a.size, 2, 1))
+        edge_flux[0, :, 0, 0], edge_flux[1, :, 1, 0] = -1.0, 1.0
+        system.set_geometry(parts, x_gamma[:, None], x_gamma[:, None], edge_flux, np.ones((a.size, 1)))
+        volumes = np.stack([va0, vb0])
 
         def predict(va, vb, pa, pb, da, db):
-            offsets = [pa + da * (va0 - va) + q_star, pb + db * (vb0 - vb) + q_star]
-            pressure, _ = forms.predictor.solve(mass, rhs, [va0 / volume, vb0 / volume], [da * dt, db * dt],
-                                                offsets, np.ones((a.size, 1)), x_gamma[:, None],
-                                                np.ones(a.size))
-            return pressure - q_star  # the interface stress less the viscosity: π
+            slope = np.stack([da, db])
+            offsets = np.stack([pa + da * (va0 - va) + q_star, pb + db * (vb0 - vb) + q_star])
+            system.set_materials(-1.0 / (slope * dt * volumes), offsets)
+            out = system.solve(mass, rhs)
+            return out["interface_pressure"] - q_star  # the interface stress less the viscosity: π
 
         return predict

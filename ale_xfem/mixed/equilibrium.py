@@ -172,7 +172,7 @@ class PressureEquilibrium:
             # Predictor: V_α = V_α^k + (π − p_α)/D_α, V_β likewise, V_α + V_β = A + Bπ.
             if predictor is None:
                 pi_new = (a - va - vb + pa / da + pb / db) / (1.0 / da + 1.0 / db - b)
-            else:  # the same linear system, assembled from the UFL forms (forms/mixed_cell.py)
+            else:  # the same linear system, assembled from the UFL forms (forms/enriched_interface.py)
                 pi_new = predictor(va, vb, pa, pb, da, db)
             total = a + b * pi_new
             work_new = w0 + w1 * pi_new
