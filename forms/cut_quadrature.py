@@ -19,7 +19,7 @@ integrands of Q1 forms are not polynomials in x, y, but f |det J| is one in ξ, 
 rule with the inverse map (smooth integrand: round-off, measured against a degree-30 brute
 force in tests/test_cut_quadrature.py).  A tensor rule of 4 × 4 points fits the monomials
 of degree ≤ 3 in each reference coordinate (it cannot fit ξ⁴: the Vandermonde of total
-degree 4 had condition 10¹⁸).
+degree 4 has condition 10¹⁸).
 
 With the default rule (degree 4: six points) and exact_degree 2 (six monomials) the
 system is square; its weights can be negative (on a straight cut about 1.3 a cut cell,
@@ -100,6 +100,9 @@ class CutQuadrature:
         (:meth:`local_frames`), dA the physical area, (len(cut_cells), monomials of
         exact_degree in the order (a, b) = (d − j, j), d = 0 … exact_degree, j = 0 … d); it is
         absent from every other cell."""
+        if self.cell_name != "triangle":
+            raise ValueError(f"set_part (moments in physical local coordinates) on {self.cell_name} cells: "
+                             "triangles only; set_part_polygons fits in the reference cell of any cell type")
         values = self.ratio.x.array
         values[:] = 0.0
         values[self._dofs[np.asarray(full_cells, dtype=np.int64)]] = 1.0
@@ -181,26 +184,15 @@ class CutQuadrature:
         triangles from its first vertex, a degree-POLYGON_RULE rule on each (exact on
         triangles, where the integrand is a polynomial; on quadrilaterals the integrand is
         smooth and the rule converges to round-off: measured in tests/test_cut_quadrature.py)."""
-        points, weights = basix.make_quadrature(basix.CellType.triangle, POLYGON_RULE)
-        n, m, _ = polygons.shape
-        total = np.zeros((n, len(self.exponents)))
+        physical, weights = fan_quadrature(polygons, POLYGON_RULE)
         x = self.cell_vertices(cells)
-        for j in range(1, m - 1):
-            a, b, c = polygons[:, 0], polygons[:, j], polygons[:, j + 1]
-            e1, e2 = b - a, c - a
-            area = np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])  # 2 × the triangle's area
-            if not np.any(area > 0.0):
-                continue
-            physical = a[:, None, :] + points[None, :, 0, None] * e1[:, None, :] + points[None, :, 1, None] * e2[:, None, :]
-            xi = self.reference_coordinates(cells, physical)
-            if self.cell_name == "triangle":
-                det = _triangle_jacobians(x)[:, None]
-            else:
-                det = np.abs(np.linalg.det(bilinear_map(x, xi)[1]))
-            scale = weights[None, :] * area[:, None] / det
-            total += np.stack([np.sum(xi[..., 0] ** a * xi[..., 1] ** b * scale, axis=1)
-                               for a, b in self.exponents], axis=1)
-        return total
+        xi = self.reference_coordinates(cells, physical)
+        if self.cell_name == "triangle":
+            det = _triangle_jacobians(x)[:, None]
+        else:
+            det = np.abs(np.linalg.det(bilinear_map(x, xi)[1]))
+        scale = weights / det
+        return np.stack([np.sum(xi[..., 0] ** a * xi[..., 1] ** b * scale, axis=1) for a, b in self.exponents], axis=1)
 
     def _fill(self, full_cells, cut_cells, moments, with_jacobian: bool, record: bool = True) -> None:
         """ratio = ω/w (parts) or ν/(w |det J|) (the interface), ω fitted to ``moments``."""
@@ -257,3 +249,18 @@ def _triangle_jacobians(x):
     """|det J| of triangles with nodes x (n, 3, 2)."""
     e1, e2 = x[:, 1] - x[:, 0], x[:, 2] - x[:, 0]
     return np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
+
+
+def fan_quadrature(polygons, degree: int):
+    """Points (n, q, 2) and physical weights (n, q) integrating over polygons (n, m, 2)
+    (padding vertices allowed): each fanned into triangles from its first vertex, a
+    degree-``degree`` rule on each."""
+    points, weights = basix.make_quadrature(basix.CellType.triangle, degree)
+    polygons = np.asarray(polygons, dtype=float)
+    first = polygons[:, :1]
+    e1, e2 = polygons[:, 1:-1] - first, polygons[:, 2:] - first  # (n, m − 2, 2): the fan's triangles
+    area = np.abs(e1[..., 0] * e2[..., 1] - e1[..., 1] * e2[..., 0])  # twice each triangle's area
+    physical = (first[:, :, None, :] + points[None, None, :, 0, None] * e1[:, :, None, :]
+                + points[None, None, :, 1, None] * e2[:, :, None, :])  # (n, m − 2, q, 2)
+    n = polygons.shape[0]
+    return physical.reshape(n, -1, 2), (area[..., None] * weights[None, None, :]).reshape(n, -1)

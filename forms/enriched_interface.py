@@ -31,21 +31,25 @@ Rows, for material m with test functions v (v₁ its P1 part), r (its pressure):
 
 with g_m = −1/(D_m dt V_m) > 0, D_m = dp/dV along the material's adiabat, c_m its
 linearisation offset: P_m = c_m + D_m dt ∫_{K_m} ∇·ū_m, the volume of m's part changing by
-dt ∫_{K_m} ∇·ū_m (exact: the part moves with its own velocity).  The velocity row is the
-trapezoidal momentum of an internal node, doubled so that its n+1 force has weight one
+dt ∫_{K_m} ∇·ū_m on the geometry the forms are bound to (the part moves with its own
+velocity: bound to the mid-step positions this is the exact change of a triangle's part
+under a linear velocity; bound to the start, it is first order in dt).  The velocity row is
+the trapezoidal momentum of an internal node, doubled so that its n+1 force has weight one
 (M_m its condensed mass, the right side the pure cells' time-centred forces and the mixed
-cells' forces at n), and the static equilibrium of an external node (M_m = 0, nothing on
-the right) — the paper's §2.2.1.
+cells' forces at n), and the static equilibrium at n+1 of an external node (nothing
+explicit on the right; its small inertia, ``EXTERNAL_SHARE`` of
+``ale_xfem/mixed/cut_cells_2d.py``, keeps the system regular) — the paper's §2.2.1.
 
 **The interface functional.**  ∫_Γ v·n_m enters every multiplier term.  It is written
 
     I_m(v) = ∫_{K_m} ∇·v − Σ_edges ∫_{e ∩ m} v₁·n_e
 
-(the divergence theorem on m's part; a bubble vanishes on the edges), with the length of
+(the divergence theorem on m's part; a bubble vanishes on the edges), with the part of
 each edge inside m shared by the two cells of the edge: a pure neighbour's edge is whole,
-and two mixed cells take the mean of their reconstructions' cuts.  The force of a uniform
-pressure on any node then sums to zero around it whatever the reconstruction (PLIC cuts do
-not meet across edges): a state at rest stays at rest.  The edge term enters the forms as a
+and between two mixed cells the edge is cut where a nodal level set (the mean of the
+neighbouring PLIC lines' signed distances) changes sign.  The force of a uniform pressure
+on any node then sums to zero around it whatever the reconstruction (PLIC cuts do not meet
+across edges): a state at rest stays at rest.  The edge term enters the forms as a
 DG1 vector E_m with the vertex rule, ∫_K E_m·v₁ = Σ_i G_mi·v_i, G_mi = Σ_e ∫_{e∩m} ψ_i n_e.
 
 Cut-cell integrals use the moment-fitted measures of :mod:`forms.cut_quadrature` (exact
@@ -74,6 +78,15 @@ BUBBLE_DEGREE = {"interval": 2, "triangle": 3, "quadrilateral": 2}
 TIE_STIFFNESS = 1e8
 _MATERIAL_COEFFICIENTS = ("mass", "part", "edge_flux", "compliance", "offset")
 _CELL_COEFFICIENTS = ("normal", "interface", "weight", "penalty", "tie")
+
+
+def nitsche_weights(volume, stiffness, interface_length, penalty_factor: float):
+    """(w_α (n,), γ (n,)) of the weighted Nitsche terms (module docstring): volume (2, n) the
+    parts' areas V_m, stiffness (2, n) κ_m = ρ_m c_m² dt; w_α = (V_α/κ_α) / Σ_k (V_k/κ_k),
+    γ = 2 a |Γ_K| / Σ_k (V_k/κ_k)."""
+    softness = volume / stiffness
+    total = softness.sum(axis=0)
+    return softness[0] / total, 2.0 * penalty_factor * interface_length / total
 
 
 class InterfaceForms:
@@ -278,6 +291,7 @@ class InterfaceSystem:
             block = self.maps[k + 2]
             self.multiplier_dofs = block.reshape(-1, 2)[self._dg0v] if forms.slip == "stick" else block[self._dg0]
         self.vertex_area = None
+        self._vertex_permutation = None
 
     @property
     def nodes(self) -> np.ndarray:
@@ -290,6 +304,9 @@ class InterfaceSystem:
         (n, 2) the interface segment; edge_flux (2, n, k, 2) G_mi = Σ_e ∫_{e∩m} ψ_i n_e for
         the vertices of each cell in the order given to :meth:`vertex_order`; normal (n, 2)
         n_α, out of α."""
+        if self._vertex_permutation is None:
+            raise RuntimeError("InterfaceSystem.set_geometry: call vertex_order first (the order of the "
+                               "vertices of edge_flux)")
         n_sub = self.input_index.size
         take = self.input_index
         everything = np.arange(n_sub)
@@ -306,7 +323,7 @@ class InterfaceSystem:
         self.functions["normal"].x.array.reshape(-1, gdim)[self._dg0v] = normal[take]
 
     def vertex_order(self, parent_cell_nodes) -> None:
-        """The parent nodes of each mixed cell (n, 3) in the order per-vertex inputs use;
+        """The parent nodes of each mixed cell (n, k) in the order per-vertex inputs use;
         records how the submesh's vertices permute them."""
         given = np.asarray(parent_cell_nodes)[self.input_index]  # (n_sub, k)
         self._vertex_permutation = np.argmax(self.parent_nodes[:, :, None] == given[:, None, :], axis=2)
@@ -315,6 +332,8 @@ class InterfaceSystem:
         """Per mixed cell (construction order): compliance (2, n) g_m = −1/(D_m dt V_m),
         offset (2, n) c_m; Nitsche: weight (n,) w_α and penalty (n,) γ."""
         take = self.input_index
+        if self.forms.stabilisation == "nitsche" and (weight is None or penalty is None):
+            raise ValueError("set_materials: the Nitsche system needs its weight and penalty (nitsche_weights)")
         for m, side in enumerate("ab"):
             self.functions[f"compliance_{side}"].x.array[self._dg0] = compliance[m][take]
             self.functions[f"offset_{side}"].x.array[self._dg0] = offset[m][take]

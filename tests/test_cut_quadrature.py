@@ -10,7 +10,7 @@ import ufl
 from mpi4py import MPI
 
 from ale_xfem.geometry.shapes import clip_half_plane, monomials, polygon_area, polygon_moments
-from forms.cut_quadrature import CutQuadrature
+from forms.cut_quadrature import CutQuadrature, bilinear_map
 
 
 def test_polygon_moments_are_exact():
@@ -135,6 +135,10 @@ def test_cut_integrals_on_non_affine_quadrilaterals_are_exact():
         jacobian = np.stack([d_s, d_t], axis=-1)
         return np.einsum("nqij,nqkj->nqki", np.linalg.inv(jacobian).transpose(0, 1, 3, 2), ref)
 
+    # the inverse map the brute force relies on, checked by mapping back
+    probe = polygons.mean(axis=1)[:, None, :]
+    back = bilinear_map(cut.cell_vertices(everything), cut.reference_coordinates(everything, probe))[0]
+    assert np.abs(back - probe).max() < 1e-14
     reference = _brute_force(cut, everything, polygons, shape_gradients)  # (n, 4, 2)
     for d, form in enumerate(gradient_form):
         assembled = dolfinx.fem.assemble_vector(form).array

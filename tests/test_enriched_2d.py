@@ -52,11 +52,6 @@ def test_slivers_rest_and_give_their_mass_to_the_nearest_node(stabilisation, cel
     for m in range(2):
         assert np.allclose(case.condensed[m].sum(axis=1), DENSITY[m] * case.cut.volume[m], rtol=1e-12)
         assert case.condensed[m].min() >= 0.0
-    sliver = np.argmin(case.cut.volume[1] / case.cut.volume.sum(axis=0))
-    shares = case.cut.vertex_integrals()[1, sliver]
-    nodes = case.mesh.cell_nodes[case.mixed[sliver]]
-    if not np.any(case.owner[nodes] == 1):  # β's part holds none of the cell's nodes
-        assert np.argmax(case.condensed[1, sliver]) == np.argmax(shares)
     out, interface = case.solve(stabilisation)
     carrying = [case.node_mass[m] > 1e-9 * case.node_mass.max() for m in range(2)]
     assert max(np.abs(out["velocity"][m][:, carrying[m]]).max() for m in range(2)) < 1e-10
@@ -65,6 +60,31 @@ def test_slivers_rest_and_give_their_mass_to_the_nearest_node(stabilisation, cel
     assert kinetic < 1e-20
     assert np.abs(out["pressure"] - PRESSURE).max() < 1e-8  # (a 1e-7 part's pressure: 1e-9 measured)
     assert np.abs(interface - PRESSURE).max() < 1e-8
+
+
+def test_a_part_holding_none_of_its_cells_nodes_gives_its_mass_to_the_nearest():
+    """The sliver rule: where a material's part holds none of its cell's nodes (around a
+    disk some cells hold a trace of β in a corner whose node lies in α), the part's mass
+    goes to the cell's node with the largest ∫_{K_m} ψ_i, which becomes internal to it;
+    the other nodes keep EXTERNAL_SHARE of their consistent share.  (The rule is the same
+    on quadrilaterals, where this disk on 12² happens to leave no such part.)"""
+    from ale_xfem.mixed.cut_cells_2d import EXTERNAL_SHARE
+
+    case = InterfaceCase(12, "disk")
+    nodes = case.mesh.cell_nodes[case.mixed]
+    shares = case.cut.vertex_integrals()
+    fired = 0
+    for m in range(2):
+        holds_none = ~np.any(case.owner[nodes] == m, axis=1) & (case.cut.volume[m] > 0.0)
+        for cell_index in np.flatnonzero(holds_none):
+            fired += 1
+            nearest = np.argmax(shares[m, cell_index])
+            assert case.internal_in_cell[m, cell_index].tolist() == [j == nearest for j in range(nodes.shape[1])]
+            others = np.arange(nodes.shape[1]) != nearest
+            masses = case.condensed[m, cell_index]
+            ratio = masses[others] / masses[nearest]
+            assert np.allclose(ratio, EXTERNAL_SHARE * shares[m, cell_index, others] / shares[m, cell_index, nearest])
+    assert fired > 0
 
 
 def _sliding(case, speed):
@@ -181,14 +201,15 @@ def test_the_interface_study_writes_its_tables_and_says_what_it_measured(tmp_pat
     assert main(["study", "interface", "--cells", "4", "--out", str(tmp_path)]) == 2
 
 
-@pytest.mark.parametrize("stabilisation", ["none", "bubble"])
+@pytest.mark.parametrize("stabilisation", ["none", "bubble", "nitsche"])
 @pytest.mark.parametrize("cell", ["triangle", "quadrilateral"])
 def test_the_predictor_corrector_conserves_energy_with_the_full_equation_of_state(stabilisation, cell):
     """α (ideal gas, γ = 1.4) striking β (γ = 5/3) across the line, one step with the
     nonlinear corrector: the pressures it ends with are the equations of state's, and the
     kinetic energy the nodes gain less the pure cells' work is the internal energy the two
     materials lose, to round-off (the interface pressure does no work: the normal jump's
-    mean vanishes on every Γ_K)."""
+    mean vanishes on every Γ_K).  Nitsche's penalty dissipates: the balance is short, by
+    2.1e-4 (triangles) and 1.3e-4 (quadrilaterals) of the internal energy change."""
     from ale_xfem.eos import IdealGas
     from ale_xfem.mixed.enriched_step_2d import EnrichedStep2D, MaterialStart
 
@@ -201,7 +222,8 @@ def test_the_predictor_corrector_conserves_energy_with_the_full_equation_of_stat
                           energy=energy, pressure=np.full(volume.shape, PRESSURE))
     u0 = [0.1 * case.normal_line[:, None] * np.ones((2, case.mesh.n_nodes)), np.zeros((2, case.mesh.n_nodes))]
     mass, rhs = case.inertia_and_rhs(u0)
-    step = EnrichedStep2D(case.bind(stabilisation), [g.state for g in gases], case.cut.reconstruction.length)
+    step = EnrichedStep2D(case.bind(stabilisation), case.mixed, [g.state for g in gases],
+                          case.cut.reconstruction.length)
     result = step.solve(DT, start, mass, rhs, case.tied)
     assert 1 < result["iterations"] <= 10
     rho = start.mass / result["volume"]
@@ -216,4 +238,8 @@ def test_the_predictor_corrector_conserves_energy_with_the_full_equation_of_stat
         kinetic += 0.5 * np.sum((case.node_mass[k][nodes] * (new ** 2 - u0[k][:, nodes] ** 2))[free])
         pure_work += DT * np.sum((mean * case.explicit_forces(k)[0][:, nodes])[free])
     internal = np.sum(start.mass * (result["energy"] - energy))
-    assert abs(kinetic - pure_work + internal) < 1e-10 * abs(internal)
+    balance = (kinetic - pure_work + internal) / abs(internal)
+    if stabilisation == "nitsche":  # energy lost to the penalty, and only a little
+        assert -1e-3 < balance < -1e-5
+    else:
+        assert abs(balance) < 1e-10

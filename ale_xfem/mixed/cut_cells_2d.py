@@ -1,6 +1,6 @@
 """What the 2D enriched mixed cells need of their cut geometry (triangles and
 quadrilaterals): each
-material's part (volume, centroid, exact moments), the interface segment, the edge flux
+material's part (volume, centroid, ∫ψ_i and ∫∇ψ_i), the interface segment, the edge flux
 G_mi = Σ_e ∫_{e∩m} ψ_i n_e with each edge's parts shared by its two cells, which node
 carries which material's mass (mass condensation, paper fig. 3) — the inputs of the forms
 of ``forms/enriched_interface.py``.
@@ -31,11 +31,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-import basix
-
 from ale_xfem.geometry.shapes import polygon_area, polygon_centroid
 from ale_xfem.model.plic import Reconstruction
-from forms.cut_quadrature import bilinear_map, inverse_bilinear_map
+from forms.cut_quadrature import bilinear_map, fan_quadrature, inverse_bilinear_map
 
 PART_RULE = 12  # the rule on the triangles of a part's fan (∫ ψ_i, ∫ ∇ψ_i)
 
@@ -43,9 +41,9 @@ PART_RULE = 12  # the rule on the triangles of a part's fan (∫ ψ_i, ∫ ∇ψ
 # the internal nodes).  Massless external nodes leave the implicit system singular in 2D:
 # their velocities enter only through the parts' volume changes and the normal jump (three
 # conditions a cell), and a bubble per material adds two unknowns a cell that meet the same
-# conditions — velocity modes that change no volume and no jump are free (measured: the
-# bubble system on a disk on 6 × 6 triangles had singular values 1e-14 of its largest, and
-# its solution at rest was 1e18).  A small inertia picks, among those modes, the one closest
+# conditions — velocity modes that change no volume and no jump are free (massless, the
+# bubble system on a disk on 6 × 6 triangles has singular values 1e-14 of its largest, and
+# its solution at rest is 1e18).  A small inertia picks, among those modes, the one closest
 # to the external node's previous velocity; total mass and momentum are exact (every node's
 # mass is counted).
 EXTERNAL_SHARE = 1e-3
@@ -83,22 +81,14 @@ class CutCells:
         fanned into triangles, by a degree-PART_RULE rule (exact on triangles; on
         quadrilaterals, through the inverse bilinear map, to round-off)."""
         if self._part_integrals is None:
-            points, weights = basix.make_quadrature(basix.CellType.triangle, PART_RULE)
             k = self.vertices.shape[1]
-            values = np.zeros((2,) + self.vertices.shape[:2])
-            gradients = np.zeros((2,) + self.vertices.shape)
-            polygons = (self.reconstruction.alpha, self.reconstruction.beta)
-            for m in range(2):
-                polygon = polygons[m]
-                for j in range(1, polygon.shape[1] - 1):
-                    a, e1, e2 = polygon[:, 0], polygon[:, j] - polygon[:, 0], polygon[:, j + 1] - polygon[:, 0]
-                    area = 0.5 * np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
-                    physical = (a[:, None] + points[None, :, :1] * e1[:, None] + points[None, :, 1:] * e2[:, None])
-                    psi, grad = _shape_functions(self.vertices, physical, k)
-                    scale = 2.0 * area[:, None] * weights[None, :]
-                    values[m] += np.einsum("nqk,nq->nk", psi, scale)
-                    gradients[m] += np.einsum("nqkd,nq->nkd", grad, scale)
-            self._part_integrals = (values, gradients)
+            values, gradients = [], []
+            for polygon in (self.reconstruction.alpha, self.reconstruction.beta):
+                physical, weights = fan_quadrature(polygon, PART_RULE)
+                psi, grad = _shape_functions(self.vertices, physical, k)
+                values.append(np.einsum("nqk,nq->nk", psi, weights))
+                gradients.append(np.einsum("nqkd,nq->nkd", grad, weights))
+            self._part_integrals = (np.stack(values), np.stack(gradients))
         return self._part_integrals
 
 
@@ -109,6 +99,8 @@ def cut_cells(cell_nodes, node_position, cells, reconstruction: Reconstruction, 
     (n_cells,): each cell's material, −1 for mixed cells; ``alpha_material`` (n,): each mixed
     cell's α (slot 0) material.  α is {x·n ≤ s} in ``reconstruction``."""
     cells = np.asarray(cells)
+    if cells.size == 0:
+        raise ValueError("cut_cells: no mixed cells (the interface lies along mesh edges or outside the mesh)")
     nodes = cell_nodes[cells]  # (n, k)
     vertices = np.moveaxis(node_position[:, nodes], 0, -1)
     polygons = (reconstruction.alpha, reconstruction.beta)
@@ -165,7 +157,7 @@ def _edge_neighbours(cell_nodes, cells):
     return np.where(right - left == 2, np.where(first == own, second, first), -1)
 
 
-def node_materials(cell_nodes, n_nodes, cell_material, cell_volume, material_volume, material_of_slot):
+def node_materials(cell_nodes, n_nodes, cell_material, material_volume, material_of_slot):
     """The material each node lies in (module docstring): (n_nodes,) material id, and a
     flag of the nodes with pure cells of two materials around them.  ``cell_material``:
     each cell's material (−1: mixed); ``material_volume`` (2, n_cells) and
@@ -187,25 +179,30 @@ def node_materials(cell_nodes, n_nodes, cell_material, cell_volume, material_vol
 
 
 def condensed_masses(cut: CutCells, cell_nodes, node_material, mass, materials,
-                     external_share: float = EXTERNAL_SHARE) -> np.ndarray:
-    """(2, n, k): each material's mass in each mixed cell lumped onto the cell's nodes that
-    lie in it, or onto the node nearest its part when none does (module docstring); the
-    external nodes keep ``external_share`` of their consistent share.  ``mass`` (2, n): the
-    materials' masses in the mixed cells; ``materials`` (2, n) their ids."""
+                     external_share: float = EXTERNAL_SHARE):
+    """(masses, internal), each (2, n, k): each material's mass in each mixed cell lumped
+    onto the cell's nodes that lie in it, or onto the node nearest its part when none does
+    (module docstring), the external nodes keeping ``external_share`` of their consistent
+    share; and which (material, node) of each cell is internal (carries the material's
+    mass: its momentum row is the trapezoidal one; the others', the static equilibrium).
+    ``mass`` (2, n): the materials' masses in the mixed cells; ``materials`` (2, n) their ids."""
     nodes = cell_nodes[cut.cells]
     shares = cut.vertex_integrals()  # (2, n, k)
     out = np.zeros_like(shares)
+    internal = np.zeros(shares.shape, dtype=bool)
     for m in range(2):
         inside = node_material[nodes] == materials[m][:, None]
         weight = np.where(inside, shares[m], external_share * shares[m])
         sliver = ~np.any(inside & (shares[m] > 0.0), axis=1)
         nearest = np.argmax(shares[m], axis=1)
         weight[sliver, nearest[sliver]] = shares[m][sliver, nearest[sliver]]
+        internal[m] = inside
+        internal[m, sliver, nearest[sliver]] = True
         total = weight.sum(axis=1)
         # (a part of zero area has no mass to place)
         out[m] = mass[m][:, None] * np.divide(weight, total[:, None], out=np.zeros_like(weight),
                                               where=total[:, None] > 0.0)
-    return out
+    return out, internal
 
 
 def _shape_functions(vertices, points, k):

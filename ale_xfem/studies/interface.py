@@ -25,7 +25,7 @@ from ale_xfem.geometry.shapes import clip_half_plane, disk_polygon_area, polygon
 from ale_xfem.mixed.cut_cells_2d import condensed_masses, cut_cells, node_materials
 from ale_xfem.model.mesh import from_dolfinx
 from ale_xfem.model.plic import reconstruct, youngs_normals
-from forms.enriched_interface import InterfaceForms, InterfaceSystem
+from forms.enriched_interface import InterfaceForms, InterfaceSystem, nitsche_weights
 
 PRESSURE, DT = 1.0, 0.01
 DENSITY, BULK = (1.0, 10.0), (1.0, 10.0)  # ρ_m and κ_m = ρ_m c_m² of α (inside) and β
@@ -86,19 +86,26 @@ class InterfaceCase:
         volume[0], slots[0] = area, np.maximum(material, 0)
         volume[0, mixed], volume[1, mixed] = self.cut.volume
         slots[0, mixed], slots[1, mixed] = 0, 1
-        self.owner, self.tied = node_materials(mesh.cell_nodes, mesh.n_nodes, material, area, volume, slots)
-        masses = condensed_masses(self.cut, mesh.cell_nodes, self.owner,
-                                  np.stack([DENSITY[m] * self.cut.volume[m] for m in range(2)]),
-                                  np.stack([alpha, 1 - alpha]))
-        self.condensed = masses
+        self.owner, self.tied = node_materials(mesh.cell_nodes, mesh.n_nodes, material, volume, slots)
+        masses, internal = condensed_masses(self.cut, mesh.cell_nodes, self.owner,
+                                            np.stack([DENSITY[m] * self.cut.volume[m] for m in range(2)]),
+                                            np.stack([alpha, 1 - alpha]))
+        self.condensed, self.internal_in_cell = masses, internal
         self.node_mass = np.zeros((2, mesh.n_nodes))
+        # a (material, node) is internal where a pure cell of the material or a mixed cell's
+        # condensation puts its mass (its row trapezoidal); external elsewhere (its row the
+        # static equilibrium at n+1)
+        self.internal = np.zeros((2, mesh.n_nodes), dtype=bool)
+        k = mesh.cell_nodes.shape[1]
         for m in range(2):
             pure = material == m
-            k = mesh.cell_nodes.shape[1]
             np.add.at(self.node_mass[m], mesh.cell_nodes[pure].ravel(), np.repeat(DENSITY[m] * area[pure] / k, k))
             np.add.at(self.node_mass[m], mesh.cell_nodes[mixed].ravel(), masses[m].ravel())
-        self.held = np.stack([(np.abs(x[0]) < 1e-12) | (np.abs(x[0] - 1) < 1e-12),
-                              (np.abs(x[1]) < 1e-12) | (np.abs(x[1] - 1) < 1e-12)])
+            self.internal[m, mesh.cell_nodes[pure].ravel()] = True
+            self.internal[m, mesh.cell_nodes[mixed][internal[m]]] = True
+        on_side = [(np.abs(x[d]) < 1e-12) | (np.abs(x[d] - 1) < 1e-12) for d in range(2)]
+        self.held = np.stack(on_side)  # walls hold the normal component
+        self.boundary = on_side[0] | on_side[1]
 
     def explicit_forces(self, m):
         """(F̄, f^n) of material m under the uniform pressure (pure cells: P ∂|K|/∂x_i;
@@ -134,11 +141,16 @@ class InterfaceCase:
             u0 = np.zeros((2, self.mesh.n_nodes)) if velocity is None else velocity[m]
             inertia = np.repeat(4.0 * self.node_mass[m][None] / DT, 2, axis=0)
             pure, mixed = self.explicit_forces(m)
-            right = inertia * u0 + 2.0 * pure + mixed
+            # internal rows: 2F̄ + f^n; external rows: nothing explicit (their equilibrium
+            # at n+1, with only their small inertia)
+            right = inertia * u0 + np.where(self.internal[m], 2.0 * pure + mixed, 0.0)
             if walls:
                 inertia[self.held], right[self.held] = 1e20, 0.0
-            else:  # the outside pressure balances the state at rest on the sides
-                right -= 2.0 * (pure + mixed)
+            else:  # the outside pressure on the sides, on each material's part of them: what
+                # holds the state at rest there (an internal row holds 2F̄ + f^n + f^{n+1},
+                # an external one f^{n+1})
+                outside = np.where(self.internal[m], 2.0, 1.0) * (pure + mixed)
+                right[:, self.boundary] -= outside[:, self.boundary]
             mass.append(inertia)
             rhs.append(right)
         return mass, rhs
@@ -153,9 +165,7 @@ class InterfaceCase:
         system = self.bind(stabilisation, slip)
         n = self.mixed.size
         bulk = np.array(BULK)[:, None] * np.ones((2, n))
-        compliance = cut.volume / (bulk * DT)  # V_m / κ_m dt
-        weight = compliance[0] / compliance.sum(axis=0)
-        gamma = 2.0 * penalty * cut.reconstruction.length / compliance.sum(axis=0)
+        weight, gamma = nitsche_weights(cut.volume, bulk * DT, cut.reconstruction.length, penalty)
         system.set_materials(1.0 / (bulk * DT), np.full((2, n), PRESSURE), weight, gamma)
         mass, rhs = self.inertia_and_rhs(velocity, walls)
         clock = time.perf_counter()
