@@ -78,8 +78,10 @@ def make_stepper(problem: Problem) -> ExplicitWilkins:
     """The Lagrange step of a problem, its mixed cells closed as the scene asks (the
     assembled predictor's UFL forms are compiled here, once per run)."""
     keep_freed_memory()
+    interface = problem.scene.interface
     closures = Closures(problem.mesh, problem.materials,
-                        assembled_predictor="interface_predictor_assembled" in problem.effects)
+                        assembled_predictor="interface_predictor_assembled" in problem.effects,
+                        petsc_options=dict(interface.petsc_options) if interface is not None else None)
     return ExplicitWilkins(problem.mesh, problem.materials, problem.layout, problem.node_mass,
                            problem.boundaries, problem.scene.numerics,
                            artificial_viscosity="artificial_viscosity" in problem.effects,

@@ -479,3 +479,21 @@ def test_a_failed_interface_solve_names_the_cell_its_position_and_materials(tmp_
     # α = left, β = right
     assert re.fullmatch(r"step 3, t = [0-9.e-]+: cell 201 \(x = 0\.50[0-9]+; left \| right\): interface solve: "
                         r"not converged after 50 iterations \(pressure change nan\)", diagnostic), diagnostic
+
+
+def test_petsc_options_reach_the_assembled_predictor():
+    """``[interface] petsc_options`` are the KSP's: SuperLU_DIST in place of MUMPS gives the
+    same run to round-off; PETSc's own LU, which stops on the multiplier rows' zero
+    diagonal, makes the run stop with a diagnostic naming the mixed cell and the solve."""
+    overrides = ["mesh.cells=60", "t_end=0.05", "interface.predictor=assembled"]
+    _, direct = run_scene("sod-two-gamma-enriched", *overrides)
+    problem, other = run_scene("sod-two-gamma-enriched", *overrides,
+                               'interface.petsc_options={pc_factor_mat_solver_type = "superlu_dist"}')
+    assert dict(problem.scene.interface.petsc_options) == {"pc_factor_mat_solver_type": "superlu_dist"}
+    assert direct.status == other.status == "ok" and direct.steps == other.steps
+    scale = np.abs(direct.state.node_velocity).max()
+    np.testing.assert_allclose(other.state.node_velocity, direct.state.node_velocity, rtol=0, atol=1e-10 * scale)
+    _, failed = run_scene("sod-two-gamma-enriched", *overrides,
+                          'interface.petsc_options={pc_factor_mat_solver_type = "petsc"}')
+    assert failed.status == "failed"
+    assert "assembled predictor's solve" in failed.diagnostic

@@ -59,6 +59,15 @@ BAD = {
     # accepted and ignored: one velocity field moves both materials alike
     "slip without enriched cells": (lambda d: d.setdefault("interface", {}).update(
         model="single_velocity", slip="free"), "interface.slip", "acts only on enriched"),
+    # accepted and ignored: the closed form solves no PETSc system
+    "PETSc options without an assembled system": (lambda d: d.setdefault("interface", {}).update(
+        petsc_options={"ksp_type": "gmres"}), "interface.petsc_options", "assembled by PETSc"),
+    "PETSc option name with its dash": (lambda d: d.setdefault("interface", {}).update(
+        predictor="assembled", petsc_options={"-ksp_type": "gmres"}), "interface.petsc_options",
+        "without its leading '-'"),
+    "PETSc option value PETSc does not know": (lambda d: d.setdefault("interface", {}).update(
+        predictor="assembled", petsc_options={"pc_type": "nonsense"}), "interface.petsc_options",
+        "options PETSc accepts"),
     "coulomb friction between fluids": (lambda d: d.setdefault("interface", {}).update(slip="coulomb"),
                                         "interface.slip", "carry none"),
     "stick slip": (lambda d: d.setdefault("interface", {}).update(slip="stick"),

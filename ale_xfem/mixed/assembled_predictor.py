@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ale_xfem.mixed.equilibrium import MixedCellFailure
+
 # a held node: its row fixes the velocity to its prescribed value
 HELD_INERTIA = 1e30
 
@@ -17,10 +19,10 @@ HELD_INERTIA = 1e30
 class AssembledPredictor:
     """The compiled forms of the predictor on the current mixed cells."""
 
-    def __init__(self, dolfinx_mesh, cells):
+    def __init__(self, dolfinx_mesh, cells, petsc_options: dict | None = None):
         from forms.enriched_interface import InterfaceForms
 
-        self.mesh = dolfinx_mesh
+        self.mesh, self.petsc_options = dolfinx_mesh, petsc_options
         self.forms = InterfaceForms(dolfinx_mesh.comm, "none", "free", "interval")  # compiled once per run
         self.rebuild(cells)
 
@@ -29,7 +31,7 @@ class AssembledPredictor:
         from forms.enriched_interface import InterfaceSystem
 
         self.cells = cells
-        self.system = InterfaceSystem(self.mesh, cells, self.forms)
+        self.system = InterfaceSystem(self.mesh, cells, self.forms, self.petsc_options)
 
     def predictor_for(self, mixed, state, predicted, mean_force, dt, mobility_a, mobility_b, start):
         """The predictor as the assembled FE system: returns a callable (iterate → material
@@ -72,7 +74,10 @@ class AssembledPredictor:
             slope = np.stack([da, db])
             offsets = np.stack([pa + da * (va0 - va) + q_star, pb + db * (vb0 - vb) + q_star])
             system.set_materials(-1.0 / (slope * dt * volumes), offsets)
-            out = system.solve(mass, rhs)
+            try:
+                out = system.solve(mass, rhs)
+            except RuntimeError as error:  # the KSP failed (its options, or the system)
+                raise MixedCellFailure(mixed, 0, f"the assembled predictor's solve: {error}") from None
             return out["interface_pressure"] - q_star  # the interface stress less the viscosity: π
 
         return predict

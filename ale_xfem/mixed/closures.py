@@ -14,11 +14,13 @@ CLOSURES = {"enriched": EnrichedClosure, "single_velocity": SingleVelocityClosur
 
 class Closures:
     """Called with the current mixed cells, returns their closure.  ``assembled_predictor``:
-    the enriched closure solves its predictor from the UFL forms."""
+    the enriched closure solves its predictor from the UFL forms, with the KSP options
+    ``petsc_options`` (None: a direct solve)."""
 
-    def __init__(self, mesh, materials, assembled_predictor: bool = False):
+    def __init__(self, mesh, materials, assembled_predictor: bool = False, petsc_options: dict | None = None):
         self.mesh, self.materials = mesh, materials
         self.assembled_predictor = assembled_predictor
+        self.petsc_options = petsc_options
         self.made = {}  # model → its closure
 
     def __call__(self, mixed: MixedCells) -> MixedCellClosure:
@@ -26,7 +28,8 @@ class Closures:
         if closure is not None:
             closure.bind(mixed)
             return closure
-        options = {"assembled": self.assembled_predictor} if mixed.model == "enriched" else {}
+        options = ({"assembled": self.assembled_predictor, "petsc_options": self.petsc_options}
+                   if mixed.model == "enriched" else {})
         closure = CLOSURES[mixed.model](self.mesh, self.materials, mixed, **options)
         self.made[mixed.model] = closure
         return closure

@@ -20,9 +20,11 @@ class EnrichedClosure(SharedClosure):
 
     implicit = True
 
-    def __init__(self, mesh, materials, mixed: MixedCells, assembled: bool = False):
+    def __init__(self, mesh, materials, mixed: MixedCells, assembled: bool = False,
+                 petsc_options: dict | None = None):
         super().__init__(mesh, materials, mixed)
-        self.assembled = AssembledPredictor(mesh.dolfinx_mesh, mixed.cells) if assembled else None
+        self.assembled = (AssembledPredictor(mesh.dolfinx_mesh, mixed.cells, petsc_options)
+                          if assembled else None)
 
     def implicit_solve(self, step, state, first, predicted, mean_force, dt, dt_over_node_mass):
         """The implicit interface solve; adds the mixed cells' n+1 stress to mean_force."""

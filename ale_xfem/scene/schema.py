@@ -145,6 +145,7 @@ class InterfaceSpec:
     slip: str
     relaxation: bool = True
     predictor: str = "closed_form"
+    petsc_options: tuple = ()  # (name, value) pairs for the assembled interface system's KSP
 
 
 @dataclass(frozen=True)
@@ -532,7 +533,7 @@ ENRICHED_ONLY = ("solver", "predictor", "slip")
 def _validate_interface(table: Any, dimension: int) -> InterfaceSpec:
     """[interface]; a key that cannot act in the scene is an error naming what would make it
     act (the resolved scene holds only keys that act)."""
-    _keys(table, "interface", (), tuple(INTERFACE_DEFAULTS) + ("stabilisation",))
+    _keys(table, "interface", (), tuple(INTERFACE_DEFAULTS) + ("stabilisation", "petsc_options"))
     model = _choice(table.setdefault("model", INTERFACE_DEFAULTS["model"]), "interface.model",
                     ("enriched", "single_velocity"))
     if dimension == 2 and model != "single_velocity":
@@ -551,6 +552,13 @@ def _validate_interface(table: Any, dimension: int) -> InterfaceSpec:
     for key, default in INTERFACE_DEFAULTS.items():
         if key not in ENRICHED_ONLY or model == "enriched":
             table.setdefault(key, default)
+    assembled = model == "enriched" and table.get("predictor") == "assembled"
+    if "petsc_options" in table and not assembled:
+        raise SceneError("interface.petsc_options", table["petsc_options"], "no value unless the interface system is "
+                         "assembled by PETSc (interface.model = 'enriched' and interface.predictor = 'assembled'); "
+                         "remove it, or set them")
+    if assembled:
+        table.setdefault("petsc_options", {})
     return InterfaceSpec(
         model=model,
         solver=_choice(table.get("solver", "nonlinear"), "interface.solver", ("nonlinear", "linearised")),
@@ -559,7 +567,52 @@ def _validate_interface(table: Any, dimension: int) -> InterfaceSpec:
         relaxation=_boolean(table["relaxation"], "interface.relaxation"),
         predictor=_choice(table.get("predictor", "closed_form"), "interface.predictor",
                           ("closed_form", "assembled")),
+        petsc_options=_petsc_options(table.get("petsc_options", {})),
     )
+
+
+def _petsc_options(value: Any) -> tuple:
+    """``[interface] petsc_options``: PETSc options of the interface system's KSP and PC
+    (names without the leading '-', e.g. ``{ksp_type = "gmres", pc_type = "ilu"}``; default
+    empty: a direct LU solve by MUMPS).  Returned as sorted (name, value) pairs."""
+    if not isinstance(value, dict):
+        raise SceneError("interface.petsc_options", value, "a table of PETSc options, e.g. "
+                         "{ksp_type = \"preonly\", pc_type = \"lu\"}")
+    for name, option in value.items():
+        if not re.fullmatch(r"[a-z][a-z0-9_]*", name):
+            raise SceneError("interface.petsc_options", name, "a PETSc option name without its leading '-' "
+                             "(lower case letters, digits, underscores)")
+        if isinstance(option, (dict, list)):
+            raise SceneError(f"interface.petsc_options.{name}", option, "a string, number or boolean")
+    options = tuple(sorted((name, str(option).lower() if isinstance(option, bool) else str(option))
+                           for name, option in value.items()))
+    if options:
+        _check_petsc_options(options)
+    return options
+
+
+def _check_petsc_options(options: tuple) -> None:
+    """Let PETSc read the options on a KSP of its own (a value it does not know, such as an
+    unknown pc_type, is an error at load, not in the middle of a run)."""
+    import dolfinx_solver  # noqa: F401  (before petsc4py: it loads MPI and PETSc)
+    from petsc4py import PETSc
+
+    prefix = "ale_xfem_check_"
+    database = PETSc.Options()
+    for name, option in options:
+        database[prefix + name] = option
+    ksp = PETSc.KSP().create(PETSc.COMM_SELF)
+    try:
+        ksp.setOptionsPrefix(prefix)
+        ksp.setFromOptions()
+        ksp.getPC().setFromOptions()
+    except PETSc.Error as error:  # PETSc's traceback, one frame a line: its last line says why
+        reason = str(error).strip().splitlines()[-1].removeprefix("[0]").strip()
+        raise SceneError("interface.petsc_options", dict(options), f"options PETSc accepts ({reason})") from None
+    finally:
+        ksp.destroy()
+        for name, _ in options:
+            database.delValue(prefix + name)
 
 
 def _slip(value: Any, model: str) -> str:
