@@ -9,7 +9,8 @@ compiled once per run (never inside the time loop).
   linearised pressure, the interface condition (multiplier, bubbles or Nitsche; free slip
   or stick) — on the submesh of the mixed cells, intervals, triangles and quadrilaterals;
   in 1D it is the enriched closure's assembled predictor (``[interface] predictor =
-  "assembled"``), in 2D the enriched mixed cells' system.
+  "assembled"``), in 2D the enriched mixed cells' system (measured on its own by
+  ``ale-xfem study interface``; no scene runs it yet).
 - :mod:`forms.cut_quadrature`: a measure of one material's part of cut cells (and of the
   interface in them), exact for the forms' integrands, in forms compiled once
   (moment-fitted weights refilled as the part moves).

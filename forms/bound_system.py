@@ -5,12 +5,22 @@ submesh) rely on."""
 
 from __future__ import annotations
 
+import itertools
+
 import dolfinx_solver  # noqa: F401  (before dolfinx: it loads MPI and PETSc)
 import dolfinx
 import dolfinx.fem.petsc
 from petsc4py import PETSc
 
 REFINEMENTS = 3  # rounds of iterative refinement after the direct solve
+_PREFIXES = itertools.count()  # each system's own options prefix
+
+
+def petsc_reason(error) -> str:
+    """The one line of a PETSc error that says why (its message is a traceback, one frame a
+    line, the reason last)."""
+    lines = str(error).strip().splitlines()
+    return lines[-1].removeprefix("[0]").strip() if lines else str(error)
 
 
 class BoundSystem:
@@ -34,13 +44,21 @@ class BoundSystem:
         self.solver.getPC().setType("lu")
         if factor_solver is not None:
             self.solver.getPC().setFactorSolverType(factor_solver)
+        # the options stay in PETSc's database until the first solve has read them (a
+        # factorisation reads its own at set-up), then leave it
+        self._options = []
         if petsc_options:
-            prefix = f"ale_xfem_{id(self)}_"
+            prefix = f"ale_xfem_system_{next(_PREFIXES)}_"
             self.solver.setOptionsPrefix(prefix)
-            options = PETSc.Options()
+            database = PETSc.Options()
             for key, value in petsc_options.items():
-                options[prefix + key] = value
-            self.solver.setFromOptions()
+                database[prefix + key] = value
+                self._options.append(prefix + key)
+            try:
+                self.solver.setFromOptions()
+            except PETSc.Error as error:
+                self._forget_options()
+                raise RuntimeError(f"PETSc options {dict(petsc_options)}: {petsc_reason(error)}") from None
 
     def assemble(self):
         """Assemble the matrix and the forms' right side; returns the right side's array
@@ -58,7 +76,12 @@ class BoundSystem:
         REFINEMENTS rounds of iterative refinement; returns the solution's array.  ``what``
         names the system in the error of a failed factorisation."""
         self.vector.setArray(right_side)
-        self.solver.solve(self.vector, self.solution)
+        try:
+            self.solver.solve(self.vector, self.solution)
+        except PETSc.Error as error:
+            raise RuntimeError(f"{what}: {petsc_reason(error)}") from None
+        finally:
+            self._forget_options()
         reason = self.solver.getConvergedReason()
         if reason < 0:
             raise RuntimeError(f"{what}: the KSP failed (PETSc reason {reason})")
@@ -68,3 +91,9 @@ class BoundSystem:
             self.solver.solve(self.residual, self.correction)
             self.solution.axpy(1.0, self.correction)
         return self.solution.getArray()
+
+    def _forget_options(self) -> None:
+        database = PETSc.Options()
+        for name in self._options:
+            database.delValue(name)
+        self._options = []

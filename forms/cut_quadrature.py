@@ -10,8 +10,9 @@ of total degree ≤ ``exact_degree``.  Moving the part refills ``ratio``: nothin
 
 Two ways to give the part.  ``set_part`` (triangles): its moments in the cell's local
 physical coordinates, the map being affine.  ``set_part_polygons`` /
-``set_interface_segments`` (triangles and quadrilaterals): its polygon or segment, the
-weights fitted in the cell's *reference* coordinates.  On a non-affine quadrilateral the
+``set_interface_segments`` (intervals, triangles and quadrilaterals): its polygon (on an
+interval, the sub-interval) or segment (on an interval, the point), the weights fitted in
+the cell's *reference* coordinates.  On a non-affine quadrilateral the
 integrands of Q1 forms are not polynomials in x, y, but f |det J| is one in ξ, η (∇ψ |det J|
 = adj(J)ᵀ ∇̂ψ̂): the weights ω_q with Σ_q ω_q ξ_q^a η_q^b = ∫_preimage ξ^a η^b dξ make
 Σ_q ω_q |det J_q| f(x_q) = ∫_part f dx exact for them.  Those moments are
@@ -169,8 +170,8 @@ class CutQuadrature:
         return self.mesh.geometry.x[self._nodes[np.asarray(cells, dtype=np.int64)], :gdim]
 
     def reference_coordinates(self, cells, points):
-        """ξ (n, k, 2) of physical points (n, k, 2) in each of ``cells``: the affine inverse
-        on triangles, Newton's method on the bilinear map of quadrilaterals."""
+        """ξ (n, k, tdim) of physical points (n, k, gdim) in each of ``cells``: the affine
+        inverse on intervals and triangles, Newton's method on the bilinear map of quadrilaterals."""
         x = self.cell_vertices(cells)
         if self.cell_name == "interval":
             return (points - x[:, None, 0]) / (x[:, None, 1] - x[:, None, 0])

@@ -91,7 +91,7 @@ def nitsche_weights(volume, stiffness, interface_length, penalty_factor: float):
 
 class InterfaceForms:
     """The bilinear and linear forms of the system (module docstring), written on an
-    abstract mesh of triangles or quadrilaterals and compiled once; :class:`InterfaceSystem`
+    abstract mesh of intervals, triangles or quadrilaterals and compiled once; :class:`InterfaceSystem`
     binds them."""
 
     def __init__(self, comm, stabilisation: str = "bubble", slip: str = "free", cell_name: str = "triangle"):

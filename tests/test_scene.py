@@ -68,6 +68,13 @@ BAD = {
     "PETSc option value PETSc does not know": (lambda d: d.setdefault("interface", {}).update(
         predictor="assembled", petsc_options={"pc_type": "nonsense"}), "interface.petsc_options",
         "options PETSc accepts"),
+    "PETSc option of the LU factorisation with a value it does not know": (
+        lambda d: d.setdefault("interface", {}).update(predictor="assembled",
+                                                       petsc_options={"pc_factor_shift_type": "nonsense"}),
+        "interface.petsc_options", "options PETSc accepts"),
+    "PETSc option name PETSc does not read": (lambda d: d.setdefault("interface", {}).update(
+        predictor="assembled", petsc_options={"ksp_typo": "gmres"}), "interface.petsc_options",
+        "did not read this one"),
     "coulomb friction between fluids": (lambda d: d.setdefault("interface", {}).update(slip="coulomb"),
                                         "interface.slip", "carry none"),
     "stick slip": (lambda d: d.setdefault("interface", {}).update(slip="stick"),

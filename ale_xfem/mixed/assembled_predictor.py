@@ -76,8 +76,9 @@ class AssembledPredictor:
             system.set_materials(-1.0 / (slope * dt * volumes), offsets)
             try:
                 out = system.solve(mass, rhs)
-            except RuntimeError as error:  # the KSP failed (its options, or the system)
-                raise MixedCellFailure(mixed, 0, f"the assembled predictor's solve: {error}") from None
+            except RuntimeError as error:  # the KSP failed (its options, or the system): all cells
+                raise MixedCellFailure(mixed, 0, f"the assembled predictor's solve, over all mixed cells: "
+                                                 f"{error}") from None
             return out["interface_pressure"] - q_star  # the interface stress less the viscosity: π
 
         return predict

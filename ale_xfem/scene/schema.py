@@ -556,7 +556,7 @@ def _validate_interface(table: Any, dimension: int) -> InterfaceSpec:
     if "petsc_options" in table and not assembled:
         raise SceneError("interface.petsc_options", table["petsc_options"], "no value unless the interface system is "
                          "assembled by PETSc (interface.model = 'enriched' and interface.predictor = 'assembled'); "
-                         "remove it, or set them")
+                         "remove it, or set interface.predictor = 'assembled'")
     if assembled:
         table.setdefault("petsc_options", {})
     return InterfaceSpec(
@@ -592,8 +592,9 @@ def _petsc_options(value: Any) -> tuple:
 
 
 def _check_petsc_options(options: tuple) -> None:
-    """Let PETSc read the options on a KSP of its own (a value it does not know, such as an
-    unknown pc_type, is an error at load, not in the middle of a run)."""
+    """Let PETSc read the options on a solver set up as the interface system's is (direct LU
+    by MUMPS) on a small matrix: a value it does not know, or an option it does not read
+    for that solver (a misspelt name), is an error at load, not in the middle of a run."""
     import dolfinx_solver  # noqa: F401  (before petsc4py: it loads MPI and PETSc)
     from petsc4py import PETSc
 
@@ -601,16 +602,29 @@ def _check_petsc_options(options: tuple) -> None:
     database = PETSc.Options()
     for name, option in options:
         database[prefix + name] = option
+    matrix = PETSc.Mat().createAIJ([2, 2], nnz=1, comm=PETSc.COMM_SELF)
+    matrix.setValue(0, 0, 1.0)
+    matrix.setValue(1, 1, 1.0)
+    matrix.assemble()
     ksp = PETSc.KSP().create(PETSc.COMM_SELF)
     try:
+        ksp.setOperators(matrix)
+        ksp.setType("preonly")
+        ksp.getPC().setType("lu")
+        ksp.getPC().setFactorSolverType("mumps")
         ksp.setOptionsPrefix(prefix)
         ksp.setFromOptions()
-        ksp.getPC().setFromOptions()
+        ksp.setUp()
+        unread = [name for name, _ in options if not database.used(prefix + name)]
+        if unread:
+            raise SceneError("interface.petsc_options", unread[0], "an option PETSc reads for this solver (it "
+                             "did not read this one: a misspelt name, or an option of a solver not chosen)")
     except PETSc.Error as error:  # PETSc's traceback, one frame a line: its last line says why
         reason = str(error).strip().splitlines()[-1].removeprefix("[0]").strip()
         raise SceneError("interface.petsc_options", dict(options), f"options PETSc accepts ({reason})") from None
     finally:
         ksp.destroy()
+        matrix.destroy()
         for name, _ in options:
             database.delValue(prefix + name)
 
