@@ -35,7 +35,9 @@ from ale_xfem.geometry.shapes import polygon_area, polygon_centroid
 from ale_xfem.model.plic import Reconstruction
 from forms.cut_quadrature import bilinear_map, fan_quadrature, inverse_bilinear_map
 
-PART_RULE = 12  # the rule on the triangles of a part's fan (∫ ψ_i, ∫ ∇ψ_i)
+# the rule on the triangles of a part's fan (∫ ψ_i, ∫ ∇ψ_i), by the cell's vertex count:
+# exact for the linear ψ of a triangle; through the inverse map of a quadrilateral, smooth
+PART_RULE = {3: 1, 4: 10}
 
 # The share of its consistent mass ∫_{K_m} ρ_m ψ_i an external node keeps (the rest goes to
 # the internal nodes).  Massless external nodes leave the implicit system singular in 2D:
@@ -78,13 +80,13 @@ class CutCells:
 
     def part_integrals(self):
         """(∫_{K_m} ψ_i (2, n, k), ∫_{K_m} ∇ψ_i (2, n, k, 2)) over each material's polygon,
-        fanned into triangles, by a degree-PART_RULE rule (exact on triangles; on
+        fanned into triangles, by a PART_RULE rule (exact on triangles; on
         quadrilaterals, through the inverse bilinear map, to round-off)."""
         if self._part_integrals is None:
             k = self.vertices.shape[1]
             values, gradients = [], []
             for polygon in (self.reconstruction.alpha, self.reconstruction.beta):
-                physical, weights = fan_quadrature(polygon, PART_RULE)
+                physical, weights = fan_quadrature(polygon, PART_RULE[k])
                 psi, grad = _shape_functions(self.vertices, physical, k)
                 values.append(np.einsum("nqk,nq->nk", psi, weights))
                 gradients.append(np.einsum("nqkd,nq->nkd", grad, weights))
