@@ -234,3 +234,40 @@ def test_interface_integrals_on_non_affine_quadrilaterals_are_exact():
     for row in range(cells.size):
         expected[np.ix_(dofs[row], dofs[row])] += local[row]
     assert np.abs(matrix - expected).max() < 1e-13
+
+
+def test_cut_integrals_on_intervals_are_exact():
+    """The 1D case of the same measure (the 1D enriched cell): a part [x₀, x_Γ] of each of
+    some cells, and the point x_Γ as the interface — ∫_part ψ_i, ∫_part ψ_i′ and ψ_i(x_Γ)
+    assembled with one compiled form, against their closed forms."""
+    mesh = dolfinx.mesh.create_interval(MPI.COMM_WORLD, 10, [0.0, 2.0])
+    cut = CutQuadrature(mesh)
+    nodes = np.asarray(mesh.geometry.dofmaps[0])
+    x = mesh.geometry.x[nodes, 0]  # (cells, 2) in DOLFINx's order
+    cells = np.array([2, 5, 7])
+    left, right = x[cells].min(axis=1), x[cells].max(axis=1)
+    interface = left + np.array([0.3, 1e-6, 0.999]) * (right - left)
+    cut.set_part_polygons(np.zeros(0, dtype=np.int64), cells,
+                          np.stack([left, interface], axis=1)[..., None])
+    V = dolfinx.fem.functionspace(mesh, ("Lagrange", 1))
+    v = ufl.TestFunction(V)
+    values = dolfinx.fem.assemble_vector(dolfinx.fem.form(cut.ratio * v * cut.measure)).array
+    slopes = dolfinx.fem.assemble_vector(dolfinx.fem.form(cut.ratio * v.dx(0) * cut.measure)).array
+    dofs = np.asarray(V.dofmap.list)[cells]
+    expected, expected_slopes = np.zeros_like(values), np.zeros_like(values)
+    for row, cell in enumerate(cells):
+        h, s = right[row] - left[row], interface[row] - left[row]
+        for local, dof in enumerate(dofs[row]):
+            at_left = np.isclose(x[cell, local], left[row])
+            # ψ falls from 1 at its node: ∫_0^s ψ = s − s²/(2h) from the left node, s²/(2h) from the right
+            expected[dof] += s - s * s / (2 * h) if at_left else s * s / (2 * h)
+            expected_slopes[dof] += -s / h if at_left else s / h
+    assert np.abs(values - expected).max() < 1e-15 and np.abs(slopes - expected_slopes).max() < 1e-14
+    cut.set_interface_segments(cells, interface[:, None], interface[:, None])
+    point = dolfinx.fem.assemble_vector(dolfinx.fem.form(cut.ratio * v * cut.measure)).array
+    expected_point = np.zeros_like(point)
+    for row, cell in enumerate(cells):
+        t = (interface[row] - left[row]) / (right[row] - left[row])
+        for local, dof in enumerate(dofs[row]):
+            expected_point[dof] += 1 - t if np.isclose(x[cell, local], left[row]) else t
+    assert np.abs(point - expected_point).max() < 1e-13
