@@ -82,6 +82,21 @@ def _skewed_quadrilaterals(n):
     return mesh
 
 
+def _skewed_and_cut():
+    """Skewed 6 × 6 quadrilaterals, their measure, their corners going round, and the line
+    x·n = 0.8 at 0.7 rad across them: (mesh, cut, corners, n, offset, cells below it, cells
+    it cuts)."""
+    mesh = _skewed_quadrilaterals(6)
+    cut = CutQuadrature(mesh)
+    nodes = np.asarray(mesh.geometry.dofmaps[0])
+    going_round = mesh.geometry.x[nodes][:, [0, 1, 3, 2], :2]
+    normal, offset = np.array([np.cos(0.7), np.sin(0.7)]), 0.8
+    distance = going_round @ normal - offset
+    full = np.flatnonzero((distance <= 0).all(axis=1))
+    cells = np.flatnonzero((distance < 0).any(axis=1) & (distance > 0).any(axis=1))
+    return mesh, cut, going_round, normal, offset, full, cells
+
+
 def _brute_force(cut, cells, polygons, integrand):
     """Σ over the polygons of ∫ integrand(ξ, J) dx by a degree-30 rule on their fans."""
     import basix
@@ -102,14 +117,7 @@ def test_cut_integrals_on_non_affine_quadrilaterals_are_exact():
     weights are fitted in each cell's reference coordinates (to ∫ ξ^a η^b over the part's
     preimage), where ∫_part ∇ψ_i dx = ∫ adj(J)ᵀ ∇̂ψ̂_i dξ is a polynomial: assembled with
     one compiled form it matches a degree-30 brute-force integration to 1e-12."""
-    mesh = _skewed_quadrilaterals(6)
-    cut = CutQuadrature(mesh)
-    nodes = np.asarray(mesh.geometry.dofmaps[0])
-    going_round = mesh.geometry.x[nodes][:, [0, 1, 3, 2], :2]
-    normal, offset = np.array([np.cos(0.7), np.sin(0.7)]), 0.8
-    distance = going_round @ normal - offset
-    full = np.flatnonzero((distance <= 0).all(axis=1))
-    cells = np.flatnonzero((distance < 0).any(axis=1) & (distance > 0).any(axis=1))
+    mesh, cut, going_round, normal, offset, full, cells = _skewed_and_cut()
     parts = clip_half_plane(going_round[cells], normal, np.full(cells.size, offset))
     cut.set_part_polygons(full, cells, parts)
     V = dolfinx.fem.functionspace(mesh, ("Lagrange", 1))
@@ -200,13 +208,7 @@ def test_interface_integrals_on_non_affine_quadrilaterals_are_exact():
     """∫_Γ ψ_i ψ_j (the Nitsche penalty's integrand, of degree 2 in each reference
     coordinate) over the segments of a line across skewed quadrilaterals, assembled with
     the interface weights, against 40 Gauss–Legendre points along each segment."""
-    mesh = _skewed_quadrilaterals(6)
-    cut = CutQuadrature(mesh)
-    nodes = np.asarray(mesh.geometry.dofmaps[0])
-    going_round = mesh.geometry.x[nodes][:, [0, 1, 3, 2], :2]
-    normal, offset = np.array([np.cos(0.7), np.sin(0.7)]), 0.8
-    distance = going_round @ normal - offset
-    cells = np.flatnonzero((distance < 0).any(axis=1) & (distance > 0).any(axis=1))
+    mesh, cut, going_round, normal, offset, _, cells = _skewed_and_cut()
     # the segment: where the cell's edges cross the line
     start, end = np.empty((cells.size, 2)), np.empty((cells.size, 2))
     for row, cell in enumerate(cells):
