@@ -243,3 +243,21 @@ def test_the_predictor_corrector_conserves_energy_with_the_full_equation_of_stat
         assert -1e-3 < balance < -1e-5
     else:
         assert abs(balance) < 1e-10
+
+
+def test_an_equation_of_state_that_softens_under_compression_stops_the_corrector_naming_the_cell():
+    """Along an adiabat the pressure must rise as a material is compressed (D = dp/dV < 0);
+    where it does not, the step stops before any solve, naming the mesh cell."""
+    from ale_xfem.mixed.enriched_step_2d import EnrichedStep2D, MaterialStart, MixedCellSolveFailure
+
+    case = InterfaceCase(12, "line")
+    n = case.mixed.size
+
+    def softening(rho, e):  # p falls with density: ∂p/∂ρ < 0
+        return 1.0 - rho, -np.ones_like(rho), np.zeros_like(rho), np.ones_like(rho)
+
+    step = EnrichedStep2D(case.bind("bubble"), case.mixed, [softening, softening], case.cut.reconstruction.length)
+    start = MaterialStart(mass=case.cut.volume.copy(), volume=case.cut.volume, energy=np.ones((2, n)),
+                          pressure=np.zeros((2, n)))
+    with pytest.raises(MixedCellSolveFailure, match=rf"mixed cell {case.mixed[0]}: the pressure does not rise"):
+        step.solve(DT, start, *case.inertia_and_rhs())

@@ -82,7 +82,7 @@ class EnrichedStep2D:
             change = volume - v0
             slope = (-(rho / volume) * dp_drho - 0.5 * dp_de * (p0 + p) / m) / (1.0 + 0.5 * dp_de * change / m)
             if not np.all(slope < 0.0):
-                index = int(np.argmax(~(slope < 0.0)).ravel()[0] % volume.shape[1])
+                index = int(np.flatnonzero(~np.all(slope < 0.0, axis=0))[0])
                 raise MixedCellSolveFailure(self.cells, index, "the pressure does not rise with compression along the adiabat")
             offset = p - slope * change
             compliance = -1.0 / (slope * dt * v0)
