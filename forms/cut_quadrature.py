@@ -5,14 +5,14 @@ cut-cell integrals in docs/design.md).
 A quadrature-element Function ``ratio`` holds, at the points of the measure's rule, the
 ratio of each cell's fitted weight to the rule's own (w_q |det J|): ``ratio * f * measure``
 then integrates f over the part — 1 on a cell the part covers, 0 where it is absent, and on
-a cut cell the weights w'_q with Σ_q w'_q x_q^a y_q^b = ∫_part x^a y^b dA for the monomials
-of total degree ≤ ``exact_degree``.  Moving the part refills ``ratio``: nothing compiles.
+a cut cell weights fitted to the part's moments (below), exact for the monomials of degree
+≤ ``exact_degree``.  Moving the part refills ``ratio``: nothing compiles.
 
-Two ways to give the part.  ``set_part`` (triangles): its moments in the cell's local
-physical coordinates, the map being affine.  ``set_part_polygons`` /
-``set_interface_segments`` (intervals, triangles and quadrilaterals): its polygon (on an
-interval, the sub-interval) or segment (on an interval, the point), the weights fitted in
-the cell's *reference* coordinates.  On a non-affine quadrilateral the
+The part is given by its polygon (``set_part_polygons``; on an interval, the
+sub-interval) and the interface by its segment (``set_interface_segments``; on an
+interval, the point); the weights are fitted in each cell's *reference* coordinates (of
+order one on any cell, however small or far from the origin: the fitting stays well
+conditioned).  On a non-affine quadrilateral the
 integrands of Q1 forms are not polynomials in x, y, but f |det J| is one in ξ, η (∇ψ |det J|
 = adj(J)ᵀ ∇̂ψ̂): the weights ω_q with Σ_q ω_q ξ_q^a η_q^b = ∫_preimage ξ^a η^b dξ make
 Σ_q ω_q |det J_q| f(x_q) = ∫_part f dx exact for them.  Those moments are
@@ -84,49 +84,6 @@ class CutQuadrature:
         self.stats = {"min_weight": 1.0, "negative_weights": 0}
         self._dofs = np.asarray(self.space.dofmap.list)  # (cells, points)
         self._nodes = np.asarray(mesh.geometry.dofmaps[0])
-
-    def local_frames(self, cut_cells):
-        """(origin (n, 2), scale (n,)) of each cell's local coordinates ξ = (x − origin) /
-        scale: its first node, and √|det J| (a length of the cell), which keep the fitting
-        well conditioned on small cells far from the origin."""
-        corner = self.mesh.geometry.x[self._nodes[np.asarray(cut_cells, dtype=np.int64)], :2]
-        axes = corner[:, 1:] - corner[:, :1]
-        return corner[:, 0], np.sqrt(np.abs(axes[:, 0, 0] * axes[:, 1, 1] - axes[:, 0, 1] * axes[:, 1, 0]))
-
-    def set_interface(self, cut_cells, moments) -> None:
-        """The measure of the interface Γ instead of a part: the segment Γ_K of each cut
-        cell, given by its moments ∫_Γ ξ^a η^b ds in the cell's local coordinates (a line
-        integral carried by the cell's interior points, exact for the same monomials)."""
-        self.set_part(np.zeros(0, dtype=np.int64), cut_cells, moments, record=False)
-
-    def set_part(self, full_cells, cut_cells, moments, record: bool = True) -> None:
-        """The part covers ``full_cells``, and of each of ``cut_cells`` the region whose
-        moments ∫ ξ^a η^b dA are given — ξ, η the cell's local coordinates
-        (:meth:`local_frames`), dA the physical area, (len(cut_cells), monomials of
-        exact_degree in the order (a, b) = (d − j, j), d = 0 … exact_degree, j = 0 … d); it is
-        absent from every other cell."""
-        if self.cell_name != "triangle":
-            raise ValueError(f"set_part (moments in physical local coordinates) on {self.cell_name} cells: "
-                             "triangles only; set_part_polygons fits in the reference cell of any cell type")
-        values = self.ratio.x.array
-        values[:] = 0.0
-        values[self._dofs[np.asarray(full_cells, dtype=np.int64)]] = 1.0
-        cut_cells = np.asarray(cut_cells, dtype=np.int64)
-        if cut_cells.size:
-            corner = self.mesh.geometry.x[self._nodes[cut_cells], :2]  # (n, 3, 2)
-            axes = corner[:, 1:] - corner[:, :1]  # (n, 2, 2): rows x1 − x0, x2 − x0
-            area = np.abs(axes[:, 0, 0] * axes[:, 1, 1] - axes[:, 0, 1] * axes[:, 1, 0])
-            # the rule's points in the cells' local coordinates
-            points = np.einsum("qk,nkd->nqd", self.points, axes) / np.sqrt(area)[:, None, None]
-            vandermonde = np.stack([points[..., 0] ** a * points[..., 1] ** b for a, b in self.exponents], axis=1)
-            # least-norm weights: Σ_q w'_q x_q^a y_q^b = moment (square here, so exact)
-            weights = np.einsum("nqk,nk->nq", np.linalg.pinv(vandermonde), np.asarray(moments, dtype=float))
-            values[self._dofs[cut_cells]] = weights / (self.weights * area[:, None])
-            if record:  # (a part's weights, relative to the cell's area; not Γ's, which are lengths)
-                relative = weights / (0.5 * area[:, None])
-                self.stats["min_weight"] = float(min(self.stats["min_weight"], relative.min()))
-                self.stats["negative_weights"] += int(np.sum(weights < 0))
-        self.ratio.x.scatter_forward()
 
     # -- from the cut geometry, in each cell's reference coordinates (both cell types) ------
 

@@ -34,41 +34,6 @@ def polygon_area(vertices: np.ndarray) -> np.ndarray:
     return total
 
 
-def monomials(degree: int) -> list[tuple[int, int]]:
-    """The exponents (a, b) of the monomials x^a y^b of total degree ≤ ``degree``, in the
-    order :func:`polygon_moments` returns their integrals."""
-    return [(total - b, b) for total in range(degree + 1) for b in range(total + 1)]
-
-
-def polygon_moments(vertices: np.ndarray, degree: int) -> np.ndarray:
-    """Exact ∫_P x^a y^b dA over polygons (n, m, 2) (any orientation: the integral over the
-    region, padding vertices allowed) for the monomials of :func:`monomials`: (n, k).  By
-    Green's theorem ∫_P x^a y^b dA = 1/(a+1) ∮ x^{a+1} y^b dy, each edge's integrand a
-    polynomial of degree ≤ degree + 1 in its parameter, integrated exactly by Gauss–Legendre."""
-    t, w = np.polynomial.legendre.leggauss(degree // 2 + 2)
-    t, w = 0.5 * (t + 1.0), 0.5 * w
-    start = np.asarray(vertices, dtype=float)
-    step = np.roll(start, -1, axis=1) - start
-    x = start[..., 0, None] + t * step[..., 0, None]  # (n, m, points)
-    y = start[..., 1, None] + t * step[..., 1, None]
-    dy = step[..., 1, None] * w
-    sign = np.sign(polygon_area(start))
-    moments = [sign * np.sum(x ** (a + 1) * y**b * dy, axis=(1, 2)) / (a + 1) for a, b in monomials(degree)]
-    return np.stack(moments, axis=-1)
-
-
-def segment_moments(start: np.ndarray, end: np.ndarray, degree: int) -> np.ndarray:
-    """Exact ∫_S x^a y^b ds over segments S = [start, end] ((n, 2) each) for the monomials
-    of :func:`monomials`: (n, k), by Gauss–Legendre along each segment."""
-    t, w = np.polynomial.legendre.leggauss(degree // 2 + 1)
-    t, w = 0.5 * (t + 1.0), 0.5 * w
-    start, end = np.asarray(start, dtype=float), np.asarray(end, dtype=float)
-    length = np.linalg.norm(end - start, axis=-1)
-    x = start[:, 0, None] + t * (end - start)[:, 0, None]
-    y = start[:, 1, None] + t * (end - start)[:, 1, None]
-    return np.stack([np.sum(x**a * y**b * w, axis=1) * length for a, b in monomials(degree)], axis=-1)
-
-
 def corner_centroid(xs, ys):
     """Areas and centroids of polygons given as lists over their vertices of coordinate
     arrays (xs[i], ys[i]: vertex i of every polygon): (area, cx, cy); a polygon of zero area
