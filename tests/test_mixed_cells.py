@@ -373,7 +373,7 @@ def test_a_failed_initial_relaxation_is_reported_as_a_breakdown(tmp_path, monkey
     from ale_xfem.mixed.equilibrium import MixedCellFailure, PressureEquilibrium
 
     def refuse(self, *args, **kwargs):
-        raise MixedCellFailure(self.mixed, 0, "not converged after 50 iterations")
+        raise MixedCellFailure(self.mixed.cells, 0, "not converged after 50 iterations")
 
     monkeypatch.setattr(PressureEquilibrium, "relax", refuse)
     out = tmp_path / "run"
@@ -466,7 +466,7 @@ def test_a_failed_interface_solve_names_the_cell_its_position_and_materials(tmp_
 
     def fail_on_step_3(self, *args, **kwargs):
         if self.mixed.stats["steps"] >= 2:
-            raise MixedCellFailure(self.mixed, 0, "not converged after 50 iterations (pressure change nan)")
+            raise MixedCellFailure(self.mixed.cells, 0, "not converged after 50 iterations (pressure change nan)")
         return solve(self, *args, **kwargs)
 
     monkeypatch.setattr(PressureEquilibrium, "solve", fail_on_step_3)

@@ -77,7 +77,7 @@ class AssembledPredictor:
             try:
                 out = system.solve(mass, rhs)
             except RuntimeError as error:  # the KSP failed (its options, or the system): all cells
-                raise MixedCellFailure(mixed, 0, f"the assembled predictor's solve, over all mixed cells: "
+                raise MixedCellFailure(mixed.cells, 0, f"the assembled predictor's solve, over all mixed cells: "
                                                  f"{error}") from None
             return out["interface_pressure"] - q_star  # the interface stress less the viscosity: π
 

@@ -30,16 +30,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ale_xfem.mixed.equilibrium import MixedCellFailure
 from forms.enriched_interface import nitsche_weights
-
-
-class MixedCellSolveFailure(RuntimeError):
-    """The corrector left the admissible states or did not converge: ``index`` the mixed
-    cell's place among them, ``cell`` its mesh cell, ``detail`` what happened."""
-
-    def __init__(self, cells, index: int, detail: str):
-        self.index, self.cell, self.detail = index, int(cells[index]), detail
-        super().__init__(f"mixed cell {self.cell}: {detail}")
 
 
 @dataclass
@@ -83,7 +75,7 @@ class EnrichedStep2D:
             slope = (-(rho / volume) * dp_drho - 0.5 * dp_de * (p0 + p) / m) / (1.0 + 0.5 * dp_de * change / m)
             if not np.all(slope < 0.0):
                 index = int(np.flatnonzero(~np.all(slope < 0.0, axis=0))[0])
-                raise MixedCellSolveFailure(self.cells, index, "the pressure does not rise with compression along the adiabat")
+                raise MixedCellFailure(self.cells, index, "the pressure does not rise with compression along the adiabat")
             offset = p - slope * change
             compliance = -1.0 / (slope * dt * v0)
             weight = penalty = None
@@ -97,7 +89,7 @@ class EnrichedStep2D:
             volume = v0 + volume_change
             if not np.all(volume > 0.0):
                 index = int(np.flatnonzero(~np.all(volume > 0.0, axis=0))[0])
-                raise MixedCellSolveFailure(self.cells, index, "a material's volume is not positive at the end of the step")
+                raise MixedCellFailure(self.cells, index, "a material's volume is not positive at the end of the step")
             # the corrector: e = e^n − ½(P^n + p₀(ρ) + ∂p/∂e e) ΔV/m, solved for e
             rho = m / volume
             cold = [self.eos[k](rho[k], np.zeros_like(rho[k])) for k in range(2)]
@@ -111,7 +103,7 @@ class EnrichedStep2D:
                 break
         else:
             index = int(np.argmax(np.abs(pressure - linearised).max(axis=0)))
-            raise MixedCellSolveFailure(self.cells, index, f"the corrector did not converge in {self.max_iterations} iterations")
+            raise MixedCellFailure(self.cells, index, f"the corrector did not converge in {self.max_iterations} iterations")
         result = dict(velocity=out["velocity"], volume=volume, energy=energy, pressure=pressure,
                       iterations=iteration, linearised_pressure=linearised)
         if "interface_pressure" in out:

@@ -50,8 +50,9 @@ class MixedCellFailure(RuntimeError):
     """The mixed-cell solve did not converge or left the admissible states: ``cell`` the
     mesh cell, ``index`` its place among the mixed cells, ``detail`` what went wrong."""
 
-    def __init__(self, mixed: MixedCells, index: int, detail: str):
-        self.index, self.cell, self.detail = index, int(mixed.cells[index]), detail
+    def __init__(self, cells, index: int, detail: str):
+        """``cells``: the mesh cell of each mixed cell (``MixedCells.cells``)."""
+        self.index, self.cell, self.detail = index, int(cells[index]), detail
         super().__init__(f"mixed cell {self.cell}: {detail}")
 
 
@@ -99,7 +100,7 @@ class PressureEquilibrium:
         hi = np.minimum((1 - 1e-12) * total, total - limit_b * (1 + 1e-9))
         if (lo >= hi).any():
             bad = int(np.flatnonzero(lo >= hi)[0])
-            raise MixedCellFailure(self.mixed, bad, f"volume {total[bad]:.6g} cannot hold both materials "
+            raise MixedCellFailure(self.mixed.cells, bad, f"volume {total[bad]:.6g} cannot hold both materials "
                                    "below their compression limits")
         v = np.minimum(np.maximum(guess, lo), hi)
         for iteration in range(1, 101):
@@ -143,7 +144,7 @@ class PressureEquilibrium:
         bad = ~((c2a > 0.0) & (c2b > 0.0))
         if bad.any():
             index = int(np.flatnonzero(bad)[0])
-            raise MixedCellFailure(self.mixed, index, f"the root leaves the EOS domain (π = {result[0][index]:.6g}, "
+            raise MixedCellFailure(self.mixed.cells, index, f"the root leaves the EOS domain (π = {result[0][index]:.6g}, "
                                    f"c² = {c2a[index]:.3g} | {c2b[index]:.3g})")
         return result
 
@@ -212,7 +213,7 @@ class PressureEquilibrium:
             return pi, va, vb, details
         worst = int(np.argmax(np.abs(balanced - pi_new) / scale))
         raise MixedCellFailure(
-            self.mixed, worst, f"not converged after {self.mixed.max_iterations} iterations (pressure "
+            self.mixed.cells, worst, f"not converged after {self.mixed.max_iterations} iterations (pressure "
             f"change {abs(balanced[worst] - pi_new[worst]):.3g})")
 
     def _state_at(self, state0, va, vb, work):
@@ -250,7 +251,7 @@ class PressureEquilibrium:
         hi = vb0 - np.maximum(1e-12 * total, m_b / self.mixed.max_density_right * (1 + 1e-9))
         if (lo >= hi).any():
             bad = int(np.flatnonzero(lo >= hi)[0])
-            raise MixedCellFailure(self.mixed, bad, f"volume {total[bad]:.6g} cannot hold both materials "
+            raise MixedCellFailure(self.mixed.cells, bad, f"volume {total[bad]:.6g} cannot hold both materials "
                                    "below their compression limits")
         delta = np.minimum(np.maximum(0.0, lo), hi)
         finished = False
@@ -277,7 +278,7 @@ class PressureEquilibrium:
             delta = new_delta
         else:
             worst = int(np.argmax(np.abs(h) / scale))
-            raise MixedCellFailure(self.mixed, worst, f"pressure relaxation not converged (pressures "
+            raise MixedCellFailure(self.mixed.cells, worst, f"pressure relaxation not converged (pressures "
                                    f"{pi_a[worst]:.6g} and {pi_b[worst]:.6g})")
         # p* is the root of the material whose pressure depends most on it (|S| the larger):
         # its state is then exactly its own balance, the other's pressure within the
@@ -286,7 +287,7 @@ class PressureEquilibrium:
         pressure = np.where(np.abs(coupling_a) >= np.abs(coupling_b), pi_a, pi_b)
         if not np.isfinite(pressure).all():
             bad = int(np.flatnonzero(~np.isfinite(pressure))[0])
-            raise MixedCellFailure(self.mixed, bad, f"pressure relaxation = {pressure[bad]:.6g}")
+            raise MixedCellFailure(self.mixed.cells, bad, f"pressure relaxation = {pressure[bad]:.6g}")
         details = self._state_at(state0, va, vb, pressure)
         return pressure, va, vb, details
 

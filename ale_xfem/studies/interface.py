@@ -111,13 +111,12 @@ class InterfaceCase:
         """(F̄, f^n) of material m under the uniform pressure (pure cells: P ∂|K|/∂x_i;
         mixed cells at n, P_m = p_Γ: P G_mi)."""
         mesh = self.mesh
-        x = np.moveaxis(mesh.node_position[:, mesh.cell_nodes], 0, -1)  # (cells, k, 2) going round
-        after, before = np.roll(x, -1, axis=1), np.roll(x, 1, axis=1)
-        gradient = 0.5 * np.stack([after[..., 1] - before[..., 1], before[..., 0] - after[..., 0]], axis=-1)
+        cells = np.flatnonzero(self.cell_material == m)
+        _, gradient = mesh.cell_geometry(mesh.node_position, cells)  # ∂|K|/∂x_i, [corner][component]
         pure = np.zeros((2, mesh.n_nodes))
-        cells = self.cell_material == m
-        for d in range(2):
-            np.add.at(pure[d], mesh.cell_nodes[cells].ravel(), PRESSURE * gradient[cells][..., d].ravel())
+        for k, corner in enumerate(gradient):  # the explicit step's corner forces P ∂|K|/∂x_i
+            for d in range(2):
+                np.add.at(pure[d], mesh.cell_nodes[cells, k], PRESSURE * corner[d])
         mixed = np.zeros((2, mesh.n_nodes))
         for d in range(2):
             np.add.at(mixed[d], mesh.cell_nodes[self.mixed].ravel(), PRESSURE * self.cut.edge_flux[m][..., d].ravel())
