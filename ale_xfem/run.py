@@ -11,6 +11,7 @@ from __future__ import annotations
 import sys
 import time
 from dataclasses import dataclass, field
+from functools import partial
 
 import numpy as np
 from tqdm.auto import tqdm
@@ -19,6 +20,7 @@ from ale_xfem.lagrange.breakdown import Breakdown
 from ale_xfem.lagrange.memory import keep_freed_memory
 from ale_xfem.lagrange.wilkins import ExplicitWilkins
 from ale_xfem.mixed.closures import Closures
+from ale_xfem.mixed.enriched_2d import material_geometry
 from ale_xfem.model.plic import reconstruct_state
 from ale_xfem.model.state import State, material_masses, totals
 from ale_xfem.problem.build import Problem
@@ -79,9 +81,14 @@ def make_stepper(problem: Problem) -> ExplicitWilkins:
     assembled predictor's UFL forms are compiled here, once per run)."""
     keep_freed_memory()
     interface = problem.scene.interface
+    enriched_2d = {}
+    if interface is not None and interface.stabilisation is not None:  # 2D enriched mixed cells
+        enriched_2d = dict(stabilisation=interface.stabilisation, slip=interface.slip,
+                           nitsche_penalty=interface.nitsche_penalty or 1.0)
     closures = Closures(problem.mesh, problem.materials,
                         assembled_predictor="interface_predictor_assembled" in problem.effects,
-                        petsc_options=dict(interface.petsc_options) if interface is not None else None)
+                        petsc_options=dict(interface.petsc_options) if interface is not None else None,
+                        **enriched_2d)
     return ExplicitWilkins(problem.mesh, problem.materials, problem.layout, problem.node_mass,
                            problem.boundaries, problem.scene.numerics,
                            artificial_viscosity="artificial_viscosity" in problem.effects,
@@ -111,6 +118,8 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
     if any(name.startswith("remap_") for name in problem.effects):
         if problem.mesh.dimension == 2:
             remapper = Remapper2D(problem, problem.scene.mesh.motion, problem.scene.numerics.remap_order)
+            if problem.state.material_node_velocity is not None:  # enriched: the step's masses
+                remapper.material_geometry = partial(material_geometry, problem.mesh)
         else:
             remapper = Remapper(problem, problem.scene.mesh.motion, problem.scene.numerics.remap_order)
     remap_energy_change, remap_seconds = 0.0, 0.0

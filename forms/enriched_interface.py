@@ -135,12 +135,14 @@ class InterfaceForms:
                  "edge_flux": function_space("DG", 1, (gdim,)), "compliance": function_space("DG", 0),
                  "offset": function_space("DG", 0), "normal": function_space("DG", 0, (gdim,)),
                  "interface": quadrature, "weight": function_space("DG", 0), "penalty": function_space("DG", 0),
-                 "tie": function_space("Lagrange", 1)}
+                 "tie": function_space("Lagrange", 1), "tie_slide": function_space("Lagrange", 1), "tie_normal": function_space("Lagrange", 1, (gdim,))}
         self.coefficients = {}
         for name in _MATERIAL_COEFFICIENTS:
             for side in "ab":
                 self.coefficients[f"{name}_{side}"] = ufl.Coefficient(kinds[name])
-        for name in _CELL_COEFFICIENTS:
+        # free slip in 2D ties only the normal part of a tied node's velocities
+        self.tie_normal = gdim == 2 and not stick
+        for name in _CELL_COEFFICIENTS + (("tie_normal", "tie_slide") if self.tie_normal else ()):
             self.coefficients[name] = ufl.Coefficient(kinds[name])
         c = self.coefficients
 
@@ -175,8 +177,18 @@ class InterfaceForms:
             return ufl.as_vector([w[1], -w[0]])
 
         # tied nodes (pure cells of both materials around them: no mixed cell carries an
-        # interface there) move as one: a stiff spring between their two velocities
+        # interface there) move as one: a stiff spring between their two velocities.  Under
+        # free slip in 2D a *sliding* tied node (Γ passes through it between mixed cells,
+        # along no mesh edge) ties only the normal parts, along the node's normal to Γ: the
+        # materials still slide past it (a spinning disk whose rim runs through nodes handed
+        # 11 % of its angular momentum to the fluid around it in one step when the whole
+        # velocity was tied there).  Where Γ follows a mesh edge into the node, the edge's
+        # normal and the cut cells' differ (a kink): two normal conditions, the whole
+        # velocity tied (a normal-only tie let a kink at rest move by 0.01)
         bilinear = c["tie"] * ufl.inner(u1[0] - u1[1], v1[0] - v1[1]) * lumped
+        if self.tie_normal:
+            t_n = c["tie_normal"]
+            bilinear += c["tie_slide"] * ufl.dot(u1[0] - u1[1], t_n) * ufl.dot(v1[0] - v1[1], t_n) * lumped
         linear = 0
         for m, side in enumerate(sides):
             part = c[f"part_{side}"]
@@ -257,6 +269,9 @@ class InterfaceSystem:
         functions["penalty"] = dolfinx.fem.Function(DG0)
         P1 = dolfinx.fem.functionspace(sub, ("Lagrange", 1))
         functions["tie"] = dolfinx.fem.Function(P1)
+        if forms.tie_normal:
+            functions["tie_normal"] = dolfinx.fem.Function(V1)
+            functions["tie_slide"] = dolfinx.fem.Function(P1)
         self._tie_parent = np.empty(P1.dofmap.index_map.size_local, dtype=np.int64)
         self._tie_parent[np.asarray(P1.dofmap.list)] = self.parent_nodes
         self.functions = functions
@@ -341,15 +356,18 @@ class InterfaceSystem:
             self.functions["weight"].x.array[self._dg0] = weight[take]
             self.functions["penalty"].x.array[self._dg0] = penalty[take]
 
-    def solve(self, mass, rhs, tied=None):
+    def solve(self, mass, rhs, tied=None, sliding=None, tie_normal=None):
         """Assemble and solve.  mass[m], rhs[m]: (2, n_parent_nodes) per material — 4M/dt per
         component (very large on held components) and the explicit right side
         4M u^n/dt + 2F̄ + f^n; ``tied`` (n_parent_nodes,) bool: nodes whose two velocities
-        are one (pure cells of both materials around them).  Returns a dict: ``velocity``
+        are one (pure cells of both materials around them); ``sliding`` (n_parent_nodes,)
+        bool: the tied nodes whose normal parts only are one (free slip in 2D; default
+        none), along ``tie_normal`` (2, n_parent_nodes) (default: the mean of the mixed
+        cells' normals around each node).  Returns a dict: ``velocity``
         [m] (2, n_parent_nodes) ū_m at the mixed cells' nodes (other entries 0), ``pressure``
         (2, n) P_m per mixed cell, and, by stabilisation, ``interface_pressure`` (n,) p_Γ
         (free slip; stick: its normal part) and ``bubble`` [m]."""
-        self._set_mass(mass, tied)
+        self._set_mass(mass, tied, sliding, tie_normal)
         array = self.system.assemble()
         for m in range(2):
             for d in range(self.gdim):
@@ -373,7 +391,7 @@ class InterfaceSystem:
             out["bubble"] = [values[dofs] for dofs in self.bubble_dofs]
         return out
 
-    def _set_mass(self, mass, tied):
+    def _set_mass(self, mass, tied, sliding=None, tie_normal=None):
         """The vertex rule gives Σ_{K ∋ i} (|K|/3) m(x_i) u_i·v_i: the P1 density that lumps
         M_i on node i is M_i / Σ_{K ∋ i} |K|/3 (K over the mixed cells)."""
         if self.vertex_area is None or self.vertex_area.size != self.velocity_parent.size:
@@ -385,12 +403,28 @@ class InterfaceSystem:
             self.functions[f"mass_{side}"].x.array.reshape(-1, self.gdim)[:] = density.T
         tie = self.functions["tie"].x.array
         tie[:] = 0.0
+        if self.forms.tie_normal:
+            self.functions["tie_slide"].x.array[:] = 0.0
         if tied is not None:
             nodes = self._tie_parent
             stiffness = TIE_STIFFNESS * (mass[0].min(axis=0) + mass[1].min(axis=0))[nodes]
             block = np.empty(self.velocity_parent.max() + 1, dtype=np.int64)
             block[self.velocity_parent] = np.arange(self.velocity_parent.size)
-            tie[:] = np.where(tied[nodes], stiffness, 0.0) / self.vertex_area[block[nodes]]
+            spring = np.where(tied[nodes], stiffness, 0.0) / self.vertex_area[block[nodes]]
+            tie[:] = spring
+            if self.forms.tie_normal:
+                slide = np.zeros_like(spring) if sliding is None else np.where(sliding[nodes], spring, 0.0)
+                tie[:] -= slide
+                self.functions["tie_slide"].x.array[:] = slide
+                if tie_normal is None:  # the mean of the normals of the mixed cells around each node
+                    normal = self.functions["normal"].x.array.reshape(-1, self.gdim)[self._dg0v]  # (n_sub, 2)
+                    total = np.zeros((self.velocity_parent.size, self.gdim))
+                    np.add.at(total, self._velocity_cells.ravel(), np.repeat(normal, self._velocity_cells.shape[1], axis=0))
+                    size = np.linalg.norm(total, axis=1)[:, None]
+                    values = np.divide(total, size, out=np.zeros_like(total), where=size > 0)
+                else:
+                    values = tie_normal[:, self.velocity_parent].T
+                self.functions["tie_normal"].x.array.reshape(-1, self.gdim)[:] = values
 
     def move(self, node_position) -> None:
         """Follow the mesh: node_position (gdim, n_parent_nodes)."""

@@ -88,6 +88,6 @@ class MixedCellClosure(ABC):
         """(new state, its force evaluation) with the mixed cells' entries filled."""
 
     @abstractmethod
-    def state_for_remap(self, step, state: State, solution, x_new, cell_volume, e_new, dt):
+    def state_for_remap(self, step, state: State, solution, x_new, u_new, cell_volume, e_new, dt):
         """(the (2, n_cells) material volumes, the interface fields) of a state the remap
         reads; fills the mixed cells' entries of e_new."""

@@ -492,7 +492,7 @@ class ExplicitWilkins:
         if self.mixed is None:
             volumes = volume[None, :]
         else:
-            volumes, interface = self.closure.state_for_remap(self, state, solution, x_new, volume, e_new, dt)
+            volumes, interface = self.closure.state_for_remap(self, state, solution, x_new, u_new, volume, e_new, dt)
         if self.quadrilaterals:  # the Lagrangian mesh the remap reads must not be tangled
             self.check_corners(QuadGradient(self.corners.quad_corners(x_new)).least_corner_jacobian(), x_new)
         occupied = volumes[:, self.mixed.cells] if self.mixed is not None else volume

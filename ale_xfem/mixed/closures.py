@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from ale_xfem.lagrange.closure import MixedCellClosure
 from ale_xfem.mixed.enriched import EnrichedClosure
+from ale_xfem.mixed.enriched_2d import EnrichedClosure2D
 from ale_xfem.mixed.single_velocity import SingleVelocityClosure
 from ale_xfem.model.mixed_cells import MixedCells
 
@@ -17,10 +18,13 @@ class Closures:
     the enriched closure solves its predictor from the UFL forms, with the KSP options
     ``petsc_options`` (None: a direct solve)."""
 
-    def __init__(self, mesh, materials, assembled_predictor: bool = False, petsc_options: dict | None = None):
+    def __init__(self, mesh, materials, assembled_predictor: bool = False, petsc_options: dict | None = None,
+                 stabilisation: str = "bubble", slip: str = "free", nitsche_penalty: float = 1.0):
         self.mesh, self.materials = mesh, materials
         self.assembled_predictor = assembled_predictor
         self.petsc_options = petsc_options
+        # 2D enriched cells: their stabilisation, slip and Nitsche factor
+        self.enriched_2d = dict(stabilisation=stabilisation, slip=slip, nitsche_penalty=nitsche_penalty)
         self.made = {}  # model → its closure
 
     def __call__(self, mixed: MixedCells) -> MixedCellClosure:
@@ -28,8 +32,12 @@ class Closures:
         if closure is not None:
             closure.bind(mixed)
             return closure
-        options = ({"assembled": self.assembled_predictor, "petsc_options": self.petsc_options}
-                   if mixed.model == "enriched" else {})
-        closure = CLOSURES[mixed.model](self.mesh, self.materials, mixed, **options)
+        if mixed.model == "enriched" and self.mesh.dimension == 2:
+            closure = EnrichedClosure2D(self.mesh, self.materials, mixed, petsc_options=self.petsc_options,
+                                        **self.enriched_2d)
+        else:
+            options = ({"assembled": self.assembled_predictor, "petsc_options": self.petsc_options}
+                       if mixed.model == "enriched" else {})
+            closure = CLOSURES[mixed.model](self.mesh, self.materials, mixed, **options)
         self.made[mixed.model] = closure
         return closure

@@ -122,7 +122,7 @@ class SharedClosure(MixedCellClosure):
         before = state.node_position[0, a] + state.material_volume[0, cells]
         return (x_new[0, a] + va - before) / dt
 
-    def state_for_remap(self, step, state, solution, x_new, cell_volume, e_new, dt):
+    def state_for_remap(self, step, state, solution, x_new, u_new, cell_volume, e_new, dt):
         cells = self.mixed.cells
         va, vb, details = solution
         e_new[0, cells], e_new[1, cells] = details[0], details[1]

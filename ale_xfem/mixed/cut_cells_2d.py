@@ -32,7 +32,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ale_xfem.geometry.shapes import polygon_area, polygon_centroid
-from ale_xfem.model.plic import Reconstruction
+from ale_xfem.model.mesh import mesh_edges
+from ale_xfem.model.plic import Reconstruction, reconstruct, youngs_normals
 from forms.cut_quadrature import bilinear_map, fan_quadrature, inverse_bilinear_map
 
 # the rule on the triangles of a part's fan (∫ ψ_i, ∫ ∇ψ_i), by the cell's vertex count:
@@ -232,3 +233,76 @@ def _shape_functions(vertices, points, k):
     jacobian = bilinear_map(tensor, xi)[1]  # (n, q, 2, 2): columns ∂x/∂ξ, ∂x/∂η
     grad = np.einsum("nqji,nqkj->nqki", np.linalg.inv(jacobian), reference)
     return psi, grad
+
+
+@dataclass
+class EnrichedGeometry:
+    """The two materials' share of a 2D mesh with enriched mixed cells, material 0 as α in
+    every mixed cell: the cut cells, the material each node lies in, the nodes with pure
+    cells of both, and each material's corner masses — pure cells m_K/k at each corner,
+    mixed cells condensed (:func:`condensed_masses`).  The Lagrange step's momentum rows and
+    the remap's momentum use these same masses, so momentum passes between them exactly."""
+
+    cut: CutCells
+    owner: np.ndarray  # (n_nodes,) the material each node lies in
+    tied: np.ndarray  # (n_nodes,) bool
+    sliding: np.ndarray  # (n_nodes,) bool: tied, and Γ follows no mesh edge into the node
+    corner_mass: np.ndarray  # (2, k, n_cells) each material's mass at each corner
+    node_mass: np.ndarray  # (2, n_nodes)
+    internal: np.ndarray  # (2, n_nodes) bool: the node carries the material's mass
+
+
+def enriched_geometry(mesh, position, volume, mass, cells) -> EnrichedGeometry:
+    """The :class:`EnrichedGeometry` of a mesh of triangles or quadrilaterals (``mesh``:
+    its cell_nodes, n_nodes and cell type, as ``MeshArrays``) at ``position`` (2, n_nodes):
+    ``volume``, ``mass`` (2, n_cells) each material's area and mass per cell, ``cells`` the
+    mixed cells.  The interface: PLIC with Youngs' normals of material 0's fraction (as the
+    remap reconstructs it)."""
+    cell_nodes = mesh.cell_nodes
+    k, n_cells, n_nodes = cell_nodes.shape[1], cell_nodes.shape[0], position.shape[1]
+    cells = np.asarray(cells)
+    fraction = volume[0] / (volume[0] + volume[1])
+    cell_material = np.where(mass[1] > 0.0, 1, 0)
+    cell_material[cells] = -1
+    normals = youngs_normals(mesh, position, fraction[None, :], cells)[0]
+    vertices = np.moveaxis(position[:, cell_nodes[cells]], 0, -1)
+    reconstruction = reconstruct(vertices, normals, fraction[cells], cells)
+    alpha = np.zeros(cells.size, dtype=np.int64)
+    cut = cut_cells(cell_nodes, position, cells, reconstruction, cell_material, alpha)
+    slots = np.stack([np.maximum(cell_material, 0), np.full(n_cells, -1)])
+    slot_volume = np.stack([volume.sum(axis=0), np.zeros(n_cells)])
+    slots[:, cells] = [[0], [1]]
+    slot_volume[:, cells] = volume[:, cells]
+    owner, tied = node_materials(cell_nodes, n_nodes, cell_material, slot_volume, slots)
+    condensed, internal_in_cell = condensed_masses(cut, cell_nodes, owner, mass[:, cells],
+                                                   np.stack([alpha, 1 - alpha]))
+    corner_mass = np.zeros((2, k, n_cells))
+    internal = np.zeros((2, n_nodes), dtype=bool)
+    for m in range(2):
+        pure = cell_material == m
+        corner_mass[m][:, pure] = mass[m, pure] / k
+        corner_mass[m][:, cells] = condensed[m].T
+        internal[m, cell_nodes[pure].ravel()] = True
+        internal[m, cell_nodes[cells][internal_in_cell[m]]] = True
+    node_mass = np.stack([np.bincount(cell_nodes.T.ravel(), corner_mass[m].ravel(), n_nodes) for m in range(2)])
+    # a tied node slides (its normal parts tied only, under free slip) unless Γ reaches it
+    # along a mesh edge between pure cells of the two materials (a kink: forms/enriched_interface.py)
+    a, b, plus, minus = mesh_edges(cell_nodes)
+    inner = minus >= 0
+    left, right = cell_material[plus[inner]], cell_material[np.maximum(minus[inner], 0)]
+    along = (left >= 0) & (right >= 0) & (left != right)
+    on_edge = np.zeros(n_nodes, dtype=bool)
+    on_edge[a[inner][along]] = True
+    on_edge[b[inner][along]] = True
+    return EnrichedGeometry(cut, owner, tied, tied & ~on_edge, corner_mass, node_mass, internal)
+
+
+def by_material(values, cell_material) -> np.ndarray:
+    """(2, n_cells): a per-slot array (S, n_cells) rearranged by material (0, 1), the
+    materials of ``cell_material`` (S, n_cells); zero where a cell does not hold the
+    material."""
+    out = np.zeros((2, values.shape[1]))
+    for slot in range(cell_material.shape[0]):
+        for m in range(2):
+            np.copyto(out[m], values[slot], where=cell_material[slot] == m)
+    return out

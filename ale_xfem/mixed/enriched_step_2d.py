@@ -59,10 +59,16 @@ class EnrichedStep2D:
         self.interface_length, self.nitsche_penalty = interface_length, nitsche_penalty
         self.tolerance, self.max_iterations = tolerance, max_iterations
 
-    def solve(self, dt: float, start: MaterialStart, mass, rhs, tied=None) -> dict:
+    def solve(self, dt: float, start: MaterialStart, mass, rhs, tied=None, viscosity=None, sliding=None) -> dict:
         """ū_m, the materials' end volumes, energies and pressures, the interface pressure
-        and the iterations (``mass``, ``rhs``: as :meth:`InterfaceSystem.solve`)."""
+        and the iterations (``mass``, ``rhs``, ``tied``, ``sliding``: as
+        :meth:`InterfaceSystem.solve`).
+        ``viscosity`` (n,): the mixed cells' artificial viscosity q̄ over the step, a stress
+        on both materials alike: each works against ½(P^n + p) + q̄, and the system's
+        pressures are p + q̄ (``rhs`` holds f^n with P^n + q̄)."""
         m, v0, e0, p0 = start.mass, start.volume, start.energy, start.pressure
+        q = np.zeros_like(v0) if viscosity is None else np.broadcast_to(viscosity, v0.shape)
+        p0 = p0 + 2.0 * q  # the work pressure ½(p0 + p) + q̄, written as ½((p0 + 2q̄) + p)
         volume, energy = v0.copy(), e0.copy()
         for iteration in range(1, self.max_iterations + 1):
             rho = m / volume
@@ -76,14 +82,14 @@ class EnrichedStep2D:
             if not np.all(slope < 0.0):
                 index = int(np.flatnonzero(~np.all(slope < 0.0, axis=0))[0])
                 raise MixedCellFailure(self.cells, index, "the pressure does not rise with compression along the adiabat")
-            offset = p - slope * change
+            offset = p + q - slope * change
             compliance = -1.0 / (slope * dt * v0)
             weight = penalty = None
             if self.nitsche:  # κ_m = ρ_m c_m² dt (module docstring of forms/enriched_interface.py)
                 weight, penalty = nitsche_weights(v0, rho * np.maximum(c2, 0.0) * dt, self.interface_length,
                                                   self.nitsche_penalty)
             self.system.set_materials(compliance, offset, weight, penalty)
-            out = self.system.solve(mass, rhs, tied)
+            out = self.system.solve(mass, rhs, tied, sliding)
             linearised = out["pressure"]
             volume_change = (linearised - offset) / slope
             volume = v0 + volume_change
@@ -99,10 +105,10 @@ class EnrichedStep2D:
             energy = (e0 - work * (p0 + base)) / (1.0 + work * dp_de)
             pressure = base + dp_de * energy
             bulk = rho * np.abs(np.stack([self.eos[k](rho[k], energy[k])[3] for k in range(2)]))
-            if np.all(np.abs(pressure - linearised) <= self.tolerance * bulk):
+            if np.all(np.abs(pressure + q - linearised) <= self.tolerance * bulk):
                 break
         else:
-            index = int(np.argmax(np.abs(pressure - linearised).max(axis=0)))
+            index = int(np.argmax(np.abs(pressure + q - linearised).max(axis=0)))
             raise MixedCellFailure(self.cells, index, f"the corrector did not converge in {self.max_iterations} iterations")
         result = dict(velocity=out["velocity"], volume=volume, energy=energy, pressure=pressure,
                       iterations=iteration, linearised_pressure=linearised)

@@ -128,6 +128,13 @@ class State:
     # over the last step (displacement of Γ / dt).  None when there are no mixed cells.
     interface_pressure: np.ndarray | None = None
     interface_velocity: np.ndarray | None = None
+    # 2D enriched mixed cells (one velocity per material on their nodes): each material's
+    # nodal velocity (2, dim, n_nodes; the mesh's node_velocity where the node is not in a
+    # mixed cell), its nodal masses (2, n_nodes) and corner masses (2, k, n_cells), both
+    # condensed in the mixed cells.  None otherwise.
+    material_node_velocity: np.ndarray | None = None
+    material_node_mass: np.ndarray | None = None
+    material_corner_mass: np.ndarray | None = None
 
     def evolved(self, **changes) -> "State":
         """A copy with ``changes`` (field names) replaced: dataclasses.replace without its
@@ -249,7 +256,13 @@ def material_angular_momenta(state: State, layout: MaterialLayout, cell_nodes: n
     Σ_K m_α,K (x_K − c) × ū_K, x_K the cell's centroid (n_cells, 2) and ū_K the mean
     velocity of its nodes (``cell_nodes`` (n_cells, k)).  With one velocity field a mixed
     cell's materials move alike: what this measures is how much of a spinning material's
-    angular momentum its cells still hold."""
+    angular momentum its cells still hold.  Where the state carries one velocity per
+    material (2D enriched mixed cells) each material's own nodal masses and velocities
+    give it, Σ_i M_α,i (x_i − c) × u_α,i: the momentum the run conserves."""
+    if state.material_node_velocity is not None:
+        arm = state.node_position - np.asarray(center, dtype=float)[:, None]
+        u = state.material_node_velocity
+        return np.sum(state.material_node_mass * (arm[0] * u[:, 1] - arm[1] * u[:, 0]), axis=1)
     velocity = state.node_velocity[:, cell_nodes].mean(axis=2)  # (2, n_cells)
     arm = centroids - np.asarray(center, dtype=float)
     moment = arm[:, 0] * velocity[1] - arm[:, 1] * velocity[0]
@@ -258,12 +271,20 @@ def material_angular_momenta(state: State, layout: MaterialLayout, cell_nodes: n
 
 
 def totals(state: State, node_mass: np.ndarray) -> dict[str, float]:
-    """Mass, momentum (per component) and total energy of a state."""
-    kinetic = 0.5 * np.sum(node_mass * state.node_velocity**2)
+    """Mass, momentum (per component) and total energy of a state (with one velocity per
+    material on the nodes of enriched 2D mixed cells: of each material's velocities with
+    its own nodal masses)."""
+    if state.material_node_velocity is not None:
+        mass, velocity = state.material_node_mass[:, None, :], state.material_node_velocity
+        momentum = (mass * velocity).sum(axis=(0, 2))
+    else:
+        mass, velocity = node_mass, state.node_velocity
+        momentum = (node_mass * velocity).sum(axis=1)
+    kinetic = 0.5 * np.sum(mass * velocity**2)
     internal = np.sum(state.material_mass * state.material_energy)
     return {
         "mass": float(np.sum(state.material_mass)),
-        "momentum": (node_mass * state.node_velocity).sum(axis=1),
+        "momentum": momentum,
         "kinetic_energy": float(kinetic),
         "internal_energy": float(internal),
         "total_energy": float(kinetic + internal),

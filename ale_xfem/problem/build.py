@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from ale_xfem import exact
+from ale_xfem.mixed.cut_cells_2d import by_material, enriched_geometry
 from ale_xfem.mixed.equilibrium import MixedCellFailure, PressureEquilibrium, start_values
 from ale_xfem.geometry.shapes import SHAPES
 from ale_xfem.model.boundaries import Boundary
@@ -259,6 +260,9 @@ def _build_problem_2d(scene: Scene) -> Problem:
     material_mass = np.zeros((n_materials, n_cells))
     material_energy = np.zeros((n_materials, n_cells))
     corner_momentum = np.zeros((2, corners, n_cells))
+    # each material's own (enriched 2D mixed cells: one velocity per material on their nodes)
+    material_corner_momentum = np.zeros((n_materials, 2, corners, n_cells))
+    material_corner_mass = np.zeros((n_materials, corners, n_cells))
     node_x = mesh.cell_vertex_positions()  # (n_cells, corners, 2)
     for r, region in enumerate(scene.regions):
         if not np.any(fractions[r] > 0):
@@ -288,6 +292,8 @@ def _build_problem_2d(scene: Scene) -> Problem:
             unit = np.divide(offset, distance[..., None], out=np.zeros_like(offset), where=distance[..., None] > 0)
             velocity += speed * np.moveaxis(unit, -1, 0).transpose(0, 2, 1)
         corner_momentum += velocity * (region_mass / corners)
+        material_corner_momentum[m] += velocity * (region_mass / corners)
+        material_corner_mass[m] += region_mass / corners
     # Slot 0: the cell's larger material; slot 1: the other one of a mixed cell.
     order = ranked_materials(material_share)
     mixed_cells = np.flatnonzero(count == 2)
@@ -314,11 +320,41 @@ def _build_problem_2d(scene: Scene) -> Problem:
         mixed = MixedCells(c, None, None, first, second, materials,
                            tolerance=scene.numerics.interface_tolerance,
                            max_iterations=scene.numerics.interface_max_iterations,
-                           nonlinear=True, model="single_velocity", relaxation=scene.interface.relaxation)
+                           nonlinear=True, model=scene.interface.model, relaxation=scene.interface.relaxation)
     layout = MaterialLayout(cell_material, n_materials)
     state, node_mass = state_from_cells(mesh, materials, layout, slot_mass, slot_energy,
                                         material_volume=slot_volume, corner_momentum=corner_momentum)
-    return finish_problem(scene, mesh, materials, layout, node_mass, state, mixed, None, exact_reference_2d(scene))
+    problem = finish_problem(scene, mesh, materials, layout, node_mass, state, mixed, None,
+                             exact_reference_2d(scene))
+    if mixed is not None and mixed.model == "enriched":
+        with_material_velocities(problem, material_corner_momentum, material_corner_mass)
+    return problem
+
+
+def with_material_velocities(problem: Problem, corner_momentum, corner_mass) -> None:
+    """Give a 2D problem with enriched mixed cells one velocity per material on the nodes:
+    each material's region velocities at its corners ``corner_momentum`` (n_materials, 2,
+    k, n_cells) over ``corner_mass`` (n_materials, k, n_cells), with the condensed masses
+    of the Lagrange step (:mod:`ale_xfem.mixed.enriched_2d`); each node moves with the
+    material it lies in."""
+    state, mesh = problem.state, problem.mesh
+    layout = problem.layout.cell_material
+    geometry = enriched_geometry(mesh, state.node_position, by_material(state.material_volume, layout),
+                                 by_material(state.material_mass, layout), problem.mixed.cells)
+    flat = mesh.cell_nodes.T.ravel()
+    n_nodes = mesh.n_nodes
+    velocity = np.zeros((2, 2, n_nodes))
+    for m in range(2):
+        weight = np.bincount(flat, corner_mass[m].ravel(), n_nodes)
+        for d in range(2):
+            momentum = np.bincount(flat, corner_momentum[m, d].ravel(), n_nodes)
+            velocity[m, d] = np.where(weight > 0, momentum / np.where(weight > 0, weight, 1.0), state.node_velocity[d])
+        for boundary in problem.boundaries:
+            boundary.apply(velocity[m])
+    node_velocity = velocity[geometry.owner, :, np.arange(n_nodes)].T.copy()
+    problem.state = state.evolved(node_velocity=node_velocity, material_node_velocity=velocity,
+                                  material_node_mass=geometry.node_mass, material_corner_mass=geometry.corner_mass)
+    problem.node_mass = geometry.node_mass.sum(axis=0)
 
 
 def _left_material_first(scene, names, left, right, first, second):

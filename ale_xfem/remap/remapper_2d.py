@@ -95,7 +95,12 @@ class Remapper2D:
         self.solver_options = dict(
             tolerance=problem.scene.numerics.interface_tolerance,
             max_iterations=problem.scene.numerics.interface_max_iterations, nonlinear=True,
-            model="single_velocity", relaxation=interface is None or interface.relaxation)
+            model="single_velocity" if interface is None else interface.model,
+            relaxation=interface is None or interface.relaxation)
+        # 2D enriched mixed cells: (position, volume, mass, mixed cells) → (each material's
+        # corner masses (2, k, n_cells), the material each node lies in) — the masses of the
+        # Lagrange step's momentum rows (ale_xfem.mixed.enriched_2d; set by the time loop)
+        self.material_geometry = None
         self.general_remaps = 0  # (the 1D remapper's counter; every 2D step is swept)
         self.energy_limited = 0  # (the 1D remapper's counter: the 2D deposit is always of losses only)
         # walls and pistons hold the remapped velocities inside the remap, so that the kinetic
@@ -223,6 +228,13 @@ class Remapper2D:
         # shock's path took energy below zero on the shock on a disk)
         touched = np.abs(volume[standing_where] - standing_volume) > 1e-6 * standing_volume
         standing[tuple(w[touched] for w in standing_where)] = False
+        if state.material_node_velocity is not None:  # one velocity field per material
+            momentum, kinetic_in, deviation = self._material_momentum_fluxes(state, flux_mass, donor, receiver)
+            self._move_traces(volume, mass, energy, area, standing, carried=momentum)
+            velocity, node_mass, kinetic_change, material_fields = self._material_velocities(
+                state, X, volume, mass, energy, area, standing, momentum, kinetic_in, deviation)
+            return self._new_state(state, layout, mixed, X, volume, mass, energy, area, standing, velocity,
+                                   node_mass, kinetic_change, material_fields)
         self._move_traces(volume, mass, energy, area, standing)
 
         # -- nodal momentum through the cells -------------------------------------------------
@@ -261,24 +273,16 @@ class Remapper2D:
                 self.wall_work += float(change_k.sum())
         kinetic_after = 0.5 * node_mass * np.sum(velocity * velocity, axis=0)
         kinetic_change = float(kinetic_after.sum() - kinetic_before.sum()) - self.wall_work
-        if self.heat and loss.sum() > 0:
-            # Deposited where it is lost, by corner mass then by material mass.  A node may
-            # gain a little where its neighbours lose (the cells' momentum is shared by
-            # corners): only the losses are deposited, scaled to their sum — cold gas must
-            # not be cooled below zero by a neighbour's gain.
-            loss = losses_only(loss)
-            per_mass = loss / node_mass
-            gathered = corners.gather(per_mass[None, :])
-            heat = sum(g[0] for g in gathered) * (new_cell_mass / k)
-            with np.errstate(invalid="ignore", divide="ignore"):
-                energy += heat * np.where(new_cell_mass > 0, mass / np.where(new_cell_mass > 0, new_cell_mass, 1), 0)
-        elif self.heat and loss.sum() < 0:
-            # The momentum remap through the cells is not dissipative node by node, and now and
-            # then not overall either: the kinetic energy it made is taken from the internal
-            # energies in proportion (each scaled by the same factor, so none goes below 0).
-            energy *= made_kinetic_energy_factor(loss.sum(), energy.sum())
+        self._deposit(loss, node_mass, mass, energy)
 
-        # -- back to slots ---------------------------------------------------------------------
+        return self._new_state(state, layout, mixed, X, volume, mass, energy, area, standing, velocity,
+                               node_mass, kinetic_change)
+
+    def _new_state(self, state, layout, mixed, X, volume, mass, energy, area, standing, velocity, node_mass,
+                   kinetic_change, material_fields=None):
+        """The remapped state from each material's (n_materials, n_cells) volume, mass and
+        internal energy, back in slots; returns what :meth:`apply` returns."""
+        n_materials, n_cells = len(self.materials), self.mesh.n_cells
         present = (volume > TRACE * area) | (standing & (mass != 0.0))
         count = present.sum(axis=0)
         if np.any(count > 2):
@@ -320,10 +324,133 @@ class Remapper2D:
             node_position=X, node_velocity=velocity, material_mass=slot_mass, material_energy=slot_energy,
             material_volume=slot_volume, material_density=density, material_pressure=pressure,
             material_sound_speed=sound_speed, interface_pressure=interface_pressure,
-            interface_velocity=interface_velocity)
+            interface_velocity=interface_velocity, **(material_fields or {}))
         return new_state, new_layout, new_mixed, node_mass, kinetic_change
 
-    def _move_traces(self, volume, mass, energy, area, standing):
+    def _deposit(self, loss, node_mass, mass, energy):
+        """The kinetic energy the remap lost at each node (n_nodes,) into the materials'
+        internal energies (n_materials, n_cells), in place (``numerics.remap_energy =
+        "total"``; otherwise nothing)."""
+        if self.heat and loss.sum() > 0:
+            # Deposited where it is lost, by corner mass then by material mass.  A node may
+            # gain a little where its neighbours lose (the cells' momentum is shared by
+            # corners): only the losses are deposited, scaled to their sum — cold gas must
+            # not be cooled below zero by a neighbour's gain.
+            corners, k = self.mesh.corners, self.mesh.cell_type.nodes_per_cell
+            new_cell_mass = mass.sum(axis=0)
+            loss = losses_only(loss)
+            per_mass = loss / node_mass
+            gathered = corners.gather(per_mass[None, :])
+            heat = sum(g[0] for g in gathered) * (new_cell_mass / k)
+            with np.errstate(invalid="ignore", divide="ignore"):
+                energy += heat * np.where(new_cell_mass > 0, mass / np.where(new_cell_mass > 0, new_cell_mass, 1), 0)
+        elif self.heat and loss.sum() < 0:
+            # The momentum remap through the cells is not dissipative node by node, and now and
+            # then not overall either: the kinetic energy it made is taken from the internal
+            # energies in proportion (each scaled by the same factor, so none goes below 0).
+            energy *= made_kinetic_energy_factor(loss.sum(), energy.sum())
+
+    def _material_momentum_fluxes(self, state, flux_mass, donor, receiver):
+        """Each material's momentum per cell after the fluxes ([x, y], each (2, n_cells)):
+        the cell holds Σ_i c_mi u_mi over its corners (c: the material's corner masses,
+        condensed in mixed cells), and an edge carries each material's mass flux at the
+        donor's mean velocity *of that material* — no tangential momentum crosses Γ inside
+        a mixed donor.  Also the kinetic energy the fluxes bring each cell, per material
+        ((2, n_cells)), and each corner's velocity less its cell's mean, per material
+        ((2, 2, k, n_cells): what :meth:`_material_velocities` puts back)."""
+        mesh = self.mesh
+        n_cells = mesh.n_cells
+        corner_mass = state.material_corner_mass  # (2, k, n_cells)
+        cell_mass = corner_mass.sum(axis=1)
+        momentum = [np.zeros((2, n_cells)) for _ in range(2)]
+        kinetic_in = np.zeros((2, n_cells))
+        nodes = mesh.cell_nodes.T  # (k, n_cells)
+        deviation = np.zeros((2, 2) + nodes.shape)
+        for m in range(2):
+            u = state.material_node_velocity[m]
+            cell_velocity = np.empty((2, n_cells))
+            for d in range(2):
+                corner_velocity = u[d][nodes]
+                momentum[d][m] = np.sum(corner_mass[m] * corner_velocity, axis=0)
+                np.divide(momentum[d][m], cell_mass[m], out=cell_velocity[d], where=cell_mass[m] > 0)
+                cell_velocity[d][cell_mass[m] <= 0] = 0.0
+                deviation[m, d] = np.where(cell_mass[m] > 0, corner_velocity - cell_velocity[d], 0.0)
+            donor_velocity = cell_velocity.take(donor, axis=1)
+            for d in range(2):
+                flux = flux_mass[m] * donor_velocity[d]
+                momentum[d][m] += np.bincount(receiver, flux, n_cells) - np.bincount(donor, flux, n_cells)
+            kinetic = 0.5 * flux_mass[m] * np.sum(donor_velocity**2, axis=0)
+            kinetic_in[m] = np.bincount(receiver, kinetic, n_cells) - np.bincount(donor, kinetic, n_cells)
+        return momentum, kinetic_in, deviation
+
+    def _material_velocities(self, state, X, volume, mass, energy, area, standing, momentum, kinetic_in,
+                             deviation):
+        """Each material's nodal velocities on the remapped mesh.  Each corner of a cell
+        takes the cell's new mean velocity of the material plus the corner's old
+        ``deviation`` from the old mean, less the new-mass-weighted mean of the deviations
+        (so the cell's momentum is exact), weighted at the nodes by the material's new
+        corner masses (condensed where the new mixed cells are).  A remap that moves
+        nothing changes nothing: spreading the cells' mean velocities alone would damp every
+        velocity gradient by the cells' own moment of inertia, a rigid rotation by about
+        h²/R² a step (a spinning disk lost 4 % of its angular momentum a remap at R = 5h).
+        Then walls held material by material, and the kinetic energy lost deposited as heat.
+        Returns (the mesh's velocity: each node's own material's, the total nodal masses,
+        the kinetic energy change, the state's material fields)."""
+        mesh = self.mesh
+        n_nodes, n_cells = mesh.n_nodes, mesh.n_cells
+        present = (volume > TRACE * area) | (standing & (mass != 0.0))
+        cells = np.flatnonzero(present.sum(axis=0) == 2)
+        kept_volume, kept_mass = np.where(present, volume, 0.0), np.where(present, mass, 0.0)
+        if cells.size:
+            corner_mass, owner = self.material_geometry(X, kept_volume, kept_mass, cells)
+        else:  # no mixed cell left: equal corner shares, each node in its cells' material
+            k = mesh.cell_nodes.shape[1]
+            corner_mass = np.repeat(kept_mass[:, None, :] / k, k, axis=1)
+            owner = None
+        flat = mesh.cell_nodes.T.ravel()
+        node_mass = np.stack([np.bincount(flat, corner_mass[m].ravel(), n_nodes) for m in range(2)])
+        if owner is None:
+            owner = np.argmax(node_mass, axis=0)
+        cell_mass = corner_mass.sum(axis=1)
+        share = np.divide(corner_mass, cell_mass[:, None, :], out=np.zeros_like(corner_mass),
+                          where=cell_mass[:, None, :] > 0)
+        velocity = np.zeros((2, 2, n_nodes))
+        for m in range(2):
+            for d in range(2):
+                mean = np.divide(momentum[d][m], cell_mass[m], out=np.zeros(n_cells), where=cell_mass[m] > 0)
+                corner_velocity = mean + deviation[m, d] - np.sum(share[m] * deviation[m, d], axis=0)
+                node_momentum = np.bincount(flat, (corner_mass[m] * corner_velocity).ravel(), n_nodes)
+                np.divide(node_momentum, node_mass[m], out=velocity[m, d], where=node_mass[m] > 0)
+        mesh_velocity = velocity[owner, :, np.arange(n_nodes)].T.copy()
+        for m in range(2):  # a material absent from a node moves with the node
+            velocity[m][:, node_mass[m] <= 0] = mesh_velocity[:, node_mass[m] <= 0]
+        old_mass, old_velocity = state.material_node_mass, state.material_node_velocity
+        kinetic_before = 0.5 * np.sum(old_mass[:, None] * old_velocity**2, axis=(0, 1))
+        in_nodes = np.bincount(flat, (share * kinetic_in[:, None, :]).sum(axis=0).ravel(), n_nodes)
+        loss = kinetic_before + in_nodes - 0.5 * np.sum(node_mass[:, None] * velocity**2, axis=(0, 1))
+        self.wall_impulse, self.wall_work = np.zeros(2), 0.0
+        for boundary in self.constraints:
+            nodes = boundary.nodes
+            for m in range(2):
+                free = velocity[m][:, nodes].copy()
+                boundary.apply(velocity[m])
+                held = velocity[m][:, nodes]
+                self.wall_impulse += np.sum(node_mass[m, nodes] * (held - free), axis=1)
+                change = 0.5 * node_mass[m, nodes] * np.sum(held * held - free * free, axis=0)
+                if boundary.kind == "wall":
+                    np.subtract.at(loss, nodes, change)
+                else:
+                    self.wall_work += float(change.sum())
+            boundary.apply(mesh_velocity)
+        kinetic_after = 0.5 * np.sum(node_mass[:, None] * velocity**2)
+        kinetic_change = float(kinetic_after - kinetic_before.sum()) - self.wall_work
+        total_node_mass = node_mass.sum(axis=0)
+        self._deposit(loss, total_node_mass, mass, energy)
+        fields = dict(material_node_velocity=velocity, material_node_mass=node_mass,
+                      material_corner_mass=corner_mass)
+        return mesh_velocity, total_node_mass, kinetic_change, fields
+
+    def _move_traces(self, volume, mass, energy, area, standing, carried=()):
         """A material left below ``TRACE`` of a cell's area leaves the cell — unless it was
         there below TRACE before this remap (``standing``): its mass and
         internal energy go to the cell around it (sharing a node) that holds the most of that
@@ -331,7 +458,8 @@ class Remapper2D:
         material's mass and energy conserved.  A trace moved onto another trace moves on in
         the next pass; a fleck with no larger neighbour goes to its own cell's largest
         material instead (counted in ``lone_traces``: each material's mass is then exact
-        within such flecks)."""
+        within such flecks).  ``carried``: more (n_materials, n_cells) quantities that go
+        with the mass (each material's momentum, per component)."""
         for _ in range(MAX_TRACE_PASSES):
             present = (volume > TRACE * area) | (standing & (volume > 0.0))
             trace = ~present & (mass != 0.0)
@@ -348,14 +476,14 @@ class Remapper2D:
                 break
             material, cells, keeper = material[larger], cells[larger], keeper[larger]
             receiver = candidates[rows[larger], best[larger]]
-            for quantity in (mass, energy):
+            for quantity in (mass, energy, *carried):
                 _hand_over(quantity, (material, cells), (material, receiver))
             _hand_over(volume, (material, cells), (keeper, cells))
         present = (volume > TRACE * area) | (standing & (volume > 0.0))
         material, cells = np.nonzero(~present & (mass != 0.0))
         if cells.size:  # flecks: merged into their own cell's largest material
             keeper = np.argmax(np.where(present, volume, -np.inf)[:, cells], axis=0)
-            for quantity in (mass, energy, volume):
+            for quantity in (mass, energy, volume, *carried):
                 _hand_over(quantity, (material, cells), (keeper, cells))
             self.lone_traces += cells.size
 

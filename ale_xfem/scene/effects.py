@@ -56,16 +56,27 @@ def scene_effects(scene, n_mixed_cells: int, pistons: list[str]) -> list[Effect]
     enriched = mixed and interface.model == "enriched"
     effects.append(Effect("mixed_cells_enriched", enriched, why))
     effects.append(Effect("mixed_cells_single_velocity", mixed and not enriched, why))
+    enriched_1d, enriched_2d = enriched and scene.dimension == 1, enriched and scene.dimension == 2
     for solver in ("nonlinear", "linearised"):
-        effects.append(Effect(f"interface_solver_{solver}", enriched and interface.solver == solver,
-                              f"interface.solver = \"{interface.solver}\"" if enriched
-                              else "needs enriched mixed cells"))
+        effects.append(Effect(f"interface_solver_{solver}", enriched_1d and interface.solver == solver,
+                              f"interface.solver = \"{interface.solver}\"" if enriched_1d
+                              else "needs enriched mixed cells in 1D"))
     for predictor in ("closed_form", "assembled"):
         effects.append(Effect(
-            f"interface_predictor_{predictor}", enriched and interface.predictor == predictor,
+            f"interface_predictor_{predictor}", enriched_1d and interface.predictor == predictor,
             (f"interface.predictor = \"{interface.predictor}\""
              + (" (UFL forms compiled once per run)" if predictor == "assembled" else ""))
-            if enriched else "needs enriched mixed cells"))
+            if enriched_1d else "needs enriched mixed cells in 1D"))
+    if scene.dimension == 2:
+        for stabilisation in ("bubble", "nitsche", "none"):
+            effects.append(Effect(
+                f"interface_stabilisation_{stabilisation}", enriched_2d and interface.stabilisation == stabilisation,
+                f"interface.stabilisation = \"{interface.stabilisation}\" (the implicit interface system: UFL "
+                "forms compiled once per run, PETSc)" if enriched_2d else "needs enriched mixed cells in 2D"))
+        for slip in ("free", "stick"):
+            effects.append(Effect(f"interface_slip_{slip}", enriched_2d and interface.slip == slip,
+                                  f"interface.slip = \"{interface.slip}\"" if enriched_2d
+                                  else "needs enriched mixed cells in 2D"))
     effects.append(Effect("pressure_relaxation", mixed and interface.relaxation,
                           f"interface.relaxation = {str(interface.relaxation).lower()}" if mixed
                           else "needs mixed cells"))

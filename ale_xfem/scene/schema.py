@@ -141,11 +141,12 @@ class Numerics:
 class InterfaceSpec:
     model: str
     solver: str
-    stabilisation: str | None  # 2D enriched mixed cells only (none in this version)
+    stabilisation: str | None  # 2D enriched mixed cells only: bubble | nitsche | none
     slip: str
     relaxation: bool = True
     predictor: str = "closed_form"
     petsc_options: tuple = ()  # (name, value) pairs for the assembled interface system's KSP
+    nitsche_penalty: float | None = None  # 2D enriched, Nitsche: the dimensionless penalty factor
 
 
 @dataclass(frozen=True)
@@ -528,46 +529,68 @@ def _choice_int(value: Any, key: str, choices: tuple[int, ...]) -> int:
 # [interface] keys that act only with enriched mixed cells (the 1D interface solve)
 # (``slip``: a single-velocity cell moves its materials alike, it sticks by construction)
 ENRICHED_ONLY = ("solver", "predictor", "slip")
+# [interface] keys of the 1D enriched cell's own solver (2D enriched cells are always the
+# assembled system with the predictor/corrector of ale_xfem.mixed.enriched_step_2d)
+ONE_D_ONLY = ("solver", "predictor")
+# [interface] keys of 2D enriched mixed cells, with their defaults
+TWO_D_DEFAULTS = {"stabilisation": "bubble", "nitsche_penalty": 1.0}
 
 
 def _validate_interface(table: Any, dimension: int) -> InterfaceSpec:
     """[interface]; a key that cannot act in the scene is an error naming what would make it
     act (the resolved scene holds only keys that act)."""
-    _keys(table, "interface", (), tuple(INTERFACE_DEFAULTS) + ("stabilisation", "petsc_options"))
+    _keys(table, "interface", (), tuple(INTERFACE_DEFAULTS) + tuple(TWO_D_DEFAULTS) + ("petsc_options",))
     model = _choice(table.setdefault("model", INTERFACE_DEFAULTS["model"]), "interface.model",
                     ("enriched", "single_velocity"))
-    if dimension == 2 and model != "single_velocity":
-        raise SceneError("interface.model", model, "'single_velocity' in 2D in this version "
-                         "(the enriched 2D method, bubble or Nitsche, comes next)")
-    if "stabilisation" in table:
-        _choice(table["stabilisation"], "interface.stabilisation", ("bubble", "nitsche"))
-        raise SceneError("interface.stabilisation", table["stabilisation"],
-                         "no value: it stabilises 2D enriched mixed cells, which this version does not have "
-                         f"(this scene: {dimension}D, interface.model = '{model}'); remove the key")
+    enriched_2d = dimension == 2 and model == "enriched"
+    for key in TWO_D_DEFAULTS:
+        if key in table and not enriched_2d:
+            raise SceneError(f"interface.{key}", table[key], "no value: it acts only on 2D enriched mixed cells "
+                             f"(this scene: {dimension}D, interface.model = '{model}'); remove the key")
     for key in ENRICHED_ONLY:
         if key in table and model != "enriched":
             raise SceneError(f"interface.{key}", table[key], "no value with interface.model = "
                              f"'{model}': it acts only on enriched mixed cells (remove it, or set "
                              "interface.model = 'enriched')")
+    if enriched_2d:
+        for key in ONE_D_ONLY:
+            if key in table:
+                raise SceneError(f"interface.{key}", table[key], "no value in 2D: it sets the 1D enriched cell's "
+                                 "solver; 2D enriched cells always solve the assembled system with the "
+                                 "nonlinear predictor/corrector (remove it)")
+        stabilisation = _choice(table.setdefault("stabilisation", TWO_D_DEFAULTS["stabilisation"]),
+                                "interface.stabilisation", ("bubble", "nitsche", "none"))
+        if "nitsche_penalty" in table and stabilisation != "nitsche":
+            raise SceneError("interface.nitsche_penalty", table["nitsche_penalty"], "no value with "
+                             f"interface.stabilisation = '{stabilisation}': it scales Nitsche's penalty "
+                             "(remove it, or set interface.stabilisation = 'nitsche')")
+        if stabilisation == "nitsche":
+            table.setdefault("nitsche_penalty", TWO_D_DEFAULTS["nitsche_penalty"])
     for key, default in INTERFACE_DEFAULTS.items():
-        if key not in ENRICHED_ONLY or model == "enriched":
+        if (key not in ENRICHED_ONLY or model == "enriched") and not (enriched_2d and key in ONE_D_ONLY):
             table.setdefault(key, default)
-    assembled = model == "enriched" and table.get("predictor") == "assembled"
+    assembled = enriched_2d or (model == "enriched" and table.get("predictor") == "assembled")
     if "petsc_options" in table and not assembled:
         raise SceneError("interface.petsc_options", table["petsc_options"], "no value unless the interface system is "
-                         "assembled by PETSc (interface.model = 'enriched' and interface.predictor = 'assembled'); "
-                         "remove it, or set interface.predictor = 'assembled'")
+                         "assembled by PETSc (2D enriched cells, or in 1D interface.model = 'enriched' and "
+                         "interface.predictor = 'assembled'); remove it, or set interface.predictor = 'assembled'")
     if assembled:
         table.setdefault("petsc_options", {})
+    penalty = None
+    if not enriched_2d:
+        stabilisation = None
+    elif stabilisation == "nitsche":
+        penalty = _real(table["nitsche_penalty"], "interface.nitsche_penalty", lambda v: v > 0, "a real number > 0")
     return InterfaceSpec(
         model=model,
         solver=_choice(table.get("solver", "nonlinear"), "interface.solver", ("nonlinear", "linearised")),
-        stabilisation=None,
+        stabilisation=stabilisation,
         slip=_slip(table.get("slip"), model),
         relaxation=_boolean(table["relaxation"], "interface.relaxation"),
         predictor=_choice(table.get("predictor", "closed_form"), "interface.predictor",
                           ("closed_form", "assembled")),
         petsc_options=_petsc_options(table.get("petsc_options", {})),
+        nitsche_penalty=penalty,
     )
 
 
@@ -717,6 +740,16 @@ def _check_motion(scene: Scene) -> None:
     """A regularised mesh moves materials across cells: boundaries between materials then
     fall inside cells, which needs [interface]; the Eulerian mesh is fixed, so material
     must not leave it (walls at both ends)."""
+    interface = scene.interface
+    if scene.dimension == 2 and interface is not None and interface.model == "enriched":
+        if scene.mesh.motion == "lagrangian":
+            raise SceneError("mesh.motion", scene.mesh.motion, "'eulerian' or 'smoothed' with 2D enriched mixed "
+                             "cells: their materials slide, so the two parts of a cell drift from its Lagrangian "
+                             "area and Γ leaves its cells unless every step is remapped")
+        if len(scene.materials) != 2:
+            raise SceneError("materials", sorted(scene.materials), "exactly two materials with 2D enriched mixed "
+                             "cells (each node carries one velocity per material), or interface.model = "
+                             "'single_velocity'")
     if scene.mesh.motion == "lagrangian":
         return
     if len({r.material for r in scene.regions}) > 1 and scene.interface is None:

@@ -1,0 +1,248 @@
+"""The enriched closure of 2D mixed cells (the paper's §3.2): one velocity field per
+material on the nodes of the mixed cells, mass condensation, the interface system of
+``forms/enriched_interface.py`` (bubble or Nitsche stabilisation, free slip or stick)
+solved implicitly inside the Wilkins step, with the predictor/corrector of
+:mod:`ale_xfem.mixed.enriched_step_2d`.
+
+**Within the step.**  The explicit step evaluates every cell's corner forces at n and at the
+predicted state.  The closure keeps, for each material, the time-centred forces F̄ of its
+*pure* cells at the nodes of the mixed cells, and solves for each material's mean velocity
+ū_m over the step at those nodes (internal rows: 4M_m(ū_m − u_m^n)/dt = 2F̄_m + f_m^n +
+f_m^{n+1}; external rows: the interface's equilibrium at n+1).  f_m = (P_m + q̄) G_m:
+the mixed cell's stress on its material's nodes, with q̄ = ½(q^n + q*) the mixed cell's
+artificial viscosity (the explicit step's, a stress on both materials alike; its work
+heats both materials).  Each material's nodal velocity is then u_m^{n+1} = 2ū_m − u_m^n; a
+node moves with the material it lies in (``EnrichedGeometry.owner``), and the step's own
+update of those nodes is replaced by that.
+
+**Material numbering.**  The system's α is material 0 of the scene in every mixed cell (a
+node's velocities must mean the same material in all its cells): 2D enriched scenes have
+two materials.  The state's slots (0: the larger material of a cell) are mapped to it.
+
+**Volumes.**  Each material's part changes by ΔV_m = dt ∫_{K_m} ∇·ū_m (the forms bound to
+the start of the step); a node moves with one material, so where the materials slide the
+two parts' new areas do not sum exactly to the Lagrangian cell's.  Both are scaled to the
+cell (their densities follow), and the largest relative mismatch of a step is recorded
+(``MixedCells.stats["volume_mismatch"]``).  This needs a remap after every step (an
+Eulerian or smoothed mesh): on a Lagrangian mesh the mismatch would accumulate and Γ would
+leave its cells; such scenes are refused at load.
+
+**State.**  Each material's nodal velocities and masses (the condensed ones, the same in
+the step and in the remap: momentum passes between them exactly) are in the state
+(``material_node_velocity``, ``material_node_mass``, ``material_corner_mass``); the state's
+``node_velocity`` is the mesh's: each node's own material's.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+import dolfinx_solver  # noqa: F401  (before dolfinx: it loads MPI and PETSc)
+from ale_xfem.lagrange.breakdown import Breakdown
+from ale_xfem.mixed.common import SharedClosure
+from ale_xfem.mixed.cut_cells_2d import by_material, enriched_geometry
+from ale_xfem.mixed.enriched_step_2d import EnrichedStep2D, MaterialStart
+from ale_xfem.mixed.equilibrium import MixedCellFailure
+from ale_xfem.model.mixed_cells import MixedCells
+from forms.enriched_interface import InterfaceForms, InterfaceSystem
+
+# the inertia 4M/dt of a held velocity component: the wall's or the piston's value wins
+HELD_INERTIA = 1e20
+
+
+def material_geometry(mesh, position, volume, mass, cells):
+    """(each material's corner masses (2, k, n_cells), the material each node lies in
+    (n_nodes,)) of a mesh whose mixed cells ``cells`` are enriched, ``volume`` and ``mass``
+    (2, n_cells) by material (:func:`ale_xfem.mixed.cut_cells_2d.enriched_geometry`): what
+    the remap needs to hand each material's momentum back to the nodes."""
+    geometry = enriched_geometry(mesh, position, volume, mass, cells)
+    return geometry.corner_mass, geometry.owner
+
+
+class EnrichedClosure2D(SharedClosure):
+    """2D mixed cells with doubled velocities (module docstring).  ``stabilisation``:
+    bubble | nitsche | none; ``slip``: free | stick; ``nitsche_penalty``: Nitsche's
+    dimensionless factor; ``petsc_options``: the interface system's KSP (default MUMPS)."""
+
+    implicit = True
+
+    def __init__(self, mesh, materials, mixed: MixedCells, stabilisation: str = "bubble",
+                 slip: str = "free", nitsche_penalty: float = 1.0, petsc_options: dict | None = None):
+        if len(materials) != 2:
+            raise ValueError("2D enriched mixed cells need exactly two materials")
+        self.forms = InterfaceForms(mesh.dolfinx_mesh.comm, stabilisation, slip, mesh.cell_type.name)
+        self.nitsche_penalty, self.petsc_options = nitsche_penalty, petsc_options
+        self.system, self._system_cells = None, None
+        self._last = None
+        # the interface system speaks DOLFINx's numbering of nodes and cells (a structured
+        # rectangle of quadrilaterals numbers its own row by row)
+        identity = np.arange(mesh.n_nodes)
+        self.dolfinx_node = identity if mesh.dolfinx_node is None else mesh.dolfinx_node
+        self.node_of_dolfinx = np.empty_like(self.dolfinx_node)
+        self.node_of_dolfinx[self.dolfinx_node] = identity
+        super().__init__(mesh, materials, mixed)
+
+    def _to_dolfinx(self, node_values):
+        """A node field (..., n_nodes) in DOLFINx's node order."""
+        out = np.empty_like(node_values)
+        out[..., self.dolfinx_node] = node_values
+        return out
+
+    def bind(self, mixed: MixedCells) -> None:
+        super().bind(mixed)
+        mixed.stats.setdefault("volume_mismatch", 0.0)
+        if self._system_cells is None or not np.array_equal(self._system_cells, mixed.cells):
+            mesh = self.mesh
+            cells = mixed.cells if mesh.dolfinx_cell is None else mesh.dolfinx_cell[mixed.cells]
+            self.system = InterfaceSystem(mesh.dolfinx_mesh, cells, self.forms, self.petsc_options)
+            self.system.vertex_order(self.dolfinx_node[mesh.cell_nodes[mixed.cells]])
+            self._system_cells = mixed.cells.copy()
+
+    # -- the implicit solve ---------------------------------------------------------------
+
+    def _pure_forces(self, step, first, predicted, cell_material):
+        """(2, 2, n_nodes): each material's time-centred force F̄ of its pure cells."""
+        mesh, corners = self.mesh, step.corners
+        k = mesh.cell_type.nodes_per_cell
+        out = np.zeros((2, 2, mesh.n_nodes))
+        rows = np.zeros((2, k, mesh.n_cells))
+        for evaluation in (first, predicted):
+            gradient = evaluation.volume_gradient
+            for d in range(2):
+                if step.quadrilaterals:
+                    rows[d] += gradient.corner_forces(evaluation.stress, evaluation.hourglass_force, d,
+                                                      np.empty((4, mesh.n_cells)))
+                else:
+                    rows[d] += np.stack([g[d] * evaluation.stress for g in gradient])
+        rows *= 0.5
+        for m in range(2):
+            pure = cell_material == m
+            for d in range(2):
+                out[m, d] = corners.scatter([np.where(pure, r, 0.0) for r in rows[d]])
+        return out
+
+    def implicit_solve(self, step, state, first, predicted, mean_force, dt, dt_over_node_mass):
+        mixed, mesh = self.mixed, self.mesh
+        cells = mixed.cells
+        layout = step.layout.cell_material
+        x0 = state.node_position
+        volume = by_material(state.material_volume, layout)
+        mass = by_material(state.material_mass, layout)
+        energy = by_material(state.material_energy, layout)
+        pressure = by_material(state.material_pressure, layout)
+        try:
+            geometry = enriched_geometry(mesh, x0, volume, mass, cells)
+        except ValueError as failure:
+            raise Breakdown("interface reconstruction", int(cells[0]), float("nan"),
+                            mesh.cell_centroids(x0)[cells[0]], detail=str(failure)) from None
+        node_mass = geometry.node_mass if state.material_node_mass is None else state.material_node_mass
+        cut, system = geometry.cut, self.system
+        reconstruction = cut.reconstruction
+        system.move(self._to_dolfinx(x0))
+        system.set_geometry((reconstruction.alpha, reconstruction.beta), reconstruction.start,
+                            reconstruction.end, cut.edge_flux, cut.normal)
+        cell_material = np.where(mass[1] > 0.0, 1, 0)
+        cell_material[cells] = -1
+        pure = self._pure_forces(step, first, predicted, cell_material)
+        viscosity = 0.5 * (first.mixed_viscosity + predicted.mixed_viscosity)
+        nodes = mesh.cell_nodes[cells]
+        velocity = (state.material_node_velocity if state.material_node_velocity is not None
+                    else np.stack([state.node_velocity[:2]] * 2))
+        inertia, right = [], []
+        for m in range(2):
+            stress = pressure[m, cells] + viscosity  # f_m^n = (P_m^n + q̄) G_m
+            explicit = np.stack([np.bincount(nodes.ravel(), (stress[:, None] * cut.edge_flux[m][..., d]).ravel(),
+                                             mesh.n_nodes) for d in range(2)])
+            held_inertia = np.repeat(4.0 * node_mass[m][None] / dt, 2, axis=0)
+            rhs = held_inertia * velocity[m] + np.where(geometry.internal[m], 2.0 * pure[m] + explicit, 0.0)
+            for boundary in step.constraints:
+                held = np.zeros(2) if boundary.kind == "wall" else boundary.velocity[:2]
+                axes = [int(np.argmax(np.abs(boundary.normal)))] if boundary.kind == "wall" else [0, 1]
+                for d in axes:
+                    held_inertia[d, boundary.nodes] = HELD_INERTIA
+                    rhs[d, boundary.nodes] = HELD_INERTIA * held[d]
+            inertia.append(held_inertia)
+            right.append(rhs)
+        eos = [self.materials[k].eos.state for k in range(2)]
+        solver = EnrichedStep2D(system, cells, eos, reconstruction.length, self.nitsche_penalty,
+                                mixed.tolerance, mixed.max_iterations)
+        start = MaterialStart(mass[:, cells], volume[:, cells], energy[:, cells], pressure[:, cells])
+        inertia, right = [self._to_dolfinx(a) for a in inertia], [self._to_dolfinx(a) for a in right]
+        try:
+            out = solver.solve(dt, start, inertia, right, self._to_dolfinx(geometry.tied), viscosity,
+                               self._to_dolfinx(geometry.sliding))
+        except MixedCellFailure as failure:
+            raise self.breakdown("interface solve", failure, x0) from None
+        except RuntimeError as failure:  # PETSc did not solve the system (BoundSystem's one line)
+            raise Breakdown("interface solve", int(cells[0]), float("nan"), mesh.cell_centroids(x0)[cells[0]],
+                            detail=str(failure)) from None
+        stats = mixed.stats
+        stats["steps"] += 1
+        stats["iterations"] += out["iterations"]
+        stats["max_iterations"] = max(stats["max_iterations"], out["iterations"])
+        # each material's velocity at n+1 on the mixed cells' nodes; the mesh follows the
+        # material each node lies in
+        sub = self.node_of_dolfinx[system.nodes]
+        new_velocity = velocity.copy()
+        for m in range(2):
+            mean = out["velocity"][m][:, self.dolfinx_node]
+            new_velocity[m][:, sub] = 2.0 * mean[:, sub] - velocity[m][:, sub]
+        target = new_velocity[geometry.owner[sub], :, sub].T  # (2, n_sub)
+        u0 = state.node_velocity
+        mean_force[:2, sub] = (target - u0[:2, sub]) / dt_over_node_mass[sub]
+        self._last = dict(time=state.time, out=out, mass=mass[:, cells], node_mass=node_mass,
+                          corner_mass=geometry.corner_mass, velocity=new_velocity, owner=geometry.owner, sub=sub)
+        return out
+
+    # -- the step's end --------------------------------------------------------------------
+
+    def end_of_step(self, state, first, predicted, x_new, e_new, solution):
+        """The materials' parts scaled to the Lagrangian cell (module docstring); (V_α, V_β,
+        details) in the state's slot order."""
+        last = self._last
+        if last is None or last["time"] != state.time:
+            raise RuntimeError("end_of_step without the interface solve of its step")
+        mixed = self.mixed
+        out, mass = last["out"], last["mass"]
+        area = self.mesh.cell_geometry(x_new, mixed.cells)[0]
+        total = out["volume"].sum(axis=0)
+        mixed.stats["volume_mismatch"] = max(mixed.stats["volume_mismatch"], float(np.max(np.abs(total / area - 1.0))))
+        volume = out["volume"] * (area / total)
+        energy = out["energy"]
+        rho = mass / volume
+        values = [self.materials[k].eos.state(rho[k], energy[k]) for k in range(2)]
+        pressure = np.stack([v[0] for v in values])
+        c2 = np.stack([v[3] for v in values])
+        # slot 0 of the state is material_left (the larger material of the cell)
+        a = np.where(mixed.material_left == 0, 0, 1)
+        b = 1 - a
+        columns = np.arange(a.size)
+        pick = lambda array, slot: array[slot, columns]  # noqa: E731
+        details = (pick(energy, a), pick(energy, b), pick(pressure, a), pick(pressure, b),
+                   pick(rho, a), pick(rho, b), pick(c2, a), pick(c2, b))
+        last["interface_pressure"] = out.get("interface_pressure", 0.5 * (pressure[0] + pressure[1]))
+        return pick(volume, a), pick(volume, b), details
+
+    def _material_fields(self, u_new):
+        """The state's fields of the materials' velocities (u_new: the mesh's, for the nodes
+        outside the mixed cells, where every material present moves with the node)."""
+        last = self._last
+        velocity = np.stack([u_new[:2]] * 2)
+        sub = last["sub"]
+        velocity[:, :, sub] = last["velocity"][:, :, sub]
+        return dict(material_node_velocity=velocity, material_node_mass=last["node_mass"],
+                    material_corner_mass=last["corner_mass"])
+
+    def state_for_remap(self, step, state, solution, x_new, u_new, cell_volume, e_new, dt):
+        cells = self.mixed.cells
+        va, vb, details = solution
+        e_new[0, cells], e_new[1, cells] = details[0], details[1]
+        volumes = self.slot_volumes(step.two_slots, cell_volume, va, vb)
+        fields = dict(interface_pressure=self._last["interface_pressure"], interface_velocity=np.zeros(cells.size))
+        fields.update(self._material_fields(u_new))
+        return volumes, fields
+
+    def finish(self, step, state, solution, x_new, u_new, e_new, dt):
+        """A state no remap follows (not reached by scenes: they need a remapped mesh)."""
+        new_state, final = super().finish(step, state, solution, x_new, u_new, e_new, dt)
+        return new_state.evolved(**self._material_fields(u_new)), final
