@@ -52,11 +52,11 @@ HELD_INERTIA = 1e20
 
 def material_geometry(mesh, position, volume, mass, cells):
     """(each material's corner masses (2, k, n_cells), the material each node lies in
-    (n_nodes,)) of a mesh whose mixed cells ``cells`` are enriched, ``volume`` and ``mass``
+    (n_nodes,), which nodes carry each material's mass (2, n_nodes)) of a mesh whose mixed cells ``cells`` are enriched, ``volume`` and ``mass``
     (2, n_cells) by material (:func:`ale_xfem.mixed.cut_cells_2d.enriched_geometry`): what
     the remap needs to hand each material's momentum back to the nodes."""
     geometry = enriched_geometry(mesh, position, volume, mass, cells)
-    return geometry.corner_mass, geometry.owner
+    return geometry.corner_mass, geometry.owner, geometry.internal
 
 
 class EnrichedClosure2D(SharedClosure):
@@ -191,7 +191,8 @@ class EnrichedClosure2D(SharedClosure):
         u0 = state.node_velocity
         mean_force[:2, sub] = (target - u0[:2, sub]) / dt_over_node_mass[sub]
         self._last = dict(time=state.time, out=out, mass=mass[:, cells], node_mass=node_mass,
-                          corner_mass=geometry.corner_mass, velocity=new_velocity, owner=geometry.owner, sub=sub)
+                          corner_mass=geometry.corner_mass, velocity=new_velocity, owner=geometry.owner, sub=sub,
+                          internal=geometry.internal)
         return out
 
     # -- the step's end --------------------------------------------------------------------
@@ -231,7 +232,7 @@ class EnrichedClosure2D(SharedClosure):
         sub = last["sub"]
         velocity[:, :, sub] = last["velocity"][:, :, sub]
         return dict(material_node_velocity=velocity, material_node_mass=last["node_mass"],
-                    material_corner_mass=last["corner_mass"])
+                    material_corner_mass=last["corner_mass"], material_node_internal=last["internal"])
 
     def state_for_remap(self, step, state, solution, x_new, u_new, cell_volume, e_new, dt):
         cells = self.mixed.cells

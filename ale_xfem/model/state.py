@@ -135,6 +135,9 @@ class State:
     material_node_velocity: np.ndarray | None = None
     material_node_mass: np.ndarray | None = None
     material_corner_mass: np.ndarray | None = None
+    # (2, n_nodes) bool: the material's mass sits on the node (an internal node); at its
+    # external nodes a material's velocity is only the extension of its field into the cut cell
+    material_node_internal: np.ndarray | None = None
 
     def evolved(self, **changes) -> "State":
         """A copy with ``changes`` (field names) replaced: dataclasses.replace without its

@@ -353,7 +353,8 @@ def with_material_velocities(problem: Problem, corner_momentum, corner_mass) -> 
             boundary.apply(velocity[m])
     node_velocity = velocity[geometry.owner, :, np.arange(n_nodes)].T.copy()
     problem.state = state.evolved(node_velocity=node_velocity, material_node_velocity=velocity,
-                                  material_node_mass=geometry.node_mass, material_corner_mass=geometry.corner_mass)
+                                  material_node_mass=geometry.node_mass, material_corner_mass=geometry.corner_mass,
+                                  material_node_internal=geometry.internal)
     problem.node_mass = geometry.node_mass.sum(axis=0)
 
 

@@ -228,6 +228,10 @@ class Remapper2D:
         # shock's path took energy below zero on the shock on a disk)
         touched = np.abs(volume[standing_where] - standing_volume) > 1e-6 * standing_volume
         standing[tuple(w[touched] for w in standing_where)] = False
+        if state.material_node_velocity is not None and mixed is None:
+            # no mixed cell this step: every material moved with the mesh, with the equal
+            # corner shares of its cells as masses
+            state = self._moved_with_the_mesh(state, layout)
         if state.material_node_velocity is not None:  # one velocity field per material
             momentum, kinetic_in, deviation = self._material_momentum_fluxes(state, flux_mass, donor, receiver)
             self._move_traces(volume, mass, energy, area, standing, carried=momentum)
@@ -350,6 +354,19 @@ class Remapper2D:
             # energies in proportion (each scaled by the same factor, so none goes below 0).
             energy *= made_kinetic_energy_factor(loss.sum(), energy.sum())
 
+    def _moved_with_the_mesh(self, state, layout):
+        """The per-material fields of a state whose step had no mixed cell (all materials
+        moved with the nodes): each material's velocity the node's, its corner masses the
+        equal shares of its cells."""
+        mesh = self.mesh
+        k = mesh.cell_type.nodes_per_cell
+        mass = np.stack([np.where(layout.cell_material[0] == m, state.material_mass[0], 0.0) for m in range(2)])
+        corner_mass = np.repeat(mass[:, None, :] / k, k, axis=1)
+        node_mass = np.stack([mesh.corners.scatter(list(c)) for c in corner_mass])
+        return state.evolved(material_node_velocity=np.stack([state.node_velocity[:2]] * 2),
+                             material_corner_mass=corner_mass, material_node_mass=node_mass,
+                             material_node_internal=node_mass > 0.0)
+
     def _material_momentum_fluxes(self, state, flux_mass, donor, receiver):
         """Each material's momentum per cell after the fluxes ([x, y], each (2, n_cells)):
         the cell holds Σ_i c_mi u_mi over its corners (c: the material's corner masses,
@@ -357,7 +374,10 @@ class Remapper2D:
         donor's mean velocity *of that material* — no tangential momentum crosses Γ inside
         a mixed donor.  Also the kinetic energy the fluxes bring each cell, per material
         ((2, n_cells)), and each corner's velocity less its cell's mean, per material
-        ((2, 2, k, n_cells): what :meth:`_material_velocities` puts back)."""
+        ((2, 2, k, n_cells): what :meth:`_material_velocities` puts back) — at the
+        material's internal nodes only: at its external nodes (nearly massless) its velocity
+        is weakly determined by the interface solve (it grew to 4 times the flow's speed in
+        a few steps of the spinning disk) and is re-extended from its cells' means."""
         mesh = self.mesh
         n_cells = mesh.n_cells
         corner_mass = state.material_corner_mass  # (2, k, n_cells)
@@ -374,7 +394,8 @@ class Remapper2D:
                 momentum[d][m] = np.sum(corner_mass[m] * corner_velocity, axis=0)
                 np.divide(momentum[d][m], cell_mass[m], out=cell_velocity[d], where=cell_mass[m] > 0)
                 cell_velocity[d][cell_mass[m] <= 0] = 0.0
-                deviation[m, d] = np.where(cell_mass[m] > 0, corner_velocity - cell_velocity[d], 0.0)
+                deviation[m, d] = np.where((cell_mass[m] > 0) & state.material_node_internal[m][nodes],
+                                           corner_velocity - cell_velocity[d], 0.0)
             donor_velocity = cell_velocity.take(donor, axis=1)
             for d in range(2):
                 flux = flux_mass[m] * donor_velocity[d]
@@ -402,15 +423,15 @@ class Remapper2D:
         cells = np.flatnonzero(present.sum(axis=0) == 2)
         kept_volume, kept_mass = np.where(present, volume, 0.0), np.where(present, mass, 0.0)
         if cells.size:
-            corner_mass, owner = self.material_geometry(X, kept_volume, kept_mass, cells)
+            corner_mass, owner, internal = self.material_geometry(X, kept_volume, kept_mass, cells)
         else:  # no mixed cell left: equal corner shares, each node in its cells' material
             k = mesh.cell_nodes.shape[1]
             corner_mass = np.repeat(kept_mass[:, None, :] / k, k, axis=1)
-            owner = None
+            owner = internal = None
         flat = mesh.cell_nodes.T.ravel()
         node_mass = np.stack([np.bincount(flat, corner_mass[m].ravel(), n_nodes) for m in range(2)])
         if owner is None:
-            owner = np.argmax(node_mass, axis=0)
+            owner, internal = np.argmax(node_mass, axis=0), node_mass > 0.0
         cell_mass = corner_mass.sum(axis=1)
         share = np.divide(corner_mass, cell_mass[:, None, :], out=np.zeros_like(corner_mass),
                           where=cell_mass[:, None, :] > 0)
@@ -447,7 +468,7 @@ class Remapper2D:
         total_node_mass = node_mass.sum(axis=0)
         self._deposit(loss, total_node_mass, mass, energy)
         fields = dict(material_node_velocity=velocity, material_node_mass=node_mass,
-                      material_corner_mass=corner_mass)
+                      material_corner_mass=corner_mass, material_node_internal=internal)
         return mesh_velocity, total_node_mass, kinetic_change, fields
 
     def _move_traces(self, volume, mass, energy, area, standing, carried=()):
