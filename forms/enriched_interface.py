@@ -76,7 +76,7 @@ BUBBLE_DEGREE = {"interval": 2, "triangle": 3, "quadrilateral": 2}
 
 # a tied node's spring, relative to its inertia 4M/dt: the two velocities agree to ~1e-8
 TIE_STIFFNESS = 1e8
-_MATERIAL_COEFFICIENTS = ("mass", "part", "edge_flux", "compliance", "offset")
+_MATERIAL_COEFFICIENTS = ("mass", "part", "edge_flux", "compliance", "offset", "ghost")
 _CELL_COEFFICIENTS = ("normal", "interface", "weight", "penalty", "tie")
 
 
@@ -132,7 +132,7 @@ class InterfaceForms:
         quadrature = ufl.FunctionSpace(domain, basix.ufl.quadrature_element(
             cell_name, value_shape=(), scheme="default", degree=rule_degree))
         kinds = {"mass": function_space("Lagrange", 1, (gdim,)), "part": quadrature,
-                 "edge_flux": function_space("DG", 1, (gdim,)), "compliance": function_space("DG", 0),
+                 "edge_flux": function_space("DG", 1, (gdim,)), "compliance": function_space("DG", 0), "ghost": function_space("DG", 0),
                  "offset": function_space("DG", 0), "normal": function_space("DG", 0, (gdim,)),
                  "interface": quadrature, "weight": function_space("DG", 0), "penalty": function_space("DG", 0),
                  "tie": function_space("Lagrange", 1), "tie_slide": function_space("Lagrange", 1), "tie_normal": function_space("Lagrange", 1, (gdim,))}
@@ -193,6 +193,11 @@ class InterfaceForms:
         for m, side in enumerate(sides):
             part = c[f"part_{side}"]
             bilinear += ufl.inner(ufl.elem_mult(c[f"mass_{side}"], u1[m]), v1[m]) * lumped
+            # ghost viscosity: the strain rate of m's velocity over the *other* material's part
+            # of the cell (where m's field is only its extension), weighted by ghost_m
+            other = c[f"part_{sides[1 - m]}"]
+            bilinear += (c[f"ghost_{side}"] * other * ufl.inner(ufl.sym(ufl.grad(u1[m])), ufl.sym(ufl.grad(v1[m])))
+                         * cut)
             bilinear -= part * P[m] * ufl.div(v[m]) * cut
             bilinear -= part * R[m] * ufl.div(u[m]) * cut
             bilinear -= part * c[f"compliance_{side}"] * P[m] * R[m] * cut
@@ -263,6 +268,7 @@ class InterfaceSystem:
             functions[f"edge_flux_{side}"] = dolfinx.fem.Function(DG1v)
             functions[f"compliance_{side}"] = dolfinx.fem.Function(DG0)
             functions[f"offset_{side}"] = dolfinx.fem.Function(DG0)
+            functions[f"ghost_{side}"] = dolfinx.fem.Function(DG0)
         functions["normal"] = dolfinx.fem.Function(DG0v)
         functions["interface"] = self.interface.ratio
         functions["weight"] = dolfinx.fem.Function(DG0)
@@ -342,6 +348,12 @@ class InterfaceSystem:
         records how the submesh's vertices permute them."""
         given = np.asarray(parent_cell_nodes)[self.input_index]  # (n_sub, k)
         self._vertex_permutation = np.argmax(self.parent_nodes[:, :, None] == given[:, None, :], axis=2)
+
+    def set_ghost(self, ghost) -> None:
+        """Per mixed cell (construction order): ghost (2, n), the weight of each material's
+        strain-rate penalty over the other material's part (0: none, the default)."""
+        for m, side in enumerate("ab"):
+            self.functions[f"ghost_{side}"].x.array[self._dg0] = ghost[m][self.input_index]
 
     def set_materials(self, compliance, offset, weight=None, penalty=None) -> None:
         """Per mixed cell (construction order): compliance (2, n) g_m = −1/(D_m dt V_m),

@@ -8,8 +8,8 @@ solved implicitly inside the Wilkins step, with the predictor/corrector of
 predicted state.  The closure keeps, for each material, the time-centred forces F̄ of its
 *pure* cells at the nodes of the mixed cells, and solves for each material's mean velocity
 ū_m over the step at those nodes (internal rows: 4M_m(ū_m − u_m^n)/dt = 2F̄_m + f_m^n +
-f_m^{n+1}; external rows: the interface's equilibrium at n+1).  f_m = (P_m + q̄) G_m:
-the mixed cell's stress on its material's nodes, with q̄ = ½(q^n + q*) the mixed cell's
+f_m^{n+1}; external rows: the interface's equilibrium at n+1).  f_m: the mixed cell's
+stress on its material's nodes, (P_m + q̄) on its part and (p_Γ + q̄) on Γ, with q̄ = ½(q^n + q*) the mixed cell's
 artificial viscosity (the explicit step's, a stress on both materials alike; its work
 heats both materials).  Each material's nodal velocity is then u_m^{n+1} = 2ū_m − u_m^n; a
 node moves with the material it lies in (``EnrichedGeometry.owner``), and the step's own
@@ -48,6 +48,9 @@ from forms.enriched_interface import InterfaceForms, InterfaceSystem
 
 # the inertia 4M/dt of a held velocity component: the wall's or the piston's value wins
 HELD_INERTIA = 1e20
+# the weight of the strain rate of a material's velocity over the other material's part of
+# a cut cell, relative to the inertia 4ρ|K|/dt of the cell's mass
+GHOST_VISCOSITY = 0.1
 
 
 def material_geometry(mesh, position, volume, mass, cells):
@@ -148,13 +151,21 @@ class EnrichedClosure2D(SharedClosure):
         nodes = mesh.cell_nodes[cells]
         velocity = (state.material_node_velocity if state.material_node_velocity is not None
                     else np.stack([state.node_velocity[:2]] * 2))
-        inertia, right = [], []
+        inertia, right, internal_force = [], [], np.zeros(2)
+        gradient = cut.part_integrals()[1]  # (2, n, k, 2) ∫_{K_m} ∇ψ_i
+        system_nodes = self.node_of_dolfinx[system.nodes]
+        interface = state.interface_pressure + viscosity
         for m in range(2):
-            stress = pressure[m, cells] + viscosity  # f_m^n = (P_m^n + q̄) G_m
-            explicit = np.stack([np.bincount(nodes.ravel(), (stress[:, None] * cut.edge_flux[m][..., d]).ravel(),
-                                             mesh.n_nodes) for d in range(2)])
+            # f_m^n = (P_m^n + q̄) ∫_{K_m} ∇ψ_i − (p_Γ^n + q̄) ∫_Γ ψ_i n_m, ∫_Γ ψ_i n_m = ∫_{K_m} ∇ψ_i − G_mi:
+            # summed over the materials and nodes it vanishes (momentum), and its work is
+            # Σ_m (P_m^n + q̄) ∫_{K_m} ∇·ū_m once the normal jump vanishes (energy)
+            stress = pressure[m, cells] + viscosity
+            force = (stress - interface)[:, None, None] * gradient[m] + interface[:, None, None] * cut.edge_flux[m]
+            explicit = np.stack([np.bincount(nodes.ravel(), force[..., d].ravel(), mesh.n_nodes) for d in range(2)])
             held_inertia = np.repeat(4.0 * node_mass[m][None] / dt, 2, axis=0)
             rhs = held_inertia * velocity[m] + np.where(geometry.internal[m], 2.0 * pure[m] + explicit, 0.0)
+            # the explicit forces on the mixed cells' nodes (for the walls' reaction)
+            internal_force += np.where(geometry.internal[m], pure[m] + 0.5 * explicit, 0.0)[:, system_nodes].sum(axis=1)
             for boundary in step.constraints:
                 held = np.zeros(2) if boundary.kind == "wall" else boundary.velocity[:2]
                 axes = [int(np.argmax(np.abs(boundary.normal)))] if boundary.kind == "wall" else [0, 1]
@@ -163,6 +174,10 @@ class EnrichedClosure2D(SharedClosure):
                     rhs[d, boundary.nodes] = HELD_INERTIA * held[d]
             inertia.append(held_inertia)
             right.append(rhs)
+        # the ghost viscosity of each material's extension (forms/enriched_interface.py)
+        cell_area = volume[:, cells].sum(axis=0)
+        density = np.divide(mass[:, cells], volume[:, cells], out=np.zeros((2, cells.size)), where=volume[:, cells] > 0)
+        system.set_ghost(GHOST_VISCOSITY * 4.0 * density * cell_area / dt)
         eos = [self.materials[k].eos.state for k in range(2)]
         solver = EnrichedStep2D(system, cells, eos, reconstruction.length, self.nitsche_penalty,
                                 mixed.tolerance, mixed.max_iterations)
@@ -190,10 +205,28 @@ class EnrichedClosure2D(SharedClosure):
         target = new_velocity[geometry.owner[sub], :, sub].T  # (2, n_sub)
         u0 = state.node_velocity
         mean_force[:2, sub] = (target - u0[:2, sub]) / dt_over_node_mass[sub]
+        self._wall_reactions(step, mean_force, sub, node_mass, velocity, new_velocity, internal_force, dt)
         self._last = dict(time=state.time, out=out, mass=mass[:, cells], node_mass=node_mass,
                           corner_mass=geometry.corner_mass, velocity=new_velocity, owner=geometry.owner, sub=sub,
                           internal=geometry.internal)
         return out
+
+    @staticmethod
+    def _wall_reactions(step, mean_force, sub, node_mass, velocity, new_velocity, explicit_force, dt):
+        """The walls' and pistons' reaction on the mixed cells' nodes, in the step's
+        bookkeeping (its reaction at a held node is M du/dt − F̄).  The interface system's
+        n+1 forces sum to zero over the nodes (tested with a uniform velocity, each term
+        vanishes: ∇·c = 0 and Σ_m ∫_Γ c·n_m = 0), so the held components' total reaction is
+        the nodes' momentum change less the explicit forces; it is given to the held nodes
+        in equal parts (a wall does no work whatever the split, and a piston moves its
+        nodes alike)."""
+        change = np.sum(node_mass[:, None, sub] * (new_velocity[:, :, sub] - velocity[:, :, sub]), axis=(0, 2)) / dt
+        reaction = change - explicit_force
+        for d in range(2):
+            held = [b.nodes for b in step.constraints if b.kind == "velocity" or abs(b.normal[d]) > 0.5]
+            held = np.intersect1d(np.concatenate(held), sub) if held else np.zeros(0, dtype=np.int64)
+            if held.size:
+                mean_force[d, held] -= reaction[d] / held.size
 
     # -- the step's end --------------------------------------------------------------------
 

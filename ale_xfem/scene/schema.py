@@ -585,7 +585,7 @@ def _validate_interface(table: Any, dimension: int) -> InterfaceSpec:
         model=model,
         solver=_choice(table.get("solver", "nonlinear"), "interface.solver", ("nonlinear", "linearised")),
         stabilisation=stabilisation,
-        slip=_slip(table.get("slip"), model),
+        slip=_slip(table.get("slip"), model, enriched_2d),
         relaxation=_boolean(table["relaxation"], "interface.relaxation"),
         predictor=_choice(table.get("predictor", "closed_form"), "interface.predictor",
                           ("closed_form", "assembled")),
@@ -652,9 +652,10 @@ def _check_petsc_options(options: tuple) -> None:
             database.delValue(prefix + name)
 
 
-def _slip(value: Any, model: str) -> str:
-    """The tangential traction at Γ: 'free' (enriched cells; none), and a single-velocity
-    cell's 'stick' (one velocity field), which is not a key.  Coulomb friction is an error
+def _slip(value: Any, model: str, enriched_2d: bool = False) -> str:
+    """The tangential traction at Γ: 'free' (enriched cells; none), 'stick' (2D enriched
+    cells: the whole velocity continuous across Γ; in 1D there is no tangent), and a
+    single-velocity cell's 'stick' (one velocity field), which is not a key.  Coulomb friction is an error
     that says why: a friction law bounds a shear stress, and the materials here (fluids
     with an equation of state, no deviatoric stress) carry none."""
     if model == "single_velocity":
@@ -663,6 +664,8 @@ def _slip(value: Any, model: str) -> str:
         raise SceneError("interface.slip", value, "'free': Coulomb friction bounds the shear stress the "
                          "materials transmit across Γ, and these materials (fluids: an equation of state, no "
                          "deviatoric stress) carry none, so it has nothing to act on")
+    if enriched_2d:
+        return _choice(value, "interface.slip", ("free", "stick"))
     return _choice(value, "interface.slip", ("free",), ("stick",))
 
 
