@@ -101,7 +101,7 @@ def test_the_spinning_disk_slides_inside_the_fluid_around_it():
     assert result.status == "ok" and result.steps == 3
     assert start[1] > 0.9 and start[0] == 0.0
     assert end[1] > 0.98 * start[1] and abs(end[0]) < 1e-3
-    assert abs(result.conservation["momentum"]) < 1e-10 and result.conservation["mass"] == 0.0
+    assert abs(result.conservation["momentum"]) < 1e-10 and abs(result.conservation["mass"]) < 1e-15
     single_start, single_end, _ = held["single_velocity"]
     assert single_start[1] < 0.6 and single_end[0] > single_end[1]
 
@@ -150,10 +150,9 @@ def test_the_sheared_tube_keeps_its_slip_line_sharper_than_one_velocity_field():
     keeping its tangential velocity), free slip gives a smaller L1 velocity error than one
     velocity field, and stick — the tangential velocity continuous, one velocity field's
     constraint — a larger one than free slip; density and pressure stay as close as one
-    velocity field's (within 30 %).  Momentum: the walls' reactions on the mixed cells'
-    nodes are counted (the interface meets the walls); what is left, 1.1 × 10⁻³ of M V over
-    the run, is the scheme's own: a material's external node carries part of its edges'
-    force at n, which its row (the interface's equilibrium at n+1) leaves out."""
+    velocity field's (within 30 %).  Momentum is conserved to the solve's accuracy though
+    the interface meets the walls (their reactions on the mixed cells' nodes are counted,
+    and the external nodes' force at n acts through the internal ones)."""
     single = shear_tube("single_velocity")
     free = shear_tube("enriched", stabilisation="bubble")
     stick = shear_tube("enriched", stabilisation="bubble", slip="stick")
@@ -163,4 +162,4 @@ def test_the_sheared_tube_keeps_its_slip_line_sharper_than_one_velocity_field():
     assert stick.errors["L1_velocity"] > free.errors["L1_velocity"]
     for field in ("L1_density", "L1_pressure"):
         assert free.errors[field] < 1.3 * single.errors[field]
-    assert abs(free.conservation["momentum"]) < 2e-3 and free.conservation["mass"] < 1e-15
+    assert abs(free.conservation["momentum"]) < 1e-10 and abs(free.conservation["mass"]) < 1e-15

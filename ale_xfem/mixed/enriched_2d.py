@@ -138,7 +138,11 @@ class EnrichedClosure2D(SharedClosure):
         except ValueError as failure:
             raise Breakdown("interface reconstruction", int(cells[0]), float("nan"),
                             mesh.cell_centroids(x0)[cells[0]], detail=str(failure)) from None
-        node_mass = geometry.node_mass if state.material_node_mass is None else state.material_node_mass
+        # the masses the state's velocities go with (the remap's; the start-of-step pressure
+        # relaxation may have moved Γ a little since): momentum passes on exactly
+        node_mass, corner_mass = geometry.node_mass, geometry.corner_mass
+        if state.material_node_mass is not None:
+            node_mass, corner_mass = state.material_node_mass, state.material_corner_mass
         cut, system = geometry.cut, self.system
         reconstruction = cut.reconstruction
         system.move(self._to_dolfinx(x0))
@@ -162,6 +166,7 @@ class EnrichedClosure2D(SharedClosure):
             stress = pressure[m, cells] + viscosity
             force = (stress - interface)[:, None, None] * gradient[m] + interface[:, None, None] * cut.edge_flux[m]
             explicit = np.stack([np.bincount(nodes.ravel(), force[..., d].ravel(), mesh.n_nodes) for d in range(2)])
+            explicit = self._onto_internal_nodes(explicit, nodes, geometry.internal[m], corner_mass[m][:, cells].T)
             held_inertia = np.repeat(4.0 * node_mass[m][None] / dt, 2, axis=0)
             rhs = held_inertia * velocity[m] + np.where(geometry.internal[m], 2.0 * pure[m] + explicit, 0.0)
             # the explicit forces on the mixed cells' nodes (for the walls' reaction)
@@ -207,9 +212,35 @@ class EnrichedClosure2D(SharedClosure):
         mean_force[:2, sub] = (target - u0[:2, sub]) / dt_over_node_mass[sub]
         self._wall_reactions(step, mean_force, sub, node_mass, velocity, new_velocity, internal_force, dt)
         self._last = dict(time=state.time, out=out, mass=mass[:, cells], node_mass=node_mass,
-                          corner_mass=geometry.corner_mass, velocity=new_velocity, owner=geometry.owner, sub=sub,
+                          corner_mass=corner_mass, velocity=new_velocity, owner=geometry.owner, sub=sub,
                           internal=geometry.internal)
         return out
+
+    @staticmethod
+    def _onto_internal_nodes(force, nodes, internal, corner_mass):
+        """A material's explicit force at n (2, n_nodes) with what its external nodes carry
+        moved onto the internal ones.  An external row is the interface's equilibrium at
+        n+1 and takes nothing at n: the node's total (zero under a uniform pressure, the
+        edge parts being shared) is split among its mixed cells by the material's internal
+        mass in each, and each part spread on that cell's internal nodes by their condensed
+        masses (as its mass was).  All of f^n then acts on the nodes: momentum is kept.
+        ``nodes`` (n, k) the mixed cells' nodes, ``internal`` (n_nodes,) the nodes carrying
+        the material's mass, ``corner_mass`` (n, k) its condensed masses."""
+        inside = internal[nodes]
+        weight = np.where(inside, corner_mass, 0.0)  # (n, k)
+        cell_weight = weight.sum(axis=1)  # the material's internal mass in each cell
+        n_nodes = force.shape[1]
+        external = ~internal
+        # each external node's total, split by its cells' internal masses
+        node_weight = np.bincount(nodes.ravel(), np.repeat(cell_weight, nodes.shape[1]), n_nodes)
+        per_weight = np.divide(np.where(external, force, 0.0), node_weight, out=np.zeros_like(force),
+                               where=node_weight > 0)
+        received = (per_weight[:, nodes] * np.where(inside, 0.0, 1.0)).sum(axis=2) * cell_weight  # (2, n)
+        share = np.divide(weight, cell_weight[:, None], out=np.zeros_like(weight), where=cell_weight[:, None] > 0)
+        moved = np.stack([np.bincount(nodes.ravel(), (share * received[d][:, None]).ravel(), n_nodes)
+                          for d in range(2)])
+        kept = np.where(external & (node_weight > 0), 0.0, force)
+        return kept + moved
 
     @staticmethod
     def _wall_reactions(step, mean_force, sub, node_mass, velocity, new_velocity, explicit_force, dt):
