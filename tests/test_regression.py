@@ -59,6 +59,11 @@ CASES = {
                                                          "mesh.cell_type=triangle"]),
     "rotated-tube-shear": ("rotated-tube-shear", ["mesh.cells=[16,16]"]),
     "spinning-disk": ("spinning-disk", ["mesh.cells=[16,16]", "t_end=0.2"]),
+    "spinning-disk-enriched": ("spinning-disk", ["mesh.cells=[16,16]", "t_end=0.2", "interface.model=enriched"]),
+    "rotated-tube-shear-enriched": ("rotated-tube-shear", ["mesh.cells=[16,16]", "interface.model=enriched"]),
+    "rotated-tube-shear-enriched-nitsche-stick-triangles": (
+        "rotated-tube-shear", ["mesh.cells=[12,12]", "interface.model=enriched", "interface.stabilisation=nitsche",
+                               "interface.slip=stick", "mesh.cell_type=triangle"]),
     "saltzman": ("saltzman", ["mesh.cells=[16,16]"]),
     "sedov": ("sedov", ["mesh.cells=[16,16]"]),
     "sod-2d": ("sod-2d", ["mesh.cells=[16,16]"]),
