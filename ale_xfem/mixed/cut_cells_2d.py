@@ -27,6 +27,7 @@ node then carries both materials' masses, one velocity each.
 
 from __future__ import annotations
 
+import weakref
 from dataclasses import dataclass
 
 import numpy as np
@@ -287,7 +288,7 @@ def enriched_geometry(mesh, position, volume, mass, cells) -> EnrichedGeometry:
     node_mass = np.stack([np.bincount(cell_nodes.T.ravel(), corner_mass[m].ravel(), n_nodes) for m in range(2)])
     # a tied node slides (its normal parts tied only, under free slip) unless Γ reaches it
     # along a mesh edge between pure cells of the two materials (a kink: forms/enriched_interface.py)
-    a, b, plus, minus = mesh_edges(cell_nodes)
+    a, b, plus, minus = _edges(cell_nodes)
     inner = minus >= 0
     left, right = cell_material[plus[inner]], cell_material[np.maximum(minus[inner], 0)]
     along = (left >= 0) & (right >= 0) & (left != right)
@@ -295,6 +296,16 @@ def enriched_geometry(mesh, position, volume, mass, cells) -> EnrichedGeometry:
     on_edge[a[inner][along]] = True
     on_edge[b[inner][along]] = True
     return EnrichedGeometry(cut, owner, tied, tied & ~on_edge, corner_mass, node_mass, internal)
+
+
+_EDGES = [None, None]  # (a weak reference to the last cell_nodes array, its mesh_edges)
+
+
+def _edges(cell_nodes):
+    """mesh_edges of a mesh's cell_nodes, kept for the last mesh (every step asks again)."""
+    if _EDGES[0] is None or _EDGES[0]() is not cell_nodes:
+        _EDGES[:] = [weakref.ref(cell_nodes), mesh_edges(cell_nodes)]
+    return _EDGES[1]
 
 
 def by_material(values, cell_material) -> np.ndarray:
