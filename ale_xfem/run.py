@@ -118,7 +118,8 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
     if any(name.startswith("remap_") for name in problem.effects):
         if problem.mesh.dimension == 2:
             remapper = Remapper2D(problem, problem.scene.mesh.motion, problem.scene.numerics.remap_order)
-            if problem.state.material_node_velocity is not None:  # enriched: the step's masses
+            interface = problem.scene.interface
+            if interface is not None and interface.model == "enriched":  # the step's masses
                 remapper.material_geometry = partial(material_geometry, problem.mesh)
         else:
             remapper = Remapper(problem, problem.scene.mesh.motion, problem.scene.numerics.remap_order)

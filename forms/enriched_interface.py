@@ -229,6 +229,27 @@ class InterfaceForms:
         self.bilinear = dolfinx.fem.compile_form(comm, bilinear)
         self.linear = dolfinx.fem.compile_form(comm, linear)
 
+        # What the dissipative terms take from a velocity ū per cell (a DG0 vector): each
+        # material's ghost viscosity g_m ∫_{K∖K_m} ε(ū_m):ε(ū_m), and Nitsche's penalty
+        # γ ∫_Γ [ū·n]² (stick: the whole jump); the step gives it back as heat.
+        cell_test = ufl.TestFunction(ufl.FunctionSpace(domain, scalar0))
+        self.work_coefficients = {f"ubar_{side}": ufl.Coefficient(ufl.FunctionSpace(domain, velocity))
+                                  for side in sides}
+        ubar = [self.work_coefficients[f"ubar_{side}"] for side in sides]
+        works = []
+        for m, side in enumerate(sides):
+            strain = ufl.sym(ufl.grad(ubar[m]))
+            works.append(cell_test * c[f"ghost_{side}"] * c[f"part_{sides[1 - m]}"] * ufl.inner(strain, strain) * cut)
+        if not self.multiplier:
+            jump = ubar[0] - ubar[1]
+            normal_jump = ufl.dot(jump, n)
+            penalty_work = normal_jump * normal_jump
+            if stick:
+                tangential_jump = ufl.dot(jump, ufl.as_vector([-n[1], n[0]]))
+                penalty_work = penalty_work + tangential_jump * tangential_jump
+            works.append(cell_test * c["penalty"] * penalty_work * c["interface"] * cut)
+        self.work = [dolfinx.fem.compile_form(comm, form) for form in works]
+
 
 class InterfaceSystem:
     """The forms of :class:`InterfaceForms` bound to the mixed cells ``cells`` of a mesh of
@@ -282,6 +303,15 @@ class InterfaceSystem:
         self._tie_parent[np.asarray(P1.dofmap.list)] = self.parent_nodes
         self.functions = functions
         coefficient_map = {forms.coefficients[name]: functions[name] for name in forms.coefficients}
+        # the dissipated work's forms, on the velocities ū put in ``ubar``
+        self.ubar = [dolfinx.fem.Function(V1) for _ in range(2)]
+        work_map = dict(coefficient_map)
+        work_map.update({forms.work_coefficients[f"ubar_{side}"]: self.ubar[m] for m, side in enumerate("ab")})
+        self.work_forms = []
+        for compiled in forms.work:
+            used = {coefficient: function for coefficient, function in work_map.items()
+                    if coefficient in compiled.ufl_form.coefficients()}
+            self.work_forms.append(dolfinx.fem.create_form(compiled, [DG0], sub, {}, used, {}))
         # MUMPS: it pivots where the multiplier rows have no diagonal (PETSc's own LU does not)
         self.system = BoundSystem(forms.bilinear, forms.linear, self.space, sub, coefficient_map,
                                   factor_solver="mumps", petsc_options=petsc_options)
@@ -401,6 +431,19 @@ class InterfaceSystem:
             out["interface_pressure"] = interface
         if self.bubble_dofs is not None:
             out["bubble"] = [values[dofs] for dofs in self.bubble_dofs]
+        return out
+
+    def dissipated_work(self, velocity) -> np.ndarray:
+        """(k, n) per mixed cell (construction order): what the dissipative terms take from
+        ``velocity`` [m] (2, n_parent_nodes), as rates — each material's ghost viscosity
+        (rows 0, 1) and Nitsche's penalty (row 2, Nitsche only)."""
+        for m in range(2):
+            self.ubar[m].x.array.reshape(-1, self.gdim)[:] = velocity[m][:, self.velocity_parent].T
+        n = self.input_index.size
+        out = np.empty((len(self.work_forms), n))
+        for row, form in enumerate(self.work_forms):
+            vector = dolfinx.fem.assemble_vector(form)
+            out[row, self.input_index] = vector.array[self._dg0]
         return out
 
     def _set_mass(self, mass, tied, sliding=None, tie_normal=None):

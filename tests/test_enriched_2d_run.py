@@ -181,3 +181,22 @@ def test_identical_materials_on_both_sides_do_no_harm():
         assert two.status == "ok" and two.mixed_cells["count"] > 0
         for field in ("L1_density", "L1_velocity", "L1_pressure"):
             assert two.errors[field] < 1.1 * one.errors[field], (stabilisation, field)
+
+
+def test_cut_cells_that_appear_during_the_run_take_over_the_materials_velocities():
+    """An interface on mesh edges at t = 0 (no cell cut) that the flow moves into cells of
+    an Eulerian mesh: each material has its own velocity from the start (equal corner
+    shares), the first cut cells take them over, and mass, momentum and total energy stay
+    conserved."""
+    data = {"name": "aligned", "dimension": 2, "t_end": 0.05,
+            "mesh": {"extent": [[0.0, 1.0], [0.0, 0.25]], "cells": [16, 4], "motion": "eulerian"},
+            "materials": {"left": {"eos": "ideal_gas", "gamma": 1.4}, "right": {"eos": "ideal_gas", "gamma": 1.667}},
+            "regions": [{"material": "right", "box": [[0.0, 1.0], [0.0, 0.25]], "density": 0.125, "pressure": 0.1},
+                        {"material": "left", "box": [[0.0, 0.5], [0.0, 0.25]], "density": 1.0, "pressure": 1.0}],
+            "interface": {"model": "enriched"}}
+    problem = build_problem(validate(data))
+    assert problem.mixed is None and problem.state.material_node_velocity is not None
+    result = simulate(problem)
+    assert result.status == "ok" and result.mixed_cells["count"] > 0 and result.mixed_cells["solves"] > 0
+    assert abs(result.conservation["mass"]) < 1e-15 and abs(result.conservation["momentum"]) < 1e-10
+    assert abs(result.conservation["total_energy"]) < 1e-6

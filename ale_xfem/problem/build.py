@@ -326,7 +326,7 @@ def _build_problem_2d(scene: Scene) -> Problem:
                                         material_volume=slot_volume, corner_momentum=corner_momentum)
     problem = finish_problem(scene, mesh, materials, layout, node_mass, state, mixed, None,
                              exact_reference_2d(scene))
-    if mixed is not None and mixed.model == "enriched":
+    if scene.interface is not None and scene.interface.model == "enriched":
         with_material_velocities(problem, material_corner_momentum, material_corner_mass)
     return problem
 
@@ -339,10 +339,18 @@ def with_material_velocities(problem: Problem, corner_momentum, corner_mass) -> 
     material it lies in."""
     state, mesh = problem.state, problem.mesh
     layout = problem.layout.cell_material
-    geometry = enriched_geometry(mesh, state.node_position, by_material(state.material_volume, layout),
-                                 by_material(state.material_mass, layout), problem.mixed.cells)
     flat = mesh.cell_nodes.T.ravel()
     n_nodes = mesh.n_nodes
+    mass = by_material(state.material_mass, layout)
+    if problem.mixed is not None:
+        geometry = enriched_geometry(mesh, state.node_position, by_material(state.material_volume, layout), mass,
+                                     problem.mixed.cells)
+        corner, node_mass, owner, internal = geometry.corner_mass, geometry.node_mass, geometry.owner, geometry.internal
+    else:  # no cell cut yet: equal corner shares, each node in its cells' material
+        k = mesh.cell_type.nodes_per_cell
+        corner = np.repeat(mass[:, None, :] / k, k, axis=1)
+        node_mass = np.stack([np.bincount(flat, corner[m].ravel(), n_nodes) for m in range(2)])
+        owner, internal = np.argmax(node_mass, axis=0), node_mass > 0.0
     velocity = np.zeros((2, 2, n_nodes))
     for m in range(2):
         weight = np.bincount(flat, corner_mass[m].ravel(), n_nodes)
@@ -351,11 +359,11 @@ def with_material_velocities(problem: Problem, corner_momentum, corner_mass) -> 
             velocity[m, d] = np.where(weight > 0, momentum / np.where(weight > 0, weight, 1.0), state.node_velocity[d])
         for boundary in problem.boundaries:
             boundary.apply(velocity[m])
-    node_velocity = velocity[geometry.owner, :, np.arange(n_nodes)].T.copy()
+    node_velocity = velocity[owner, :, np.arange(n_nodes)].T.copy()
     problem.state = state.evolved(node_velocity=node_velocity, material_node_velocity=velocity,
-                                  material_node_mass=geometry.node_mass, material_corner_mass=geometry.corner_mass,
-                                  material_node_internal=geometry.internal)
-    problem.node_mass = geometry.node_mass.sum(axis=0)
+                                  material_node_mass=node_mass, material_corner_mass=corner,
+                                  material_node_internal=internal)
+    problem.node_mass = node_mass.sum(axis=0)
 
 
 def _left_material_first(scene, names, left, right, first, second):

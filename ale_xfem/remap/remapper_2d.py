@@ -98,8 +98,9 @@ class Remapper2D:
             model="single_velocity" if interface is None else interface.model,
             relaxation=interface is None or interface.relaxation)
         # 2D enriched mixed cells: (position, volume, mass, mixed cells) → (each material's
-        # corner masses (2, k, n_cells), the material each node lies in) — the masses of the
-        # Lagrange step's momentum rows (ale_xfem.mixed.enriched_2d; set by the time loop)
+        # corner masses (2, k, n_cells), the material each node lies in, which nodes carry
+        # each material's mass) — the masses of the Lagrange step's momentum rows
+        # (ale_xfem.mixed.enriched_2d; set by the time loop)
         self.material_geometry = None
         self.general_remaps = 0  # (the 1D remapper's counter; every 2D step is swept)
         self.energy_limited = 0  # (the 1D remapper's counter: the 2D deposit is always of losses only)
@@ -466,7 +467,15 @@ class Remapper2D:
         kinetic_after = 0.5 * np.sum(node_mass[:, None] * velocity**2)
         kinetic_change = float(kinetic_after - kinetic_before.sum()) - self.wall_work
         total_node_mass = node_mass.sum(axis=0)
-        self._deposit(loss, total_node_mass, mass, energy)
+        if self.heat and loss.sum() > 0:
+            # as _deposit, by each material's own (condensed) corner masses: Σ_m Σ_K Σ_k
+            # (loss_i / M_i) c_m,K,k over the nodes is the whole loss
+            per_mass = losses_only(loss) / total_node_mass
+            gathered = per_mass[mesh.cell_nodes.T]  # (k, n_cells)
+            for m in range(2):
+                energy[m] += np.sum(gathered * corner_mass[m], axis=0)
+        elif self.heat and loss.sum() < 0:
+            energy *= made_kinetic_energy_factor(loss.sum(), energy.sum())
         fields = dict(material_node_velocity=velocity, material_node_mass=node_mass,
                       material_corner_mass=corner_mass, material_node_internal=internal)
         return mesh_velocity, total_node_mass, kinetic_change, fields

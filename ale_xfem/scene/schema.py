@@ -571,9 +571,11 @@ def _validate_interface(table: Any, dimension: int) -> InterfaceSpec:
             table.setdefault(key, default)
     assembled = enriched_2d or (model == "enriched" and table.get("predictor") == "assembled")
     if "petsc_options" in table and not assembled:
+        hint = ("set interface.model = 'enriched'" if dimension == 2 else
+                "set interface.model = 'enriched' and interface.predictor = 'assembled'")
         raise SceneError("interface.petsc_options", table["petsc_options"], "no value unless the interface system is "
                          "assembled by PETSc (2D enriched cells, or in 1D interface.model = 'enriched' and "
-                         "interface.predictor = 'assembled'); remove it, or set interface.predictor = 'assembled'")
+                         f"interface.predictor = 'assembled'); remove it, or {hint}")
     if assembled:
         table.setdefault("petsc_options", {})
     penalty = None
