@@ -8,12 +8,16 @@ solved implicitly inside the Wilkins step, with the predictor/corrector of
 predicted state.  The closure keeps, for each material, the time-centred forces F̄ of its
 *pure* cells at the nodes of the mixed cells, and solves for each material's mean velocity
 ū_m over the step at those nodes (internal rows: 4M_m(ū_m − u_m^n)/dt = 2F̄_m + f_m^n +
-f_m^{n+1}; external rows: the interface's equilibrium at n+1).  f_m: the mixed cell's
-stress on its material's nodes, (P_m + q̄) on its part and (p_Γ + q̄) on Γ, with q̄ = ½(q^n + q*) the mixed cell's
-artificial viscosity (the explicit step's, a stress on both materials alike; its work
-heats both materials).  Each material's nodal velocity is then u_m^{n+1} = 2ū_m − u_m^n; a
-node moves with the material it lies in (``EnrichedGeometry.owner``), and the step's own
-update of those nodes is replaced by that.
+f_m^{n+1}; external rows: the interface's equilibrium at n+1, their share of f_m^n moved
+onto the internal nodes).  f_m: the mixed cell's stress on its material's nodes, (P_m + q̄)
+on its part and (p_Γ + q̄) on Γ, q̄ = ½(q^n + q*) the mixed cell's artificial viscosity (a
+stress on both materials alike).  Each material's nodal velocity is then u_m^{n+1} = 2ū_m
+− u_m^n; a node moves with the material it lies in (``EnrichedGeometry.owner``), and the
+step's own update of those nodes is replaced by that; walls hold their components in
+every material's rows and their reaction enters the step's bookkeeping.  A ghost
+viscosity (``GHOST_VISCOSITY``) steadies each material's velocity beyond its part; what it
+and Nitsche's penalty dissipate, and what the moved share of f^n gains or loses, is heat,
+shared by the cell's materials by mass.
 
 **Material numbering.**  The system's α is material 0 of the scene in every mixed cell (a
 node's velocities must mean the same material in all its cells): 2D enriched scenes have
@@ -29,8 +33,9 @@ leave its cells; such scenes are refused at load.
 
 **State.**  Each material's nodal velocities and masses (the condensed ones, the same in
 the step and in the remap: momentum passes between them exactly) are in the state
-(``material_node_velocity``, ``material_node_mass``, ``material_corner_mass``); the state's
-``node_velocity`` is the mesh's: each node's own material's.
+(``material_node_velocity``, ``material_node_mass``, ``material_corner_mass``,
+``material_node_internal``); the state's ``node_velocity`` is the mesh's: each node's own
+material's.  docs/design.md §4 gives the measurements behind each choice.
 """
 
 from __future__ import annotations
