@@ -232,7 +232,12 @@ def _shape_functions(vertices, points, k):
     reference = np.stack([np.stack([-(1 - t), -(1 - s)], -1), np.stack([1 - t, -s], -1),
                           np.stack([t, s], -1), np.stack([-t, 1 - s], -1)], axis=-2)  # (n, q, 4, 2)
     jacobian = bilinear_map(tensor, xi)[1]  # (n, q, 2, 2): columns ∂x/∂ξ, ∂x/∂η
-    grad = np.einsum("nqji,nqkj->nqki", np.linalg.inv(jacobian), reference)
+    a, b, c, d = jacobian[..., 0, 0], jacobian[..., 0, 1], jacobian[..., 1, 0], jacobian[..., 1, 1]
+    det = a * d - b * c
+    # ∇ψ = J⁻ᵀ ∇̂ψ̂, J⁻¹ = [[d, −b], [−c, a]] / det in closed form
+    grad = np.stack([(d[..., None] * reference[..., 0] - c[..., None] * reference[..., 1]),
+                     (a[..., None] * reference[..., 1] - b[..., None] * reference[..., 0])], axis=-1)
+    grad /= det[..., None, None]
     return psi, grad
 
 
