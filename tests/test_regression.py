@@ -68,6 +68,7 @@ CASES = {
     "sedov": ("sedov", ["mesh.cells=[16,16]"]),
     "sod-2d": ("sod-2d", ["mesh.cells=[16,16]"]),
     "shock-disk": ("shock-disk", ["mesh.cells=[24,12]"]),
+    "shock-disk-enriched": ("shock-disk", ["mesh.cells=[24,12]", "interface.model=enriched"]),
 }
 
 # figures of the summary that measure the machine, not the physics
