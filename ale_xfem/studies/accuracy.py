@@ -116,12 +116,20 @@ def _split_values(values: str) -> list[str]:
     return [p for p in (p.strip() for p in parts) if p]
 
 
+def cells_override(path, cells: int) -> str:
+    """The override that sets a scene's resolution: ``cells`` cells in 1D, ``cells`` ×
+    ``cells`` in 2D."""
+    if load_scene(path).dimension == 2:
+        return f"mesh.cells=[{cells},{cells}]"
+    return f"mesh.cells={cells}"
+
+
 def check_study(study: Study) -> None:
     """Load every variant's scene at every resolution (SceneError on the first bad one)."""
     for variant in study.variants:
         path = resolve_scene_path(variant.scene)
         for cells in study.cells:
-            load_scene(path, [f"mesh.cells={cells}", *variant.overrides])
+            load_scene(path, [cells_override(path, cells), *variant.overrides])
 
 
 def run_accuracy_study(study: Study, out: Path, echo=print) -> list[dict]:
@@ -137,7 +145,8 @@ def run_accuracy_study(study: Study, out: Path, echo=print) -> list[dict]:
     clock = time.perf_counter()
     for variant in study.variants:
         for cells in study.cells:
-            scene = load_scene(resolve_scene_path(variant.scene), [f"mesh.cells={cells}", *variant.overrides])
+            path = resolve_scene_path(variant.scene)
+            scene = load_scene(path, [cells_override(path, cells), *variant.overrides])
             problem = build_problem(scene)
             result = simulate(problem)
             errors = result.errors or {}
