@@ -332,19 +332,26 @@ class Remapper2D:
             interface_velocity=interface_velocity, **(material_fields or {}))
         return new_state, new_layout, new_mixed, node_mass, kinetic_change
 
-    def _deposit(self, loss, node_mass, mass, energy):
+    def _deposit(self, loss, node_mass, mass, energy, corner_mass=None):
         """The kinetic energy the remap lost at each node (n_nodes,) into the materials'
         internal energies (n_materials, n_cells), in place (``numerics.remap_energy =
-        "total"``; otherwise nothing)."""
+        "total"``; otherwise nothing).  ``corner_mass`` (2, k, n_cells): each material's own
+        corner masses (2D enriched cells, condensed), which ``node_mass`` sums; by default
+        each cell's equal corner shares, split by material mass."""
         if self.heat and loss.sum() > 0:
             # Deposited where it is lost, by corner mass then by material mass.  A node may
             # gain a little where its neighbours lose (the cells' momentum is shared by
             # corners): only the losses are deposited, scaled to their sum — cold gas must
             # not be cooled below zero by a neighbour's gain.
             corners, k = self.mesh.corners, self.mesh.cell_type.nodes_per_cell
-            new_cell_mass = mass.sum(axis=0)
             loss = losses_only(loss)
             per_mass = loss / node_mass
+            if corner_mass is not None:  # Σ_m Σ_K Σ_k (loss_i / M_i) c_m,K,k is the whole loss
+                gathered = per_mass[self.mesh.cell_nodes.T]  # (k, n_cells)
+                for m in range(corner_mass.shape[0]):
+                    energy[m] += np.sum(gathered * corner_mass[m], axis=0)
+                return
+            new_cell_mass = mass.sum(axis=0)
             gathered = corners.gather(per_mass[None, :])
             heat = sum(g[0] for g in gathered) * (new_cell_mass / k)
             with np.errstate(invalid="ignore", divide="ignore"):
@@ -467,15 +474,7 @@ class Remapper2D:
         kinetic_after = 0.5 * np.sum(node_mass[:, None] * velocity**2)
         kinetic_change = float(kinetic_after - kinetic_before.sum()) - self.wall_work
         total_node_mass = node_mass.sum(axis=0)
-        if self.heat and loss.sum() > 0:
-            # as _deposit, by each material's own (condensed) corner masses: Σ_m Σ_K Σ_k
-            # (loss_i / M_i) c_m,K,k over the nodes is the whole loss
-            per_mass = losses_only(loss) / total_node_mass
-            gathered = per_mass[mesh.cell_nodes.T]  # (k, n_cells)
-            for m in range(2):
-                energy[m] += np.sum(gathered * corner_mass[m], axis=0)
-        elif self.heat and loss.sum() < 0:
-            energy *= made_kinetic_energy_factor(loss.sum(), energy.sum())
+        self._deposit(loss, total_node_mass, mass, energy, corner_mass)
         fields = dict(material_node_velocity=velocity, material_node_mass=node_mass,
                       material_corner_mass=corner_mass, material_node_internal=internal)
         return mesh_velocity, total_node_mass, kinetic_change, fields
