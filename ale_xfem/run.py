@@ -20,7 +20,7 @@ from ale_xfem.lagrange.breakdown import Breakdown
 from ale_xfem.lagrange.memory import keep_freed_memory
 from ale_xfem.lagrange.wilkins import ExplicitWilkins
 from ale_xfem.mixed.closures import Closures
-from ale_xfem.mixed.enriched_2d import material_geometry
+from ale_xfem.mixed.cut_cells_2d import material_geometry
 from ale_xfem.model.plic import reconstruct_state
 from ale_xfem.model.state import State, material_masses, totals
 from ale_xfem.problem.build import Problem

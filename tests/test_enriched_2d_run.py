@@ -8,7 +8,7 @@ import pytest
 from ale_xfem.model.state import material_angular_momenta
 from ale_xfem.problem.build import build_problem
 from ale_xfem.remap.remapper_2d import Remapper2D
-from ale_xfem.mixed.enriched_2d import material_geometry
+from ale_xfem.mixed.cut_cells_2d import material_geometry
 from ale_xfem.run import simulate
 from ale_xfem.scene.schema import SceneError, load_scene, resolve_scene_path, validate
 

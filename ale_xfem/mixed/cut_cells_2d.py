@@ -290,7 +290,7 @@ def enriched_geometry(mesh, position, volume, mass, cells) -> EnrichedGeometry:
         corner_mass[m][:, cells] = condensed[m].T
         internal[m, cell_nodes[pure].ravel()] = True
         internal[m, cell_nodes[cells][internal_in_cell[m]]] = True
-    node_mass = np.stack([np.bincount(cell_nodes.T.ravel(), corner_mass[m].ravel(), n_nodes) for m in range(2)])
+    node_mass = _node_sums(cell_nodes, corner_mass, n_nodes)
     # a tied node slides (its normal parts tied only, under free slip) unless Γ reaches it
     # along a mesh edge between pure cells of the two materials (a kink: forms/enriched_interface.py)
     a, b, plus, minus = _edges(cell_nodes)
@@ -301,6 +301,29 @@ def enriched_geometry(mesh, position, volume, mass, cells) -> EnrichedGeometry:
     on_edge[a[inner][along]] = True
     on_edge[b[inner][along]] = True
     return EnrichedGeometry(cut, owner, tied, tied & ~on_edge, corner_mass, node_mass, internal)
+
+
+def material_geometry(mesh, position, volume, mass, cells):
+    """(each material's corner masses (2, k, n_cells) and nodal masses (2, n_nodes), the
+    material each node lies in (n_nodes,), which nodes carry each material's mass (2,
+    n_nodes)) of a mesh whose mixed
+    cells ``cells`` are enriched, ``volume`` and ``mass`` (2, n_cells) by material: the
+    condensed masses of :func:`enriched_geometry`, or, with no cell cut, each cell's equal
+    corner shares (each node then lies in the material of its cells).  What the set-up, the
+    Lagrange step and the remap all hand each material's momentum to the nodes with."""
+    if np.asarray(cells).size:
+        geometry = enriched_geometry(mesh, position, volume, mass, cells)
+        return geometry.corner_mass, geometry.node_mass, geometry.owner, geometry.internal
+    k = mesh.cell_nodes.shape[1]
+    corner_mass = np.repeat(mass[:, None, :] / k, k, axis=1)
+    node_mass = _node_sums(mesh.cell_nodes, corner_mass, position.shape[1])
+    return corner_mass, node_mass, np.argmax(node_mass, axis=0), node_mass > 0.0
+
+
+def _node_sums(cell_nodes, corner_mass, n_nodes):
+    """(2, n_nodes): each material's corner masses (2, k, n_cells) summed onto the nodes."""
+    flat = cell_nodes.T.ravel()
+    return np.stack([np.bincount(flat, corner_mass[m].ravel(), n_nodes) for m in range(2)])
 
 
 _EDGES = [None, None]  # (a weak reference to the last cell_nodes array, its mesh_edges)

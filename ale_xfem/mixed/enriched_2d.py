@@ -58,15 +58,6 @@ HELD_INERTIA = 1e20
 GHOST_VISCOSITY = 0.1
 
 
-def material_geometry(mesh, position, volume, mass, cells):
-    """(each material's corner masses (2, k, n_cells), the material each node lies in
-    (n_nodes,), which nodes carry each material's mass (2, n_nodes)) of a mesh whose mixed cells ``cells`` are enriched, ``volume`` and ``mass``
-    (2, n_cells) by material (:func:`ale_xfem.mixed.cut_cells_2d.enriched_geometry`): what
-    the remap needs to hand each material's momentum back to the nodes."""
-    geometry = enriched_geometry(mesh, position, volume, mass, cells)
-    return geometry.corner_mass, geometry.owner, geometry.internal
-
-
 class EnrichedClosure2D(SharedClosure):
     """2D mixed cells with doubled velocities (module docstring).  ``stabilisation``:
     bubble | nitsche | none; ``slip``: free | stick; ``nitsche_penalty``: Nitsche's

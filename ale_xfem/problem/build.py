@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from ale_xfem import exact
-from ale_xfem.mixed.cut_cells_2d import by_material, enriched_geometry
+from ale_xfem.mixed.cut_cells_2d import by_material, material_geometry
 from ale_xfem.mixed.equilibrium import MixedCellFailure, PressureEquilibrium, start_values
 from ale_xfem.geometry.shapes import SHAPES
 from ale_xfem.model.boundaries import Boundary
@@ -341,16 +341,10 @@ def with_material_velocities(problem: Problem, corner_momentum, corner_mass) -> 
     layout = problem.layout.cell_material
     flat = mesh.cell_nodes.T.ravel()
     n_nodes = mesh.n_nodes
-    mass = by_material(state.material_mass, layout)
-    if problem.mixed is not None:
-        geometry = enriched_geometry(mesh, state.node_position, by_material(state.material_volume, layout), mass,
-                                     problem.mixed.cells)
-        corner, node_mass, owner, internal = geometry.corner_mass, geometry.node_mass, geometry.owner, geometry.internal
-    else:  # no cell cut yet: equal corner shares, each node in its cells' material
-        k = mesh.cell_type.nodes_per_cell
-        corner = np.repeat(mass[:, None, :] / k, k, axis=1)
-        node_mass = np.stack([np.bincount(flat, corner[m].ravel(), n_nodes) for m in range(2)])
-        owner, internal = np.argmax(node_mass, axis=0), node_mass > 0.0
+    cells = problem.mixed.cells if problem.mixed is not None else np.zeros(0, dtype=np.int64)
+    corner, node_mass, owner, internal = material_geometry(
+        mesh, state.node_position, by_material(state.material_volume, layout), by_material(state.material_mass, layout),
+        cells)
     velocity = np.zeros((2, 2, n_nodes))
     for m in range(2):
         weight = np.bincount(flat, corner_mass[m].ravel(), n_nodes)

@@ -98,9 +98,9 @@ class Remapper2D:
             model="single_velocity" if interface is None else interface.model,
             relaxation=interface is None or interface.relaxation)
         # 2D enriched mixed cells: (position, volume, mass, mixed cells) → (each material's
-        # corner masses (2, k, n_cells), the material each node lies in, which nodes carry
-        # each material's mass) — the masses of the Lagrange step's momentum rows
-        # (ale_xfem.mixed.enriched_2d; set by the time loop)
+        # corner and nodal masses, the material each node lies in, which nodes carry each
+        # material's mass) — the masses of the Lagrange step's momentum rows
+        # (ale_xfem.mixed.cut_cells_2d.material_geometry; set by the time loop)
         self.material_geometry = None
         self.general_remaps = 0  # (the 1D remapper's counter; every 2D step is swept)
         self.energy_limited = 0  # (the 1D remapper's counter: the 2D deposit is always of losses only)
@@ -366,14 +366,12 @@ class Remapper2D:
         """The per-material fields of a state whose step had no mixed cell (all materials
         moved with the nodes): each material's velocity the node's, its corner masses the
         equal shares of its cells."""
-        mesh = self.mesh
-        k = mesh.cell_type.nodes_per_cell
         mass = np.stack([np.where(layout.cell_material[0] == m, state.material_mass[0], 0.0) for m in range(2)])
-        corner_mass = np.repeat(mass[:, None, :] / k, k, axis=1)
-        node_mass = np.stack([mesh.corners.scatter(list(c)) for c in corner_mass])
+        corner_mass, node_mass, _, internal = self.material_geometry(state.node_position, None, mass,
+                                                                     np.zeros(0, dtype=np.int64))
         return state.evolved(material_node_velocity=np.stack([state.node_velocity[:2]] * 2),
                              material_corner_mass=corner_mass, material_node_mass=node_mass,
-                             material_node_internal=node_mass > 0.0)
+                             material_node_internal=internal)
 
     def _material_momentum_fluxes(self, state, flux_mass, donor, receiver):
         """Each material's momentum per cell after the fluxes ([x, y], each (2, n_cells)):
@@ -430,16 +428,8 @@ class Remapper2D:
         present = (volume > TRACE * area) | (standing & (mass != 0.0))
         cells = np.flatnonzero(present.sum(axis=0) == 2)
         kept_volume, kept_mass = np.where(present, volume, 0.0), np.where(present, mass, 0.0)
-        if cells.size:
-            corner_mass, owner, internal = self.material_geometry(X, kept_volume, kept_mass, cells)
-        else:  # no mixed cell left: equal corner shares, each node in its cells' material
-            k = mesh.cell_nodes.shape[1]
-            corner_mass = np.repeat(kept_mass[:, None, :] / k, k, axis=1)
-            owner = internal = None
+        corner_mass, node_mass, owner, internal = self.material_geometry(X, kept_volume, kept_mass, cells)
         flat = mesh.cell_nodes.T.ravel()
-        node_mass = np.stack([np.bincount(flat, corner_mass[m].ravel(), n_nodes) for m in range(2)])
-        if owner is None:
-            owner, internal = np.argmax(node_mass, axis=0), node_mass > 0.0
         cell_mass = corner_mass.sum(axis=1)
         share = np.divide(corner_mass, cell_mass[:, None, :], out=np.zeros_like(corner_mass),
                           where=cell_mass[:, None, :] > 0)
