@@ -134,12 +134,11 @@ class EnrichedClosure2D(SharedClosure):
         except ValueError as failure:
             raise Breakdown("interface reconstruction", int(cells[0]), float("nan"),
                             mesh.cell_centroids(x0)[cells[0]], detail=str(failure)) from None
-        # the masses the state's velocities go with (the remap's; the start-of-step pressure
-        # relaxation may have moved Γ a little since): momentum passes on exactly
-        node_mass, corner_mass, internal = geometry.node_mass, geometry.corner_mass, geometry.internal
-        if state.material_node_mass is not None:
-            node_mass, corner_mass = state.material_node_mass, state.material_corner_mass
-            internal = state.material_node_internal
+        # the masses the state's velocities go with (the set-up's or the remap's; the
+        # start-of-step pressure relaxation may have moved Γ a little since): momentum
+        # passes on exactly
+        node_mass, corner_mass = state.material_node_mass, state.material_corner_mass
+        internal = state.material_node_internal
         cut, system = geometry.cut, self.system
         reconstruction = cut.reconstruction
         system.move(self._to_dolfinx(x0))
@@ -150,8 +149,7 @@ class EnrichedClosure2D(SharedClosure):
         pure = self._pure_forces(step, first, predicted, cell_material)
         viscosity = 0.5 * (first.mixed_viscosity + predicted.mixed_viscosity)
         nodes = mesh.cell_nodes[cells]
-        velocity = (state.material_node_velocity if state.material_node_velocity is not None
-                    else np.stack([state.node_velocity[:2]] * 2))
+        velocity = state.material_node_velocity
         inertia, right, internal_force, transfers = [], [], np.zeros(2), []
         gradient = cut.part_integrals()[1]  # (2, n, k, 2) ∫_{K_m} ∇ψ_i
         system_nodes = self.node_of_dolfinx[system.nodes]
