@@ -71,13 +71,30 @@ class BoundSystem:
         dolfinx.fem.petsc.assemble_vector(self.vector, self.linear)
         return self.vector.getArray(readonly=False)
 
-    def solve(self, right_side, what: str):
+    def solve(self, right_side, what: str, constraint=None):
         """Solve with ``right_side`` (the array of :meth:`assemble`, completed) and
         REFINEMENTS rounds of iterative refinement; returns the solution's array.  ``what``
-        names the system in the error of a failed factorisation."""
+        names the system in the error of a failed factorisation.  ``constraint``: a PETSc
+        matrix C (n × r) whose columns span the admissible solutions, x = C y (unknowns
+        that must be equal, exactly): the system solved is Cᵀ A C y = Cᵀ b."""
         self.vector.setArray(right_side)
+        if constraint is None:
+            self._solve(self.matrix, self.vector, self.solution, self.residual, self.correction, what)
+            return self.solution.getArray()
+        reduced = self.matrix.PtAP(constraint)
+        right = constraint.createVecRight()
+        constraint.multTranspose(self.vector, right)
+        solution, residual, correction = right.duplicate(), right.duplicate(), right.duplicate()
+        self._solve(reduced, right, solution, residual, correction, what)
+        constraint.mult(solution, self.solution)
+        for thing in (reduced, right, solution, residual, correction):
+            thing.destroy()
+        return self.solution.getArray()
+
+    def _solve(self, operator, right, solution, residual, correction, what: str) -> None:
+        self.solver.setOperators(operator)
         try:
-            self.solver.solve(self.vector, self.solution)
+            self.solver.solve(right, solution)
         except PETSc.Error as error:
             raise RuntimeError(f"{what}: {petsc_reason(error)}") from None
         finally:
@@ -86,11 +103,10 @@ class BoundSystem:
         if reason < 0:
             raise RuntimeError(f"{what}: the KSP failed (PETSc reason {reason})")
         for _ in range(REFINEMENTS):
-            self.matrix.mult(self.solution, self.residual)
-            self.residual.aypx(-1.0, self.vector)
-            self.solver.solve(self.residual, self.correction)
-            self.solution.axpy(1.0, self.correction)
-        return self.solution.getArray()
+            operator.mult(solution, residual)
+            residual.aypx(-1.0, right)
+            self.solver.solve(residual, correction)
+            solution.axpy(1.0, correction)
 
     def _forget_options(self) -> None:
         database = PETSc.Options()

@@ -74,10 +74,8 @@ SLIPS = ("free", "stick")
 # quadrilateral (its ∇·(b n) |det J| is of degree ≤ 3 in each of ξ, η: the cut rules are exact)
 BUBBLE_DEGREE = {"interval": 2, "triangle": 3, "quadrilateral": 2}
 
-# a tied node's spring, relative to its inertia 4M/dt: the two velocities agree to ~1e-8
-TIE_STIFFNESS = 1e8
 _MATERIAL_COEFFICIENTS = ("mass", "part", "edge_flux", "compliance", "offset", "ghost")
-_CELL_COEFFICIENTS = ("normal", "interface", "weight", "penalty", "tie")
+_CELL_COEFFICIENTS = ("normal", "interface", "weight", "penalty")
 
 
 def nitsche_weights(volume, stiffness, interface_length, penalty_factor: float):
@@ -135,14 +133,15 @@ class InterfaceForms:
                  "edge_flux": function_space("DG", 1, (gdim,)), "compliance": function_space("DG", 0), "ghost": function_space("DG", 0),
                  "offset": function_space("DG", 0), "normal": function_space("DG", 0, (gdim,)),
                  "interface": quadrature, "weight": function_space("DG", 0), "penalty": function_space("DG", 0),
-                 "tie": function_space("Lagrange", 1), "tie_slide": function_space("Lagrange", 1), "tie_normal": function_space("Lagrange", 1, (gdim,))}
+}
         self.coefficients = {}
         for name in _MATERIAL_COEFFICIENTS:
             for side in "ab":
                 self.coefficients[f"{name}_{side}"] = ufl.Coefficient(kinds[name])
-        # free slip in 2D ties only the normal part of a tied node's velocities
+        # free slip in 2D ties only the normal part of a sliding tied node's velocities
+        # (InterfaceSystem.solve)
         self.tie_normal = gdim == 2 and not stick
-        for name in _CELL_COEFFICIENTS + (("tie_normal", "tie_slide") if self.tie_normal else ()):
+        for name in _CELL_COEFFICIENTS:
             self.coefficients[name] = ufl.Coefficient(kinds[name])
         c = self.coefficients
 
@@ -176,19 +175,7 @@ class InterfaceForms:
             """J w with (J w)·n = w·t, t = (−n_y, n_x): ∫_Γ w·t_m = I_m(J w)."""
             return ufl.as_vector([w[1], -w[0]])
 
-        # tied nodes (pure cells of both materials around them: no mixed cell carries an
-        # interface there) move as one: a stiff spring between their two velocities.  Under
-        # free slip in 2D a *sliding* tied node (Γ passes through it between mixed cells,
-        # along no mesh edge) ties only the normal parts, along the node's normal to Γ: the
-        # materials still slide past it (a spinning disk whose rim runs through nodes handed
-        # 11 % of its angular momentum to the fluid around it in one step when the whole
-        # velocity was tied there).  Where Γ follows a mesh edge into the node, the edge's
-        # normal and the cut cells' differ (a kink): two normal conditions, the whole
-        # velocity tied (a normal-only tie let a kink at rest move by 0.01)
-        bilinear = c["tie"] * ufl.inner(u1[0] - u1[1], v1[0] - v1[1]) * lumped
-        if self.tie_normal:
-            t_n = c["tie_normal"]
-            bilinear += c["tie_slide"] * ufl.dot(u1[0] - u1[1], t_n) * ufl.dot(v1[0] - v1[1], t_n) * lumped
+        bilinear = 0
         linear = 0
         for m, side in enumerate(sides):
             part = c[f"part_{side}"]
@@ -294,13 +281,6 @@ class InterfaceSystem:
         functions["interface"] = self.interface.ratio
         functions["weight"] = dolfinx.fem.Function(DG0)
         functions["penalty"] = dolfinx.fem.Function(DG0)
-        P1 = dolfinx.fem.functionspace(sub, ("Lagrange", 1))
-        functions["tie"] = dolfinx.fem.Function(P1)
-        if forms.tie_normal:
-            functions["tie_normal"] = dolfinx.fem.Function(V1)
-            functions["tie_slide"] = dolfinx.fem.Function(P1)
-        self._tie_parent = np.empty(P1.dofmap.index_map.size_local, dtype=np.int64)
-        self._tie_parent[np.asarray(P1.dofmap.list)] = self.parent_nodes
         self.functions = functions
         coefficient_map = {forms.coefficients[name]: functions[name] for name in forms.coefficients}
         # the dissipated work's forms, on the velocities ū put in ``ubar``
@@ -409,14 +389,17 @@ class InterfaceSystem:
         [m] (2, n_parent_nodes) ū_m at the mixed cells' nodes (other entries 0), ``pressure``
         (2, n) P_m per mixed cell, and, by stabilisation, ``interface_pressure`` (n,) p_Γ
         (free slip; stick: its normal part) and ``bubble`` [m]."""
-        self._set_mass(mass, tied, sliding, tie_normal)
+        self._set_mass(mass)
         array = self.system.assemble()
         for m in range(2):
             for d in range(self.gdim):
                 array[self.velocity_block[m][:, d]] += rhs[m][d][self.block_parent[m]]
         # Massless bubbles and nearly massless external nodes weigh their rows by the parts'
         # small stiffness against masses of order 4M/dt: BoundSystem.solve refines
-        values = self.system.solve(array, "interface system")
+        constraint = self._ties(tied, sliding, tie_normal)
+        values = self.system.solve(array, "interface system", constraint)
+        if constraint is not None:
+            constraint.destroy()
         n = self.input_index.size
         out = {"velocity": [], "pressure": np.empty((2, n))}
         for m in range(2):
@@ -446,7 +429,7 @@ class InterfaceSystem:
             out[row, self.input_index] = vector.array[self._dg0]
         return out
 
-    def _set_mass(self, mass, tied, sliding=None, tie_normal=None):
+    def _set_mass(self, mass):
         """The vertex rule gives Σ_{K ∋ i} (|K|/3) m(x_i) u_i·v_i: the P1 density that lumps
         M_i on node i is M_i / Σ_{K ∋ i} |K|/3 (K over the mixed cells)."""
         if self.vertex_area is None or self.vertex_area.size != self.velocity_parent.size:
@@ -456,30 +439,82 @@ class InterfaceSystem:
         for m, side in enumerate("ab"):
             density = mass[m][:, self.velocity_parent] / self.vertex_area
             self.functions[f"mass_{side}"].x.array.reshape(-1, self.gdim)[:] = density.T
-        tie = self.functions["tie"].x.array
-        tie[:] = 0.0
-        if self.forms.tie_normal:
-            self.functions["tie_slide"].x.array[:] = 0.0
-        if tied is not None:
-            nodes = self._tie_parent
-            stiffness = TIE_STIFFNESS * (mass[0].min(axis=0) + mass[1].min(axis=0))[nodes]
-            block = np.empty(self.velocity_parent.max() + 1, dtype=np.int64)
-            block[self.velocity_parent] = np.arange(self.velocity_parent.size)
-            spring = np.where(tied[nodes], stiffness, 0.0) / self.vertex_area[block[nodes]]
-            tie[:] = spring
-            if self.forms.tie_normal:
-                slide = np.zeros_like(spring) if sliding is None else np.where(sliding[nodes], spring, 0.0)
-                tie[:] -= slide
-                self.functions["tie_slide"].x.array[:] = slide
-                if tie_normal is None:  # the mean of the normals of the mixed cells around each node
-                    normal = self.functions["normal"].x.array.reshape(-1, self.gdim)[self._dg0v]  # (n_sub, 2)
-                    total = np.zeros((self.velocity_parent.size, self.gdim))
-                    np.add.at(total, self._velocity_cells.ravel(), np.repeat(normal, self._velocity_cells.shape[1], axis=0))
-                    size = np.linalg.norm(total, axis=1)[:, None]
-                    values = np.divide(total, size, out=np.zeros_like(total), where=size > 0)
-                else:
-                    values = tie_normal[:, self.velocity_parent].T
-                self.functions["tie_normal"].x.array.reshape(-1, self.gdim)[:] = values
+
+    def _ties(self, tied, sliding=None, tie_normal=None):
+        """The tied nodes (pure cells of both materials around them: no mixed cell carries an
+        interface there) move as one: their two velocities are one unknown — a PETSc matrix
+        C whose columns span the velocities allowed (:meth:`BoundSystem.solve`), or None
+        when no node is tied.  Under free slip in 2D a *sliding* tied node (Γ passes through
+        it between mixed cells, along no mesh edge) shares only the normal part, along the
+        node's normal to Γ (``tie_normal``, default the mean of its mixed cells' normals):
+        the materials still slide past it (a spinning disk whose rim runs through nodes
+        handed 11 % of its angular momentum to the fluid around it in one step when the
+        whole velocity was tied there).  Where Γ follows a mesh edge into the node (a kink:
+        two normals) the whole velocity is one (a normal-only tie let a kink at rest move by
+        0.01).  Exact, not a stiff spring: a spring 10⁸ times the inertia left a residual at
+        the round-off of its diagonal, a force that moved momentum by 10⁻¹⁰ of M V."""
+        if tied is None or not np.any(tied[self.velocity_parent]):
+            return None
+        from petsc4py import PETSc
+
+        gdim, blocks = self.gdim, self.velocity_block
+        size = self.system.matrix.getSize()[0]
+        nodes = self.velocity_parent[tied[self.velocity_parent]]  # tied parent nodes, each once
+        block = []
+        for m in range(2):  # each material's velocity block of each tied node
+            where = np.full(self.block_parent[m].max() + 1, -1, dtype=np.int64)
+            where[self.block_parent[m]] = np.arange(self.block_parent[m].size)
+            block.append(where[nodes])
+        slides = np.zeros(nodes.size, dtype=bool)
+        if self.forms.tie_normal and sliding is not None:
+            slides = sliding[nodes]
+        dof_a, dof_b = blocks[0][block[0]], blocks[1][block[1]]  # (n_tied, gdim)
+        constrained = np.zeros(size, dtype=bool)
+        constrained[dof_a.ravel()] = constrained[dof_b.ravel()] = True
+        free = np.flatnonzero(~constrained)
+        rows, columns, values = [free], [np.arange(free.size)], [np.ones(free.size)]
+        column = free.size
+        whole = ~slides
+        # a whole tie: one unknown per component for both materials
+        count = int(whole.sum()) * gdim
+        shared = column + np.arange(count).reshape(-1, gdim)
+        for dofs in (dof_a[whole], dof_b[whole]):
+            rows.append(dofs.ravel())
+            columns.append(shared.ravel())
+            values.append(np.ones(count))
+        column += count
+        if slides.any():  # one normal unknown shared, each material its own tangential one
+            if tie_normal is None:
+                normal = self._mean_normals()[nodes[slides]]
+            else:
+                normal = tie_normal[:, nodes[slides]].T
+            tangent = np.stack([-normal[:, 1], normal[:, 0]], axis=1)
+            k = int(slides.sum())
+            normal_column = column + np.arange(k)
+            own = [column + k + np.arange(k), column + 2 * k + np.arange(k)]
+            for m, dofs in enumerate((dof_a[slides], dof_b[slides])):
+                for d in range(2):
+                    rows += [dofs[:, d], dofs[:, d]]
+                    columns += [normal_column, own[m]]
+                    values += [normal[:, d], tangent[:, d]]
+            column += 3 * k
+        rows, columns, values = np.concatenate(rows), np.concatenate(columns), np.concatenate(values)
+        order = np.lexsort((columns, rows))
+        rows, columns, values = rows[order], columns[order], values[order]
+        pointer = np.zeros(size + 1, dtype=PETSc.IntType)
+        np.cumsum(np.bincount(rows, minlength=size), out=pointer[1:])
+        return PETSc.Mat().createAIJ(size=(size, column), csr=(pointer, columns.astype(PETSc.IntType), values),
+                                     comm=self.system.matrix.getComm())
+
+    def _mean_normals(self):
+        """(n_parent_nodes, 2): the unit mean of the normals of the mixed cells around each
+        node (zero off the mixed cells)."""
+        normal = self.functions["normal"].x.array.reshape(-1, self.gdim)[self._dg0v]  # (n_sub, 2)
+        parents = self.parent_nodes.ravel()
+        total = np.zeros((parents.max() + 1, self.gdim))
+        np.add.at(total, parents, np.repeat(normal, self.parent_nodes.shape[1], axis=0))
+        size = np.linalg.norm(total, axis=1)[:, None]
+        return np.divide(total, size, out=np.zeros_like(total), where=size > 0)
 
     def move(self, node_position) -> None:
         """Follow the mesh: node_position (gdim, n_parent_nodes)."""

@@ -34,6 +34,21 @@ from ale_xfem.mixed.equilibrium import MixedCellFailure
 from forms.enriched_interface import nitsche_weights
 
 
+# the least stiffness κ_m of Nitsche's weights and penalty, as a fraction of the inertia's
+# scale ρ_m |K| / dt: ρ_m c_m² dt vanishes in a cold gas (Noh's, p = 1e-6) and where c² ≤ 0
+# at an iterate; the penalty then vanished too, and the two materials' normal velocities
+# came apart until the corrector found negative energies (and 0/0 weights, a NaN matrix).
+# Inactive at the time steps the sound speed allows (c dt ≈ h/2 gives ρ c² dt ≈ ρ|K|/(4 dt));
+# active where dt is far below them (cold gas; a step cut short by the viscosity or a retry).
+NITSCHE_STIFFNESS_FLOOR = 0.01
+
+
+def nitsche_stiffness(rho, c2, cell_area, dt):
+    """κ_m = ρ_m c_m² dt, at least NITSCHE_STIFFNESS_FLOOR · ρ_m |K| / dt (arrays (2, n);
+    ``cell_area`` (n,) the mixed cells' |K|)."""
+    return np.maximum(rho * np.maximum(c2, 0.0) * dt, NITSCHE_STIFFNESS_FLOOR * rho * cell_area / dt)
+
+
 @dataclass
 class MaterialStart:
     """Each material's start of the step in the mixed cells, arrays (2, n): mass, volume
@@ -86,8 +101,8 @@ class EnrichedStep2D:
             compliance = -1.0 / (slope * dt * v0)
             weight = penalty = None
             if self.nitsche:  # κ_m = ρ_m c_m² dt (module docstring of forms/enriched_interface.py)
-                weight, penalty = nitsche_weights(v0, rho * np.maximum(c2, 0.0) * dt, self.interface_length,
-                                                  self.nitsche_penalty)
+                weight, penalty = nitsche_weights(v0, nitsche_stiffness(rho, c2, v0.sum(axis=0), dt),
+                                                  self.interface_length, self.nitsche_penalty)
             self.system.set_materials(compliance, offset, weight, penalty)
             out = self.system.solve(mass, rhs, tied, sliding)
             linearised = out["pressure"]
@@ -104,12 +119,20 @@ class EnrichedStep2D:
             work = 0.5 * volume_change / m
             energy = (e0 - work * (p0 + base)) / (1.0 + work * dp_de)
             pressure = base + dp_de * energy
-            bulk = rho * np.abs(np.stack([self.eos[k](rho[k], energy[k])[3] for k in range(2)]))
+            sound = np.stack([self.eos[k](rho[k], energy[k])[3] for k in range(2)])
+            bulk = rho * np.abs(sound)
             if np.all(np.abs(pressure + q - linearised) <= self.tolerance * bulk):
                 break
         else:
             index = int(np.argmax(np.abs(pressure + q - linearised).max(axis=0)))
             raise MixedCellFailure(self.cells, index, f"the corrector did not converge in {self.max_iterations} iterations")
+        # a root outside the equations of state's domain (c² ≤ 0: an ideal gas at a negative
+        # energy, a stiffened gas below −p∞) is no state: the run takes the step again with a
+        # shorter dt (a sliver of air at a wall struck by water at 1e9 Pa reached c² < 0 here)
+        if not np.all(sound > 0.0):
+            index = int(np.flatnonzero(~np.all(sound > 0.0, axis=0))[0])
+            raise MixedCellFailure(self.cells, index, "the corrector's state leaves its equation of state's domain "
+                                   "(c² ≤ 0)")
         result = dict(velocity=out["velocity"], volume=volume, energy=energy, pressure=pressure,
                       iterations=iteration, linearised_pressure=linearised)
         if "interface_pressure" in out:

@@ -2,8 +2,10 @@
 
 A suite of 1D cases (and 2D ones: Noh on quadrilaterals and triangles, Saltzman, the
 rotated two-material tube on a Lagrangian and on an Eulerian mesh, a shock reaching a heavy
-disk, water against air at 30° to an Eulerian mesh), each run with an enriched interface inside a cell (unless the case is
-about something else), checked for: finished, positive densities, volumes and (ideal-gas)
+disk, water against air at 30° to an Eulerian mesh; and, with the paper's enriched mixed
+cells, bubbles and Nitsche each: water against air, the heavy disk, a column of sliver cut
+cells, Noh through a circular interface), each 1D case run with an enriched interface
+inside a cell (unless the case is about something else), checked for: finished, positive densities, volumes and (ideal-gas)
 energies, admissible states (real sound speeds), volume fractions in [0, 1], mass (in all
 and of each material) and momentum conserved to round-off, and — where an exact solution exists — the L1 error of
 density falling from n to 4n cells (4n rather than 2n: on the coarsest meshes a slow wave
@@ -275,6 +277,46 @@ def cases_2d(cells: int = 200) -> list[Case]:
     cases = [Case(d["name"], d["description"], d, d["mesh"]["cells"], refinement=2)
              for d in (noh, noh_triangles, saltzman, tube, eulerian, disk, water_air)]
     cases[-2].exact = cases[-1].exact = False
+    return cases + enriched_cases_2d(disk, water_air, cells)
+
+
+def enriched_cases_2d(disk: dict, water_air: dict, cells: int = 200) -> list[Case]:
+    """The paper's 2D enriched mixed cells on hard cases, with bubbles and with Nitsche:
+    water against air at 30° to an Eulerian mesh, the heavy disk struck by a shock, a column
+    of sliver cut cells (the interface 10⁻⁶ of a cell from a mesh line, two-gamma Sod along
+    its normal: exact, ``cells`` × 2/5 a side), and Noh's implosion through a circular
+    interface between two copies of its gas (a smoothed mesh, ``cells`` / 4 a side)."""
+    n = max(10, 2 * cells // 5)
+    sliver_column = {
+        "name": "sliver-column-2d", "description": "two-gamma Sod along x, the interface 1e-6 of a cell right of "
+        "a mesh line: a column of sliver cut cells (Eulerian)",
+        "dimension": 2, "t_end": 0.1,
+        "mesh": {"extent": [[0.0, 1.0], [0.0, 1.0]], "cells": n, "motion": "eulerian"},
+        "materials": {"left": {"eos": "ideal_gas", "gamma": 1.4}, "right": {"eos": "ideal_gas", "gamma": 1.667}},
+        "regions": [{"material": "right", "box": [[0.0, 1.0], [0.0, 1.0]], "density": 0.125, "pressure": 0.1},
+                    {"material": "left", "half_plane": {"point": [0.5 + 1e-6 / n, 0.5], "normal": [1.0, 0.0]},
+                     "density": 1.0, "pressure": 1.0}],
+    }
+    gas = {"eos": "ideal_gas", "gamma": 5.0 / 3.0}
+    inflow = {"density": 1.0, "pressure": 1e-6, "radial_velocity": {"center": [0.0, 0.0], "speed": -1.0}}
+    noh_interface = {
+        "name": "noh-interface-2d", "description": "Noh's implosion through a circular interface (r = 0.7 at t = 0, "
+        "met by the shock at t = 0.525) between two copies of the gas, on a smoothed mesh",
+        "dimension": 2, "t_end": 0.6,
+        "mesh": {"extent": [[0.0, 1.0], [0.0, 1.0]], "cells": max(8, cells // 4), "motion": "smoothed"},
+        "materials": {"gas": gas, "core": dict(gas)},
+        "regions": [{"material": "gas", "box": [[0.0, 1.0], [0.0, 1.0]], **inflow},
+                    {"material": "core", "disk": {"center": [0.0, 0.0], "radius": 0.7}, **inflow}],
+        "boundaries": {"left": "wall", "bottom": "wall", "right": "free", "top": "free"},
+    }
+    cases = []
+    for base, exact in ((water_air, False), (disk, False), (sliver_column, True), (noh_interface, False)):
+        for stabilisation in ("bubble", "nitsche"):
+            name = base["name"].removesuffix("-2d") + f"-enriched-{stabilisation}"
+            data = {**base, "name": name, "description": base["description"].split(" (single-velocity")[0]
+                    + f"; enriched mixed cells ({stabilisation})",
+                    "interface": {"model": "enriched", "stabilisation": stabilisation}}
+            cases.append(Case(name, data["description"], data, data["mesh"]["cells"], exact=exact, refinement=2))
     return cases
 
 
