@@ -82,6 +82,10 @@ def _parser() -> argparse.ArgumentParser:
                        help="time per step by phase (explicit, mixed-cell solve, remap) with and "
                             "without an enriched interface, at 1000 and 100000 cells (or --cells); the cases "
                             "run in turn in three rounds, ratios are the median of the rounds'")
+    bench.add_argument("--enriched", action="store_true",
+                       help="what 2D enriched mixed cells (bubbles, Nitsche) cost over one velocity field: the "
+                            "sheared tube, Eulerian, 100 × 100 and 200 × 200 (or --cells N,M: N × N, M × M), "
+                            "time per step by phase")
     bench.add_argument("--peers", action="store_true",
                        help="Sod's tube: PyClaw's second-order solver against our Lagrangian and enriched "
                             "runs, 100 ... 3200 cells (`make bench-peers` installs PyClaw)")
@@ -198,7 +202,11 @@ def _bench(args) -> int:
     except ValueError:
         print(f"error: --cells = {args.cells!r}: comma-separated positive integers", file=sys.stderr)
         return EXIT_BAD_INPUT
-    if args.phases and args.dimension == 2:
+    if args.enriched:
+        from ale_xfem.studies.bench import run_enriched_bench
+
+        run_enriched_bench(sizes if args.cells != "1000,10000,100000,1000000" else (100, 200))
+    elif args.phases and args.dimension == 2:
         from ale_xfem.studies.bench import run_phase_bench_2d
 
         run_phase_bench_2d(200 if args.cells == "1000,10000,100000,1000000" else sizes[0])

@@ -34,6 +34,7 @@ import basix
 import basix.ufl
 import dolfinx_solver  # noqa: F401  (before dolfinx: it loads MPI and PETSc)
 import dolfinx
+import numba
 import numpy as np
 import ufl
 
@@ -196,20 +197,51 @@ def bilinear_map(x, xi):
 
 def inverse_bilinear_map(x, points):
     """ξ (n, k, 2) of physical points (n, k, 2) in quadrilaterals with nodes x (n, 4, 2) in
-    tensor order, by Newton's method from the centre."""
+    tensor order, by Newton's method from the centre: every point takes the same number of
+    steps, until the largest step is below NEWTON_TOLERANCE (quadratic convergence: the next
+    one is round-off), at most NEWTON_STEPS."""
+    x = np.ascontiguousarray(x, dtype=float)
+    points = np.ascontiguousarray(points, dtype=float)
     xi = np.full(points.shape, 0.5)
-    for _ in range(NEWTON_STEPS):
-        mapped, jacobian = bilinear_map(x, xi)
-        residual = points - mapped
-        a, b = jacobian[..., 0, 0], jacobian[..., 0, 1]  # J = [[a, b], [c, d]] at each point,
-        c, d = jacobian[..., 1, 0], jacobian[..., 1, 1]  # solved in closed form
-        det = a * d - b * c
-        step = np.stack([d * residual[..., 0] - b * residual[..., 1],
-                         a * residual[..., 1] - c * residual[..., 0]], axis=-1) / det[..., None]
-        xi += step
-        if np.abs(step).max() < NEWTON_TOLERANCE:  # quadratic convergence: the next one is round-off
-            break
+    _newton_bilinear(x, points, xi, NEWTON_STEPS, NEWTON_TOLERANCE)
     return xi
+
+
+@numba.njit(cache=True)
+def _newton_bilinear(x, points, xi, steps, tolerance):  # pragma: no cover (compiled)
+    """Newton's method on the bilinear map, in place on ξ (n, k, 2), each operation in the
+    order of :func:`bilinear_map` (the results are those of its numpy form, bit for bit).
+    J = [[a, b], [c, d]] = [∂x/∂ξ, ∂x/∂η] at each point, solved in closed form."""
+    n, k = points.shape[0], points.shape[1]
+    step = np.empty((n, k, 2))
+    for _ in range(steps):
+        largest, failed = 0.0, False
+        for i in range(n):
+            x0, y0, x1, y1 = x[i, 0, 0], x[i, 0, 1], x[i, 1, 0], x[i, 1, 1]
+            x2, y2, x3, y3 = x[i, 2, 0], x[i, 2, 1], x[i, 3, 0], x[i, 3, 1]
+            for q in range(k):
+                s, t = xi[i, q, 0], xi[i, q, 1]
+                mx = x0 * (1 - s) * (1 - t) + x1 * s * (1 - t) + x2 * (1 - s) * t + x3 * s * t
+                my = y0 * (1 - s) * (1 - t) + y1 * s * (1 - t) + y2 * (1 - s) * t + y3 * s * t
+                a = (x1 - x0) * (1 - t) + (x3 - x2) * t
+                c = (y1 - y0) * (1 - t) + (y3 - y2) * t
+                b = (x2 - x0) * (1 - s) + (x3 - x1) * s
+                d = (y2 - y0) * (1 - s) + (y3 - y1) * s
+                rx, ry = points[i, q, 0] - mx, points[i, q, 1] - my
+                det = a * d - b * c
+                step[i, q, 0] = (d * rx - b * ry) / det
+                step[i, q, 1] = (a * ry - c * rx) / det
+        for i in range(n):
+            for q in range(k):
+                for j in range(2):
+                    xi[i, q, j] += step[i, q, j]
+                    size = abs(step[i, q, j])
+                    if size != size:  # NaN (a degenerate cell): numpy's max would be NaN too
+                        failed = True
+                    elif size > largest:
+                        largest = size
+        if not failed and largest < tolerance:
+            break
 
 
 def _triangle_jacobians(x):
