@@ -30,35 +30,59 @@ class BoundSystem:
     overridden by ``petsc_options``."""
 
     def __init__(self, compiled_bilinear, compiled_linear, space, mesh, coefficient_map,
-                 factor_solver: str | None = None, petsc_options: dict | None = None):
-        self.bilinear = dolfinx.fem.create_form(compiled_bilinear, [space, space], mesh, {}, coefficient_map, {})
-        self.linear = dolfinx.fem.create_form(compiled_linear, [space], mesh, {}, coefficient_map, {})
+                 factor_solver: str | None = None, petsc_options: dict | None = None, subdomains=None):
+        self._compiled = (compiled_bilinear, compiled_linear)
+        self._space, self._mesh, self._coefficients = space, mesh, coefficient_map
+        self.integrate_over(subdomains or {})
         self.matrix = dolfinx.fem.petsc.create_matrix(self.bilinear)
+        # PETSc keeps of the preallocated pattern only the entries its first assembly sets,
+        # and later assemblies over other cells could not add theirs: set them all now (the
+        # forms' values do not matter, only where they are)
+        dolfinx.fem.petsc.assemble_matrix(self.matrix, self.bilinear)
+        self.matrix.assemble()
         self.vector = dolfinx.fem.petsc.create_vector(space)
         self.solution = self.matrix.createVecRight()
         self.residual = self.matrix.createVecRight()
         self.correction = self.matrix.createVecRight()
-        self.solver = PETSc.KSP().create(mesh.comm)
+        self._factor_solver, self._petsc_options = factor_solver, dict(petsc_options or {})
+        self.solver, self._operator_size, self._options = None, None, []
+        self._make_solver()
+
+    def _make_solver(self) -> None:
+        """A new KSP (a factorisation cannot change its operator's size: a new one when the
+        constrained system's size changes) with the system's options."""
+        if self.solver is not None:
+            self.solver.destroy()
+        self.solver = PETSc.KSP().create(self._mesh.comm)
         self.solver.setOperators(self.matrix)
         self.solver.setType("preonly")
         self.solver.getPC().setType("lu")
-        if factor_solver is not None:
-            self.solver.getPC().setFactorSolverType(factor_solver)
+        if self._factor_solver is not None:
+            self.solver.getPC().setFactorSolverType(self._factor_solver)
         # the options stay in PETSc's database until the first solve has read them (a
         # factorisation reads its own at set-up), then leave it
         self._options = []
-        if petsc_options:
+        if self._petsc_options:
             prefix = f"ale_xfem_system_{next(_PREFIXES)}_"
             self.solver.setOptionsPrefix(prefix)
             database = PETSc.Options()
-            for key, value in petsc_options.items():
+            for key, value in self._petsc_options.items():
                 database[prefix + key] = value
                 self._options.append(prefix + key)
             try:
                 self.solver.setFromOptions()
             except PETSc.Error as error:
                 self._forget_options()
-                raise RuntimeError(f"PETSc options {dict(petsc_options)}: {petsc_reason(error)}") from None
+                raise RuntimeError(f"PETSc options {self._petsc_options}: {petsc_reason(error)}") from None
+
+    def integrate_over(self, subdomains) -> None:
+        """(Re-)create the forms over ``subdomains`` (dolfinx.fem.create_form's: integral type
+        → [(id, entities)]) — without compiling; the matrix keeps the pattern of the forms the
+        system was created with, which must cover them."""
+        bilinear, linear = self._compiled
+        space, mesh, coefficients = self._space, self._mesh, self._coefficients
+        self.bilinear = dolfinx.fem.create_form(bilinear, [space, space], mesh, subdomains, coefficients, {})
+        self.linear = dolfinx.fem.create_form(linear, [space], mesh, subdomains, coefficients, {})
 
     def assemble(self):
         """Assemble the matrix and the forms' right side; returns the right side's array
@@ -92,6 +116,9 @@ class BoundSystem:
         return self.solution.getArray()
 
     def _solve(self, operator, right, solution, residual, correction, what: str) -> None:
+        if self._operator_size is not None and operator.getSize() != self._operator_size:
+            self._make_solver()
+        self._operator_size = operator.getSize()
         self.solver.setOperators(operator)
         try:
             self.solver.solve(right, solution)

@@ -186,13 +186,26 @@ class CutQuadrature:
 
 def bilinear_map(x, xi):
     """The bilinear map of quadrilaterals with nodes x (n, 4, 2) in tensor order, at ξ (n,
-    k, 2): (positions (n, k, 2), Jacobians (n, k, 2, 2))."""
-    s, t = xi[..., 0, None], xi[..., 1, None]
-    x0, x1, x2, x3 = (x[:, None, i] for i in range(4))
-    mapped = x0 * (1 - s) * (1 - t) + x1 * s * (1 - t) + x2 * (1 - s) * t + x3 * s * t
-    d_s = (x1 - x0) * (1 - t) + (x3 - x2) * t
-    d_t = (x2 - x0) * (1 - s) + (x3 - x1) * s
-    return mapped, np.stack([d_s, d_t], axis=-1)
+    k, 2): (positions (n, k, 2), Jacobians (n, k, 2, 2), columns ∂x/∂ξ, ∂x/∂η)."""
+    x = np.ascontiguousarray(x, dtype=float)
+    xi = np.ascontiguousarray(xi, dtype=float)
+    mapped = np.empty(xi.shape)
+    jacobian = np.empty(xi.shape + (2,))
+    _bilinear(x, xi, mapped, jacobian)
+    return mapped, jacobian
+
+
+@numba.njit(cache=True)
+def _bilinear(x, xi, mapped, jacobian):  # pragma: no cover (compiled)
+    """x(ξ) = x₀(1−s)(1−t) + x₁s(1−t) + x₂(1−s)t + x₃st and its Jacobian at every point."""
+    for i in range(xi.shape[0]):
+        for q in range(xi.shape[1]):
+            s, t = xi[i, q, 0], xi[i, q, 1]
+            for d in range(2):
+                x0, x1, x2, x3 = x[i, 0, d], x[i, 1, d], x[i, 2, d], x[i, 3, d]
+                mapped[i, q, d] = x0 * (1 - s) * (1 - t) + x1 * s * (1 - t) + x2 * (1 - s) * t + x3 * s * t
+                jacobian[i, q, d, 0] = (x1 - x0) * (1 - t) + (x3 - x2) * t
+                jacobian[i, q, d, 1] = (x2 - x0) * (1 - s) + (x3 - x1) * s
 
 
 def inverse_bilinear_map(x, points):

@@ -74,6 +74,8 @@ SLIPS = ("free", "stick")
 # quadrilateral (its ∇·(b n) |det J| is of degree ≤ 3 in each of ξ, η: the cut rules are exact)
 BUBBLE_DEGREE = {"interval": 2, "triangle": 3, "quadrilateral": 2}
 
+# the subdomain id of the forms' integrals: the cells of the bound submesh that are mixed now
+ACTIVE = 1
 _MATERIAL_COEFFICIENTS = ("mass", "part", "edge_flux", "compliance", "offset", "ghost")
 _CELL_COEFFICIENTS = ("normal", "interface", "weight", "penalty")
 
@@ -147,8 +149,9 @@ class InterfaceForms:
 
         trial, test = ufl.TrialFunctions(space), ufl.TestFunctions(space)
         n = c["normal"]
-        lumped = ufl.dx(scheme="vertex", degree=1)
-        cut = ufl.dx(metadata={"quadrature_degree": rule_degree, "quadrature_scheme": "default"})
+        # every integral is over the cells made active (InterfaceSystem.activate)
+        lumped = ufl.dx(ACTIVE, scheme="vertex", degree=1)
+        cut = ufl.dx(ACTIVE, metadata={"quadrature_degree": rule_degree, "quadrature_scheme": "default"})
 
         def unpack(functions):
             u1 = list(functions[:2])
@@ -239,10 +242,13 @@ class InterfaceForms:
 
 
 class InterfaceSystem:
-    """The forms of :class:`InterfaceForms` bound to the mixed cells ``cells`` of a mesh of
-    their cell type (their submesh), assembled and solved with PETSc; matrix, vectors and KSP are
-    created here once and refilled at every solve.  ``petsc_options``: the KSP and PC
-    settings (default: a direct LU solve by MUMPS)."""
+    """The forms of :class:`InterfaceForms` bound to the cells ``cells`` of a mesh of their
+    cell type (their submesh: a band around the interface), assembled and solved with PETSc
+    over the band's cells made *active* (:meth:`activate`; at construction all of them);
+    matrix, vectors and KSP are created here once and refilled at every solve, the forms
+    are re-created (not compiled) at each activation.  Per-cell inputs and outputs are over
+    the active cells in the order given to :meth:`activate`.  ``petsc_options``: the KSP and
+    PC settings (default: a direct LU solve by MUMPS)."""
 
     def __init__(self, mesh, cells, forms: InterfaceForms, petsc_options: dict | None = None):
         self.forms = forms
@@ -253,10 +259,10 @@ class InterfaceSystem:
         self.submesh, entity_map, _, geometry_map = dolfinx.mesh.create_submesh(mesh, tdim, cells)
         sub = self.submesh
         n_sub = sub.topology.index_map(tdim).size_local
-        parent = entity_map.sub_topology_to_topology(np.arange(n_sub, dtype=np.int32), inverse=False)
-        order = np.argsort(cells)
-        # submesh cell s is the input_index[s]-th of ``cells``
-        self.input_index = order[np.searchsorted(cells[order], parent)]
+        # the parent cell of each submesh cell
+        self.parent_cell = np.asarray(entity_map.sub_topology_to_topology(np.arange(n_sub, dtype=np.int32),
+                                                                          inverse=False), dtype=np.int64)
+        self._sub_order = np.argsort(self.parent_cell)
         self.geometry_map = np.asarray(geometry_map)
         self.sub_nodes = np.asarray(sub.geometry.dofmaps[0])  # (n_sub, k) submesh geometry nodes
         self.parent_nodes = self.geometry_map[self.sub_nodes]  # (n_sub, k) parent node of each vertex
@@ -283,18 +289,19 @@ class InterfaceSystem:
         functions["penalty"] = dolfinx.fem.Function(DG0)
         self.functions = functions
         coefficient_map = {forms.coefficients[name]: functions[name] for name in forms.coefficients}
-        # the dissipated work's forms, on the velocities ū put in ``ubar``
+        # the dissipated work's forms, on the velocities ū put in ``ubar`` (created at activation)
         self.ubar = [dolfinx.fem.Function(V1) for _ in range(2)]
         work_map = dict(coefficient_map)
         work_map.update({forms.work_coefficients[f"ubar_{side}"]: self.ubar[m] for m, side in enumerate("ab")})
+        self._work_maps = [{coefficient: function for coefficient, function in work_map.items()
+                            if coefficient in compiled.ufl_form.coefficients()} for compiled in forms.work]
+        self._DG0 = DG0
         self.work_forms = []
-        for compiled in forms.work:
-            used = {coefficient: function for coefficient, function in work_map.items()
-                    if coefficient in compiled.ufl_form.coefficients()}
-            self.work_forms.append(dolfinx.fem.create_form(compiled, [DG0], sub, {}, used, {}))
-        # MUMPS: it pivots where the multiplier rows have no diagonal (PETSc's own LU does not)
+        # MUMPS: it pivots where the multiplier rows have no diagonal (PETSc's own LU does not);
+        # the matrix's pattern is the whole band's
         self.system = BoundSystem(forms.bilinear, forms.linear, self.space, sub, coefficient_map,
-                                  factor_solver="mumps", petsc_options=petsc_options)
+                                  factor_solver="mumps", petsc_options=petsc_options,
+                                  subdomains=self._subdomains(np.arange(n_sub)))
         # the parent node of each velocity block (submesh vertex) of the collapsed P1 spaces,
         # and the cell dofs of the DG spaces, in submesh cell order
         V1_cells = np.asarray(V1.dofmap.list)
@@ -313,21 +320,47 @@ class InterfaceSystem:
         self._dg0v = np.asarray(DG0v.dofmap.list)[:, 0]
         self._dg1v = np.asarray(DG1v.dofmap.list)  # (n_sub, 3) blocks of each cell's vertices
         k = 4 if forms.bubbles else 2
-        self.pressure_dofs = [self.maps[k][self._dg0], self.maps[k + 1][self._dg0]]
+        self.pressure_dofs = [self.maps[k][self._dg0], self.maps[k + 1][self._dg0]]  # per submesh cell
         self.bubble_dofs = None
-        if forms.bubbles:
-            self.bubble_dofs = [self.maps[2 + m] for m in range(2)]
+        if forms.bubbles:  # each material's bubble dof of each submesh cell
+            self.bubble_dofs = [self.maps[2 + m][np.asarray(collapsed[2 + m][0].dofmap.list)[:, 0]]
+                                for m in range(2)]
         self.multiplier_dofs = None
         if forms.multiplier:
             block = self.maps[k + 2]
             self.multiplier_dofs = block.reshape(-1, 2)[self._dg0v] if forms.slip == "stick" else block[self._dg0]
         self.vertex_area = None
         self._vertex_permutation = None
+        self.activate(cells)
+
+    def _subdomains(self, active):
+        return {dolfinx.fem.IntegralType.cell: [(ACTIVE, np.sort(np.asarray(active, dtype=np.int32)))]}
+
+    def activate(self, cells) -> None:
+        """Integrate over ``cells`` (parent cells, all in the band) only: the forms are
+        re-created over them (nothing compiles), and every per-cell input and output is over
+        them in this order from now on.  Call :meth:`vertex_order` after it."""
+        cells = np.asarray(cells, dtype=np.int64)
+        where = np.searchsorted(self.parent_cell, cells, sorter=self._sub_order)
+        sub = self._sub_order[np.minimum(where, self.parent_cell.size - 1)]
+        found = (where < self.parent_cell.size) & (self.parent_cell[sub] == cells)
+        if not np.all(found):
+            raise ValueError(f"InterfaceSystem.activate: cells {cells[~found][:5].tolist()} are not in the "
+                             "bound band")
+        order = np.argsort(sub)
+        # the active submesh cells in submesh order, and the input index of each
+        self.active, self.input_index = sub[order], order
+        subdomains = self._subdomains(self.active)
+        self.system.integrate_over(subdomains)
+        self.work_forms = [dolfinx.fem.create_form(compiled, [self._DG0], self.submesh, subdomains, used, {})
+                           for compiled, used in zip(self.forms.work, self._work_maps)]
+        self._active_parent = self.velocity_parent[np.unique(self._velocity_cells[self.active])]
+        self._vertex_permutation = None
 
     @property
     def nodes(self) -> np.ndarray:
-        """The parent nodes of the mixed cells (each once), in velocity-block order."""
-        return self.velocity_parent
+        """The parent nodes of the active cells (each once)."""
+        return self._active_parent
 
     def set_geometry(self, parts, start, end, edge_flux, normal) -> None:
         """Bind the cut geometry, each array over the mixed cells in the order given at
@@ -338,32 +371,31 @@ class InterfaceSystem:
         if self._vertex_permutation is None:
             raise RuntimeError("InterfaceSystem.set_geometry: call vertex_order first (the order of the "
                                "vertices of edge_flux)")
-        n_sub = self.input_index.size
-        take = self.input_index
-        everything = np.arange(n_sub)
+        n = self.input_index.size
+        take, active = self.input_index, self.active
         for m in range(2):
-            self.parts[m].set_part_polygons(np.zeros(0, dtype=np.int64), everything, parts[m][take])
-        self.interface.set_interface_segments(everything, start[take], end[take])
+            self.parts[m].set_part_polygons(np.zeros(0, dtype=np.int64), active, parts[m][take])
+        self.interface.set_interface_segments(active, start[take], end[take])
         gdim = self.gdim
-        weights = self._vertex_weights()  # the vertex rule's weight of each vertex
+        weights = self._vertex_weights()[active]  # the vertex rule's weight of each vertex
         for m, side in enumerate("ab"):
             values = self.functions[f"edge_flux_{side}"].x.array.reshape(-1, gdim)
-            flux = edge_flux[m][take][np.arange(n_sub)[:, None], self._vertex_permutation]  # (n_sub, k, gdim)
+            flux = edge_flux[m][take][np.arange(n)[:, None], self._vertex_permutation]  # (n, k, gdim)
             # the DG1 dofs of a cell follow its geometry nodes' order (P1 / Q1 alike)
-            values[self._dg1v.ravel()] = (flux / weights[..., None]).reshape(-1, gdim)
-        self.functions["normal"].x.array.reshape(-1, gdim)[self._dg0v] = normal[take]
+            values[self._dg1v[active].ravel()] = (flux / weights[..., None]).reshape(-1, gdim)
+        self.functions["normal"].x.array.reshape(-1, gdim)[self._dg0v[active]] = normal[take]
 
     def vertex_order(self, parent_cell_nodes) -> None:
         """The parent nodes of each mixed cell (n, k) in the order per-vertex inputs use;
         records how the submesh's vertices permute them."""
-        given = np.asarray(parent_cell_nodes)[self.input_index]  # (n_sub, k)
-        self._vertex_permutation = np.argmax(self.parent_nodes[:, :, None] == given[:, None, :], axis=2)
+        given = np.asarray(parent_cell_nodes)[self.input_index]  # (n, k), active cells in submesh order
+        self._vertex_permutation = np.argmax(self.parent_nodes[self.active][:, :, None] == given[:, None, :], axis=2)
 
     def set_ghost(self, ghost) -> None:
         """Per mixed cell (construction order): ghost (2, n), the weight of each material's
         strain-rate penalty over the other material's part (0: none, the default)."""
         for m, side in enumerate("ab"):
-            self.functions[f"ghost_{side}"].x.array[self._dg0] = ghost[m][self.input_index]
+            self.functions[f"ghost_{side}"].x.array[self._dg0[self.active]] = ghost[m][self.input_index]
 
     def set_materials(self, compliance, offset, weight=None, penalty=None) -> None:
         """Per mixed cell (construction order): compliance (2, n) g_m = −1/(D_m dt V_m),
@@ -371,12 +403,13 @@ class InterfaceSystem:
         take = self.input_index
         if self.forms.stabilisation == "nitsche" and (weight is None or penalty is None):
             raise ValueError("set_materials: the Nitsche system needs its weight and penalty (nitsche_weights)")
+        dofs = self._dg0[self.active]
         for m, side in enumerate("ab"):
-            self.functions[f"compliance_{side}"].x.array[self._dg0] = compliance[m][take]
-            self.functions[f"offset_{side}"].x.array[self._dg0] = offset[m][take]
+            self.functions[f"compliance_{side}"].x.array[dofs] = compliance[m][take]
+            self.functions[f"offset_{side}"].x.array[dofs] = offset[m][take]
         if weight is not None:
-            self.functions["weight"].x.array[self._dg0] = weight[take]
-            self.functions["penalty"].x.array[self._dg0] = penalty[take]
+            self.functions["weight"].x.array[dofs] = weight[take]
+            self.functions["penalty"].x.array[dofs] = penalty[take]
 
     def solve(self, mass, rhs, tied=None, sliding=None, tie_normal=None):
         """Assemble and solve.  mass[m], rhs[m]: (2, n_parent_nodes) per material — 4M/dt per
@@ -396,7 +429,7 @@ class InterfaceSystem:
                 array[self.velocity_block[m][:, d]] += rhs[m][d][self.block_parent[m]]
         # Massless bubbles and nearly massless external nodes weigh their rows by the parts'
         # small stiffness against masses of order 4M/dt: BoundSystem.solve refines
-        constraint = self._ties(tied, sliding, tie_normal)
+        constraint = self._constraint(tied, sliding, tie_normal)
         values = self.system.solve(array, "interface system", constraint)
         if constraint is not None:
             constraint.destroy()
@@ -406,14 +439,18 @@ class InterfaceSystem:
             velocity = np.zeros_like(rhs[m])
             velocity[:, self.block_parent[m]] = values[self.velocity_block[m]].T
             out["velocity"].append(velocity)
-            out["pressure"][m, self.input_index] = values[self.pressure_dofs[m]]
+            out["pressure"][m, self.input_index] = values[self.pressure_dofs[m][self.active]]
         if self.multiplier_dofs is not None:
             interface = np.empty(n)
             dofs = self.multiplier_dofs[:, 0] if self.multiplier_dofs.ndim == 2 else self.multiplier_dofs
-            interface[self.input_index] = values[dofs]
+            interface[self.input_index] = values[dofs[self.active]]
             out["interface_pressure"] = interface
         if self.bubble_dofs is not None:
-            out["bubble"] = [values[dofs] for dofs in self.bubble_dofs]
+            out["bubble"] = []
+            for dofs in self.bubble_dofs:
+                bubble = np.empty(n)
+                bubble[self.input_index] = values[dofs[self.active]]
+                out["bubble"].append(bubble)
         return out
 
     def dissipated_work(self, velocity) -> np.ndarray:
@@ -426,7 +463,7 @@ class InterfaceSystem:
         out = np.empty((len(self.work_forms), n))
         for row, form in enumerate(self.work_forms):
             vector = dolfinx.fem.assemble_vector(form)
-            out[row, self.input_index] = vector.array[self._dg0]
+            out[row, self.input_index] = vector.array[self._dg0[self.active]]
         return out
 
     def _set_mass(self, mass):
@@ -435,16 +472,19 @@ class InterfaceSystem:
         if self.vertex_area is None or self.vertex_area.size != self.velocity_parent.size:
             self.vertex_area = np.zeros(self.velocity_parent.size)
         self.vertex_area[:] = 0.0
-        np.add.at(self.vertex_area, self._velocity_cells.ravel(), self._vertex_weights().ravel())
+        np.add.at(self.vertex_area, self._velocity_cells[self.active].ravel(),
+                  self._vertex_weights()[self.active].ravel())
         for m, side in enumerate("ab"):
-            density = mass[m][:, self.velocity_parent] / self.vertex_area
+            density = np.divide(mass[m][:, self.velocity_parent], self.vertex_area,
+                                out=np.zeros((self.gdim, self.velocity_parent.size)), where=self.vertex_area > 0)
             self.functions[f"mass_{side}"].x.array.reshape(-1, self.gdim)[:] = density.T
 
-    def _ties(self, tied, sliding=None, tie_normal=None):
-        """The tied nodes (pure cells of both materials around them: no mixed cell carries an
-        interface there) move as one: their two velocities are one unknown — a PETSc matrix
-        C whose columns span the velocities allowed (:meth:`BoundSystem.solve`), or None
-        when no node is tied.  Under free slip in 2D a *sliding* tied node (Γ passes through
+    def _constraint(self, tied, sliding=None, tie_normal=None):
+        """The unknowns solved for, as a PETSc matrix C whose columns span them
+        (:meth:`BoundSystem.solve`; None: all of them): those of the active cells — the
+        inactive cells of the band carry no equation — with the tied nodes' velocities
+        joined.  The tied nodes (pure cells of both materials around them: no mixed cell
+        carries an interface there) move as one: their two velocities are one unknown.  Under free slip in 2D a *sliding* tied node (Γ passes through
         it between mixed cells, along no mesh edge) shares only the normal part, along the
         node's normal to Γ (``tie_normal``, default the mean of its mixed cells' normals):
         the materials still slide past it (a spinning disk whose rim runs through nodes
@@ -453,13 +493,23 @@ class InterfaceSystem:
         two normals) the whole velocity is one (a normal-only tie let a kink at rest move by
         0.01).  Exact, not a stiff spring: a spring 10⁸ times the inertia left a residual at
         the round-off of its diagonal, a force that moved momentum by 10⁻¹⁰ of M V."""
-        if tied is None or not np.any(tied[self.velocity_parent]):
+        nodes = np.zeros(0, dtype=np.int64) if tied is None else self._active_parent[tied[self._active_parent]]
+        if nodes.size == 0 and self.active.size == self.parent_cell.size:
             return None
         from petsc4py import PETSc
 
         gdim, blocks = self.gdim, self.velocity_block
         size = self.system.matrix.getSize()[0]
-        nodes = self.velocity_parent[tied[self.velocity_parent]]  # tied parent nodes, each once
+        active_node = np.zeros(self.velocity_parent.max() + 1, dtype=bool)
+        active_node[self._active_parent] = True
+        kept = np.zeros(size, dtype=bool)  # the active cells' unknowns
+        for m in range(2):
+            kept[blocks[m][active_node[self.block_parent[m]]].ravel()] = True
+            kept[self.pressure_dofs[m][self.active]] = True
+            if self.bubble_dofs is not None:
+                kept[self.bubble_dofs[m][self.active]] = True
+        if self.multiplier_dofs is not None:
+            kept[self.multiplier_dofs[self.active].ravel()] = True
         block = []
         for m in range(2):  # each material's velocity block of each tied node
             where = np.full(self.block_parent[m].max() + 1, -1, dtype=np.int64)
@@ -469,9 +519,8 @@ class InterfaceSystem:
         if self.forms.tie_normal and sliding is not None:
             slides = sliding[nodes]
         dof_a, dof_b = blocks[0][block[0]], blocks[1][block[1]]  # (n_tied, gdim)
-        constrained = np.zeros(size, dtype=bool)
-        constrained[dof_a.ravel()] = constrained[dof_b.ravel()] = True
-        free = np.flatnonzero(~constrained)
+        kept[dof_a.ravel()] = kept[dof_b.ravel()] = False  # joined below
+        free = np.flatnonzero(kept)
         rows, columns, values = [free], [np.arange(free.size)], [np.ones(free.size)]
         column = free.size
         whole = ~slides
@@ -507,11 +556,11 @@ class InterfaceSystem:
                                      comm=self.system.matrix.getComm())
 
     def _mean_normals(self):
-        """(n_parent_nodes, 2): the unit mean of the normals of the mixed cells around each
-        node (zero off the mixed cells)."""
-        normal = self.functions["normal"].x.array.reshape(-1, self.gdim)[self._dg0v]  # (n_sub, 2)
-        parents = self.parent_nodes.ravel()
-        total = np.zeros((parents.max() + 1, self.gdim))
+        """(n_parent_nodes, 2): the unit mean of the normals of the active cells around each
+        node (zero off them)."""
+        normal = self.functions["normal"].x.array.reshape(-1, self.gdim)[self._dg0v[self.active]]  # (n, 2)
+        parents = self.parent_nodes[self.active].ravel()
+        total = np.zeros((self.parent_nodes.max() + 1, self.gdim))
         np.add.at(total, parents, np.repeat(normal, self.parent_nodes.shape[1], axis=0))
         size = np.linalg.norm(total, axis=1)[:, None]
         return np.divide(total, size, out=np.zeros_like(total), where=size > 0)

@@ -295,14 +295,24 @@ def test_cut_integrals_on_intervals_are_exact():
     assert np.abs(point - expected_point).max() < 1e-13
 
 
+def _bilinear_in_numpy(x, xi):
+    """The oracle of the bilinear map (what the compiled kernel replaced)."""
+    s, t = xi[..., 0, None], xi[..., 1, None]
+    x0, x1, x2, x3 = (x[:, None, i] for i in range(4))
+    mapped = x0 * (1 - s) * (1 - t) + x1 * s * (1 - t) + x2 * (1 - s) * t + x3 * s * t
+    d_s = (x1 - x0) * (1 - t) + (x3 - x2) * t
+    d_t = (x2 - x0) * (1 - s) + (x3 - x1) * s
+    return mapped, np.stack([d_s, d_t], axis=-1)
+
+
 def _newton_in_numpy(x, points):
     """The oracle: the inverse bilinear map's Newton iteration written with numpy arrays (what
     the compiled kernel replaced), every point taking the same steps."""
-    from forms.cut_quadrature import NEWTON_STEPS, NEWTON_TOLERANCE, bilinear_map
+    from forms.cut_quadrature import NEWTON_STEPS, NEWTON_TOLERANCE
 
     xi = np.full(points.shape, 0.5)
     for _ in range(NEWTON_STEPS):
-        mapped, jacobian = bilinear_map(x, xi)
+        mapped, jacobian = _bilinear_in_numpy(x, xi)
         residual = points - mapped
         a, b = jacobian[..., 0, 0], jacobian[..., 0, 1]
         c, d = jacobian[..., 1, 0], jacobian[..., 1, 1]
@@ -315,9 +325,10 @@ def _newton_in_numpy(x, points):
     return xi
 
 
-def test_the_compiled_inverse_bilinear_map_is_the_numpy_one_bit_for_bit():
+def test_the_compiled_bilinear_map_and_its_inverse_are_the_numpy_ones_bit_for_bit():
     """Skewed, stretched and shifted quadrilaterals, points all over them: the compiled
-    Newton iteration gives the numpy iteration's ξ exactly, and maps back to the points."""
+    map and Jacobian, and the compiled Newton iteration, give the numpy ones' values exactly,
+    and ξ maps back to the points."""
     from forms.cut_quadrature import bilinear_map, inverse_bilinear_map
 
     rng = np.random.default_rng(3)
@@ -327,7 +338,9 @@ def test_the_compiled_inverse_bilinear_map_is_the_numpy_one_bit_for_bit():
          + rng.uniform(-50.0, 50.0, (n, 1, 2)))
     x[: n // 2] = unit[None] * 0.3 + rng.uniform(-0.1, 0.1, (n // 2, 4, 2))  # strongly skewed
     reference = rng.uniform(0.0, 1.0, (n, k, 2))
-    points = bilinear_map(x, reference)[0]
+    points, jacobian = bilinear_map(x, reference)
+    expected_points, expected_jacobian = _bilinear_in_numpy(x, reference)
+    assert np.array_equal(points, expected_points) and np.array_equal(jacobian, expected_jacobian)
     xi = inverse_bilinear_map(x, points)
     assert np.array_equal(xi, _newton_in_numpy(x, points))
     assert np.abs(xi - reference).max() < 1e-10

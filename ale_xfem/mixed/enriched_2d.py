@@ -53,6 +53,9 @@ from forms.enriched_interface import InterfaceForms, InterfaceSystem
 
 # the inertia 4M/dt of a held velocity component: the wall's or the piston's value wins
 HELD_INERTIA = 1e20
+# rings of cells around the mixed cells in the band the interface system is bound to: Γ can
+# move this many cells before the system is bound again
+BAND_RINGS = 2
 # the weight of the strain rate of a material's velocity over the other material's part of
 # a cut cell, relative to the inertia 4ρ|K|/dt of the cell's mass
 GHOST_VISCOSITY = 0.1
@@ -71,7 +74,7 @@ class EnrichedClosure2D(SharedClosure):
             raise ValueError("2D enriched mixed cells need exactly two materials")
         self.forms = InterfaceForms(mesh.dolfinx_mesh.comm, stabilisation, slip, mesh.cell_type.name)
         self.nitsche_penalty, self.petsc_options = nitsche_penalty, petsc_options
-        self.system, self._system_cells = None, None
+        self.system, self._system_cells, self._in_band = None, None, None
         self._last = None
         # the interface system speaks DOLFINx's numbering of nodes and cells (a structured
         # rectangle of quadrilaterals numbers its own row by row)
@@ -88,14 +91,34 @@ class EnrichedClosure2D(SharedClosure):
         return out
 
     def bind(self, mixed: MixedCells) -> None:
+        """The interface system over the mixed cells: bound to a band of cells around them
+        (BAND_RINGS rings of neighbours), made active on the mixed cells only; a new band
+        only when a mixed cell leaves it (binding a submesh costs more than a step's solves)."""
         super().bind(mixed)
         mixed.stats.setdefault("volume_mismatch", 0.0)
+        mixed.stats.setdefault("bands", 0)
         if self._system_cells is None or not np.array_equal(self._system_cells, mixed.cells):
             mesh = self.mesh
-            cells = mixed.cells if mesh.dolfinx_cell is None else mesh.dolfinx_cell[mixed.cells]
-            self.system = InterfaceSystem(mesh.dolfinx_mesh, cells, self.forms, self.petsc_options)
+            dolfinx_cell = (lambda c: c) if mesh.dolfinx_cell is None else (lambda c: mesh.dolfinx_cell[c])
+            if self.system is None or not np.all(self._in_band[mixed.cells]):
+                self._in_band = self._band(mixed.cells)
+                band = np.flatnonzero(self._in_band)
+                self.system = InterfaceSystem(mesh.dolfinx_mesh, dolfinx_cell(band), self.forms, self.petsc_options)
+                mixed.stats["bands"] += 1
+            self.system.activate(dolfinx_cell(mixed.cells))
             self.system.vertex_order(self.dolfinx_node[mesh.cell_nodes[mixed.cells]])
             self._system_cells = mixed.cells.copy()
+
+    def _band(self, cells) -> np.ndarray:
+        """(n_cells,) bool: ``cells`` and BAND_RINGS rings of cells around them (sharing a node)."""
+        cell_nodes = self.mesh.cell_nodes
+        band = np.zeros(cell_nodes.shape[0], dtype=bool)
+        band[cells] = True
+        for _ in range(BAND_RINGS):
+            near = np.zeros(self.mesh.n_nodes, dtype=bool)
+            near[cell_nodes[band]] = True
+            band = near[cell_nodes].any(axis=1)
+        return band
 
     # -- the implicit solve ---------------------------------------------------------------
 
