@@ -46,6 +46,7 @@ class BoundSystem:
         self.correction = self.matrix.createVecRight()
         self._factor_solver, self._petsc_options = factor_solver, dict(petsc_options or {})
         self.solver, self._operator_size, self._options = None, None, []
+        self._reduced, self._constraint = (), None
         self._make_solver()
 
     def _make_solver(self) -> None:
@@ -100,20 +101,31 @@ class BoundSystem:
         REFINEMENTS rounds of iterative refinement; returns the solution's array.  ``what``
         names the system in the error of a failed factorisation.  ``constraint``: a PETSc
         matrix C (n × r) whose columns span the admissible solutions, x = C y (unknowns
-        that must be equal, exactly): the system solved is Cᵀ A C y = Cᵀ b."""
+        that must be equal, exactly): the system solved is Cᵀ A C y = Cᵀ b.
+        The same ``constraint`` object as the last solve's reuses the reduced matrix and its
+        factorisation's analysis (only the values are new)."""
         self.vector.setArray(right_side)
         if constraint is None:
             self._solve(self.matrix, self.vector, self.solution, self.residual, self.correction, what)
             return self.solution.getArray()
-        reduced = self.matrix.PtAP(constraint)
-        right = constraint.createVecRight()
+        if constraint is self._constraint:
+            self.matrix.PtAP(constraint, result=self._reduced[0])
+        else:
+            self._forget_reduced()
+            reduced = self.matrix.PtAP(constraint)
+            right = constraint.createVecRight()
+            self._reduced = (reduced, right, right.duplicate(), right.duplicate(), right.duplicate())
+            self._constraint = constraint
+        reduced, right, solution, residual, correction = self._reduced
         constraint.multTranspose(self.vector, right)
-        solution, residual, correction = right.duplicate(), right.duplicate(), right.duplicate()
         self._solve(reduced, right, solution, residual, correction, what)
         constraint.mult(solution, self.solution)
-        for thing in (reduced, right, solution, residual, correction):
-            thing.destroy()
         return self.solution.getArray()
+
+    def _forget_reduced(self) -> None:
+        for thing in self._reduced:
+            thing.destroy()
+        self._reduced, self._constraint = (), None
 
     def _solve(self, operator, right, solution, residual, correction, what: str) -> None:
         if self._operator_size is not None and operator.getSize() != self._operator_size:

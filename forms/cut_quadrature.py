@@ -147,15 +147,11 @@ class CutQuadrature:
         triangles from its first vertex, a POLYGON_RULE rule on each (exact on
         triangles, where the integrand is a polynomial; on quadrilaterals the integrand is
         smooth and the rule converges to round-off: measured in tests/test_cut_quadrature.py)."""
-        physical, weights = fan_quadrature(polygons, POLYGON_RULE[self.cell_name])
-        x = self.cell_vertices(cells)
-        xi = self.reference_coordinates(cells, physical)
-        if self.cell_name == "triangle":
-            det = _triangle_jacobians(x)[:, None]
-        else:
-            det = np.abs(np.linalg.det(bilinear_map(x, xi)[1]))
-        scale = weights / det
-        return np.stack([np.sum(xi[..., 0] ** a * xi[..., 1] ** b * scale, axis=1) for a, b in self.exponents], axis=1)
+        points, weights = basix.make_quadrature(basix.CellType.triangle, POLYGON_RULE[self.cell_name])
+        x = np.ascontiguousarray(self.cell_vertices(cells))
+        return _fan_moments(x, np.ascontiguousarray(polygons, dtype=float), points, weights,
+                            np.asarray(self.exponents, dtype=np.int64), self.cell_name == "quadrilateral",
+                            NEWTON_STEPS, NEWTON_TOLERANCE)
 
     def _fill(self, full_cells, cut_cells, moments, with_jacobian: bool, record: bool = True) -> None:
         """ratio = ω/w (parts) or ν/(w |det J|) (the interface), ω fitted to ``moments``."""
@@ -257,22 +253,73 @@ def _newton_bilinear(x, points, xi, steps, tolerance):  # pragma: no cover (comp
             break
 
 
+@numba.njit(cache=True)
+def reference_point(x, px, py, steps, tolerance):  # pragma: no cover (compiled)
+    """(ξ, η) of the physical point (px, py) in the quadrilateral with nodes x (4, 2) in
+    tensor order: Newton's method from the centre, until its step is below ``tolerance``
+    (at most ``steps``) — the iteration of :func:`inverse_bilinear_map`, point by point."""
+    x0, y0, x1, y1 = x[0, 0], x[0, 1], x[1, 0], x[1, 1]
+    x2, y2, x3, y3 = x[2, 0], x[2, 1], x[3, 0], x[3, 1]
+    s, t = 0.5, 0.5
+    for _ in range(steps):
+        mx = x0 * (1 - s) * (1 - t) + x1 * s * (1 - t) + x2 * (1 - s) * t + x3 * s * t
+        my = y0 * (1 - s) * (1 - t) + y1 * s * (1 - t) + y2 * (1 - s) * t + y3 * s * t
+        a = (x1 - x0) * (1 - t) + (x3 - x2) * t
+        c = (y1 - y0) * (1 - t) + (y3 - y2) * t
+        b = (x2 - x0) * (1 - s) + (x3 - x1) * s
+        d = (y2 - y0) * (1 - s) + (y3 - y1) * s
+        rx, ry = px - mx, py - my
+        det = a * d - b * c
+        ds, dt = (d * rx - b * ry) / det, (a * ry - c * rx) / det
+        s += ds
+        t += dt
+        if abs(ds) < tolerance and abs(dt) < tolerance:
+            break
+    return s, t
+
+
+@numba.njit(cache=True)
+def _fan_moments(x, polygons, points, weights, exponents, quadrilateral, steps, tolerance):  # pragma: no cover
+    """(n, e): ∫_polygon ξ^a η^b / |det J| dx over each polygon (n, m, 2) fanned from its
+    first vertex into triangles, the reference triangle's rule ``points``, ``weights`` on
+    each; ξ of the cell with nodes x (n, k, 2) (tensor order on quadrilaterals)."""
+    n, m, e = polygons.shape[0], polygons.shape[1], exponents.shape[0]
+    out = np.zeros((n, e))
+    for i in range(n):
+        if quadrilateral:
+            det = 0.0
+        else:  # the affine map's inverse and |det J|
+            ax, ay = x[i, 1, 0] - x[i, 0, 0], x[i, 1, 1] - x[i, 0, 1]
+            bx, by = x[i, 2, 0] - x[i, 0, 0], x[i, 2, 1] - x[i, 0, 1]
+            det = ax * by - ay * bx
+        for j in range(1, m - 1):
+            e1x, e1y = polygons[i, j, 0] - polygons[i, 0, 0], polygons[i, j, 1] - polygons[i, 0, 1]
+            e2x, e2y = polygons[i, j + 1, 0] - polygons[i, 0, 0], polygons[i, j + 1, 1] - polygons[i, 0, 1]
+            area = abs(e1x * e2y - e1y * e2x)
+            if area == 0.0:
+                continue
+            for q in range(points.shape[0]):
+                px = polygons[i, 0, 0] + points[q, 0] * e1x + points[q, 1] * e2x
+                py = polygons[i, 0, 1] + points[q, 0] * e1y + points[q, 1] * e2y
+                if quadrilateral:
+                    s, t = reference_point(x[i], px, py, steps, tolerance)
+                    jx = (x[i, 1, 0] - x[i, 0, 0]) * (1 - t) + (x[i, 3, 0] - x[i, 2, 0]) * t
+                    jy = (x[i, 1, 1] - x[i, 0, 1]) * (1 - t) + (x[i, 3, 1] - x[i, 2, 1]) * t
+                    kx = (x[i, 2, 0] - x[i, 0, 0]) * (1 - s) + (x[i, 3, 0] - x[i, 1, 0]) * s
+                    ky = (x[i, 2, 1] - x[i, 0, 1]) * (1 - s) + (x[i, 3, 1] - x[i, 1, 1]) * s
+                    jacobian = abs(jx * ky - kx * jy)
+                else:
+                    dx, dy = px - x[i, 0, 0], py - x[i, 0, 1]
+                    s = (dx * by - dy * bx) / det
+                    t = (ax * dy - ay * dx) / det
+                    jacobian = abs(det)
+                weight = area * weights[q] / jacobian
+                for r in range(e):
+                    out[i, r] += weight * s ** exponents[r, 0] * t ** exponents[r, 1]
+    return out
+
+
 def _triangle_jacobians(x):
     """|det J| of triangles with nodes x (n, 3, 2)."""
     e1, e2 = x[:, 1] - x[:, 0], x[:, 2] - x[:, 0]
     return np.abs(e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
-
-
-def fan_quadrature(polygons, degree: int):
-    """Points (n, q, 2) and physical weights (n, q) integrating over polygons (n, m, 2)
-    (padding vertices allowed): each fanned into triangles from its first vertex, a
-    degree-``degree`` rule on each."""
-    points, weights = basix.make_quadrature(basix.CellType.triangle, degree)
-    polygons = np.asarray(polygons, dtype=float)
-    first = polygons[:, :1]
-    e1, e2 = polygons[:, 1:-1] - first, polygons[:, 2:] - first  # (n, m − 2, 2): the fan's triangles
-    area = np.abs(e1[..., 0] * e2[..., 1] - e1[..., 1] * e2[..., 0])  # twice each triangle's area
-    physical = (first[:, :, None, :] + points[None, None, :, 0, None] * e1[:, :, None, :]
-                + points[None, None, :, 1, None] * e2[:, :, None, :])  # (n, m − 2, q, 2)
-    n = polygons.shape[0]
-    return physical.reshape(n, -1, 2), (area[..., None] * weights[None, None, :]).reshape(n, -1)

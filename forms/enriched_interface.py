@@ -356,6 +356,7 @@ class InterfaceSystem:
                            for compiled, used in zip(self.forms.work, self._work_maps)]
         self._active_parent = self.velocity_parent[np.unique(self._velocity_cells[self.active])]
         self._vertex_permutation = None
+        self._unknowns = None
 
     @property
     def nodes(self) -> np.ndarray:
@@ -384,6 +385,7 @@ class InterfaceSystem:
             # the DG1 dofs of a cell follow its geometry nodes' order (P1 / Q1 alike)
             values[self._dg1v[active].ravel()] = (flux / weights[..., None]).reshape(-1, gdim)
         self.functions["normal"].x.array.reshape(-1, gdim)[self._dg0v[active]] = normal[take]
+        self._unknowns = None  # (a sliding tie follows the normals)
 
     def vertex_order(self, parent_cell_nodes) -> None:
         """The parent nodes of each mixed cell (n, k) in the order per-vertex inputs use;
@@ -429,10 +431,15 @@ class InterfaceSystem:
                 array[self.velocity_block[m][:, d]] += rhs[m][d][self.block_parent[m]]
         # Massless bubbles and nearly massless external nodes weigh their rows by the parts'
         # small stiffness against masses of order 4M/dt: BoundSystem.solve refines
-        constraint = self._constraint(tied, sliding, tie_normal)
-        values = self.system.solve(array, "interface system", constraint)
-        if constraint is not None:
-            constraint.destroy()
+        # the same unknowns over a step's iterations (the same matrix C: the factorisation's
+        # analysis is reused); new ones after set_geometry or activate
+        key = (None if tied is None else tied.tobytes(), None if sliding is None else sliding.tobytes(),
+               None if tie_normal is None else tie_normal.tobytes())
+        if self._unknowns is None or self._unknowns[0] != key:
+            if self._unknowns is not None and self._unknowns[1] is not None:
+                self._unknowns[1].destroy()
+            self._unknowns = (key, self._constraint(tied, sliding, tie_normal))
+        values = self.system.solve(array, "interface system", self._unknowns[1])
         n = self.input_index.size
         out = {"velocity": [], "pressure": np.empty((2, n))}
         for m in range(2):

@@ -344,3 +344,89 @@ def test_the_compiled_bilinear_map_and_its_inverse_are_the_numpy_ones_bit_for_bi
     xi = inverse_bilinear_map(x, points)
     assert np.array_equal(xi, _newton_in_numpy(x, points))
     assert np.abs(xi - reference).max() < 1e-10
+
+
+def _fan_in_numpy(polygons, degree):
+    """The oracle's fan quadrature: points (n, q, 2) and physical weights (n, q) over
+    polygons (n, m, 2) fanned from their first vertex."""
+    import basix
+
+    points, weights = basix.make_quadrature(basix.CellType.triangle, degree)
+    first = polygons[:, :1]
+    e1, e2 = polygons[:, 1:-1] - first, polygons[:, 2:] - first
+    area = np.abs(e1[..., 0] * e2[..., 1] - e1[..., 1] * e2[..., 0])
+    physical = (first[:, :, None, :] + points[None, None, :, 0, None] * e1[:, :, None, :]
+                + points[None, None, :, 1, None] * e2[:, :, None, :])
+    n = polygons.shape[0]
+    return physical.reshape(n, -1, 2), (area[..., None] * weights[None, None, :]).reshape(n, -1)
+
+
+def _part_integrals_in_numpy(vertices, polygons, degree):
+    """The oracle of ∫_part ψ_i and ∫_part ∇ψ_i written with numpy arrays (what the compiled
+    kernel replaced): P1 by barycentric coordinates, Q1 through the inverse bilinear map."""
+    from forms.cut_quadrature import bilinear_map, inverse_bilinear_map
+
+    points, weights = _fan_in_numpy(polygons, degree)
+    k = vertices.shape[1]
+    if k == 3:
+        x = vertices
+        e1, e2 = x[:, 1] - x[:, 0], x[:, 2] - x[:, 0]
+        det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
+        d = points - x[:, None, 0]
+        l1 = (d[..., 0] * e2[:, None, 1] - d[..., 1] * e2[:, None, 0]) / det[:, None]
+        l2 = (e1[:, None, 0] * d[..., 1] - e1[:, None, 1] * d[..., 0]) / det[:, None]
+        psi = np.stack([1.0 - l1 - l2, l1, l2], axis=-1)
+        g1 = np.stack([e2[:, 1], -e2[:, 0]], axis=-1) / det[:, None]
+        g2 = np.stack([-e1[:, 1], e1[:, 0]], axis=-1) / det[:, None]
+        grad = np.stack([-g1 - g2, g1, g2], axis=1)[:, None].repeat(points.shape[1], axis=1)
+    else:
+        tensor = vertices[:, [0, 1, 3, 2]]
+        xi = inverse_bilinear_map(tensor, points)
+        s, t = xi[..., 0], xi[..., 1]
+        psi = np.stack([(1 - s) * (1 - t), s * (1 - t), s * t, (1 - s) * t], axis=-1)
+        reference = np.stack([np.stack([-(1 - t), -(1 - s)], -1), np.stack([1 - t, -s], -1),
+                              np.stack([t, s], -1), np.stack([-t, 1 - s], -1)], axis=-2)
+        jacobian = bilinear_map(tensor, xi)[1]
+        a, b, c, d = jacobian[..., 0, 0], jacobian[..., 0, 1], jacobian[..., 1, 0], jacobian[..., 1, 1]
+        grad = np.stack([(d[..., None] * reference[..., 0] - c[..., None] * reference[..., 1]),
+                         (a[..., None] * reference[..., 1] - b[..., None] * reference[..., 0])], axis=-1)
+        grad /= (a * d - b * c)[..., None, None]
+    return np.einsum("nqk,nq->nk", psi, weights), np.einsum("nqkd,nq->nkd", grad, weights)
+
+
+@pytest.mark.parametrize("cell", ["triangle", "quadrilateral"])
+def test_the_compiled_part_integrals_and_moments_agree_with_their_numpy_forms(cell):
+    """The cut parts of a disk on a skewed mesh: the compiled ∫_part ψ_i, ∫_part ∇ψ_i
+    (cut_cells_2d) and the reference moments of the cut weights (CutQuadrature) agree with
+    the numpy forms they replaced to round-off (the sums run in another order)."""
+    from ale_xfem.mixed.cut_cells_2d import PART_RULE
+    from ale_xfem.studies.interface import InterfaceCase
+    from forms.cut_quadrature import POLYGON_RULE, CutQuadrature, inverse_bilinear_map
+
+    case = InterfaceCase(16, "disk", cell=cell)
+    cut = case.cut
+    k = cut.vertices.shape[1]
+    values, gradients = cut.part_integrals()
+    scale = np.abs(cut.vertices).max()
+    for m, polygon in enumerate((cut.reconstruction.alpha, cut.reconstruction.beta)):
+        expected_values, expected_gradients = _part_integrals_in_numpy(cut.vertices, polygon, PART_RULE[k])
+        area = np.abs(cut.volume).max()
+        assert np.abs(values[m] - expected_values).max() < 1e-14 * area
+        assert np.abs(gradients[m] - expected_gradients).max() < 1e-14 * scale
+    quadrature = CutQuadrature(case.dolfinx_mesh)
+    cells = case.mixed  # the case's mesh numbers its cells as DOLFINx does
+    polygons = cut.reconstruction.alpha
+    moments = quadrature._polygon_moments(cells, polygons)
+    points, weights = _fan_in_numpy(polygons, POLYGON_RULE[cell])
+    x = quadrature.cell_vertices(cells)
+    if cell == "triangle":
+        axes = np.stack([x[:, 1] - x[:, 0], x[:, 2] - x[:, 0]], axis=-1)
+        xi = np.einsum("nij,nkj->nki", np.linalg.inv(axes), points - x[:, None, 0])
+        det = np.abs(np.linalg.det(axes))[:, None]
+    else:
+        xi = inverse_bilinear_map(x, points)
+        jacobian = _bilinear_in_numpy(x, xi)[1]
+        det = np.abs(np.linalg.det(jacobian))
+    expected = np.stack([np.sum(xi[..., 0] ** a * xi[..., 1] ** b * weights / det, axis=1)
+                         for a, b in quadrature.exponents], axis=1)
+    assert np.abs(moments - expected).max() < 1e-13 * np.abs(expected).max()

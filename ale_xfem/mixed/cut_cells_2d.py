@@ -30,12 +30,14 @@ from __future__ import annotations
 import weakref
 from dataclasses import dataclass
 
+import basix
+import numba
 import numpy as np
 
 from ale_xfem.geometry.shapes import polygon_area, polygon_centroid
 from ale_xfem.model.mesh import mesh_edges
 from ale_xfem.model.plic import Reconstruction, reconstruct, youngs_normals
-from forms.cut_quadrature import bilinear_map, fan_quadrature, inverse_bilinear_map
+from forms.cut_quadrature import NEWTON_STEPS, NEWTON_TOLERANCE, reference_point
 
 # the rule on the triangles of a part's fan (∫ ψ_i, ∫ ∇ψ_i), by the cell's vertex count:
 # exact for the linear ψ of a triangle; through the inverse map of a quadrilateral, smooth
@@ -86,12 +88,14 @@ class CutCells:
         quadrilaterals, through the inverse bilinear map, to round-off)."""
         if self._part_integrals is None:
             k = self.vertices.shape[1]
+            points, weights = basix.make_quadrature(basix.CellType.triangle, PART_RULE[k])
+            vertices = np.ascontiguousarray(self.vertices, dtype=float)
             values, gradients = [], []
             for polygon in (self.reconstruction.alpha, self.reconstruction.beta):
-                physical, weights = fan_quadrature(polygon, PART_RULE[k])
-                psi, grad = _shape_functions(self.vertices, physical, k)
-                values.append(np.einsum("nqk,nq->nk", psi, weights))
-                gradients.append(np.einsum("nqkd,nq->nkd", grad, weights))
+                value, gradient = _fan_shape_integrals(vertices, np.ascontiguousarray(polygon, dtype=float),
+                                                       points, weights, NEWTON_STEPS, NEWTON_TOLERANCE)
+                values.append(value)
+                gradients.append(gradient)
             self._part_integrals = (np.stack(values), np.stack(gradients))
         return self._part_integrals
 
@@ -209,36 +213,64 @@ def condensed_masses(cut: CutCells, cell_nodes, node_material, mass, materials,
     return out, internal
 
 
-def _shape_functions(vertices, points, k):
-    """P1 (k = 3) or Q1 (k = 4) shape functions and their gradients at physical points
-    (n, q, 2) of cells with corners ``vertices`` (n, k, 2) going round: (n, q, k), (n, q, k, 2)."""
-    if k == 3:
-        x = vertices
-        e1, e2 = x[:, 1] - x[:, 0], x[:, 2] - x[:, 0]
-        det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]
-        d = points - x[:, None, 0]
-        l1 = (d[..., 0] * e2[:, None, 1] - d[..., 1] * e2[:, None, 0]) / det[:, None]
-        l2 = (e1[:, None, 0] * d[..., 1] - e1[:, None, 1] * d[..., 0]) / det[:, None]
-        psi = np.stack([1.0 - l1 - l2, l1, l2], axis=-1)
-        g1 = np.stack([e2[:, 1], -e2[:, 0]], axis=-1) / det[:, None]  # ∇λ₁
-        g2 = np.stack([-e1[:, 1], e1[:, 0]], axis=-1) / det[:, None]  # ∇λ₂
-        grad = np.stack([-g1 - g2, g1, g2], axis=1)[:, None].repeat(points.shape[1], axis=1)
-        return psi, grad
-    tensor = vertices[:, [0, 1, 3, 2]]  # going round → tensor order
-    xi = inverse_bilinear_map(tensor, points)
-    s, t = xi[..., 0], xi[..., 1]
-    # going-round order: (0,0), (1,0), (1,1), (0,1)
-    psi = np.stack([(1 - s) * (1 - t), s * (1 - t), s * t, (1 - s) * t], axis=-1)
-    reference = np.stack([np.stack([-(1 - t), -(1 - s)], -1), np.stack([1 - t, -s], -1),
-                          np.stack([t, s], -1), np.stack([-t, 1 - s], -1)], axis=-2)  # (n, q, 4, 2)
-    jacobian = bilinear_map(tensor, xi)[1]  # (n, q, 2, 2): columns ∂x/∂ξ, ∂x/∂η
-    a, b, c, d = jacobian[..., 0, 0], jacobian[..., 0, 1], jacobian[..., 1, 0], jacobian[..., 1, 1]
-    det = a * d - b * c
-    # ∇ψ = J⁻ᵀ ∇̂ψ̂, J⁻¹ = [[d, −b], [−c, a]] / det in closed form
-    grad = np.stack([(d[..., None] * reference[..., 0] - c[..., None] * reference[..., 1]),
-                     (a[..., None] * reference[..., 1] - b[..., None] * reference[..., 0])], axis=-1)
-    grad /= det[..., None, None]
-    return psi, grad
+@numba.njit(cache=True)
+def _fan_shape_integrals(vertices, polygons, points, weights, steps, tolerance):  # pragma: no cover (compiled)
+    """(∫_polygon ψ_i (n, k), ∫_polygon ∇ψ_i (n, k, 2)) for the P1 (k = 3) or Q1 (k = 4)
+    shape functions of cells with corners ``vertices`` (n, k, 2) going round, over polygons
+    (n, m, 2) fanned from their first vertex into triangles, the reference triangle's rule
+    ``points``, ``weights`` on each (the gradients through the inverse bilinear map on
+    quadrilaterals, Newton's method to ``tolerance``)."""
+    n, k, m = vertices.shape[0], vertices.shape[1], polygons.shape[1]
+    values = np.zeros((n, k))
+    gradients = np.zeros((n, k, 2))
+    psi = np.empty(k)
+    grad = np.empty((k, 2))
+    tensor = np.empty((4, 2))
+    for i in range(n):
+        x = vertices[i]
+        if k == 3:
+            e1x, e1y, e2x, e2y = x[1, 0] - x[0, 0], x[1, 1] - x[0, 1], x[2, 0] - x[0, 0], x[2, 1] - x[0, 1]
+            det = e1x * e2y - e1y * e2x
+            grad[1, 0], grad[1, 1] = e2y / det, -e2x / det  # ∇λ₁
+            grad[2, 0], grad[2, 1] = -e1y / det, e1x / det  # ∇λ₂
+            grad[0, 0], grad[0, 1] = -grad[1, 0] - grad[2, 0], -grad[1, 1] - grad[2, 1]
+        else:  # going round → tensor order
+            for d in range(2):
+                tensor[0, d], tensor[1, d], tensor[2, d], tensor[3, d] = x[0, d], x[1, d], x[3, d], x[2, d]
+        for j in range(1, m - 1):
+            f1x, f1y = polygons[i, j, 0] - polygons[i, 0, 0], polygons[i, j, 1] - polygons[i, 0, 1]
+            f2x, f2y = polygons[i, j + 1, 0] - polygons[i, 0, 0], polygons[i, j + 1, 1] - polygons[i, 0, 1]
+            area = abs(f1x * f2y - f1y * f2x)
+            if area == 0.0:
+                continue
+            for q in range(points.shape[0]):
+                px = polygons[i, 0, 0] + points[q, 0] * f1x + points[q, 1] * f2x
+                py = polygons[i, 0, 1] + points[q, 0] * f1y + points[q, 1] * f2y
+                w = area * weights[q]
+                if k == 3:
+                    dx, dy = px - x[0, 0], py - x[0, 1]
+                    l1 = (dx * e2y - dy * e2x) / det
+                    l2 = (e1x * dy - e1y * dx) / det
+                    psi[0], psi[1], psi[2] = 1.0 - l1 - l2, l1, l2
+                else:
+                    s, t = reference_point(tensor, px, py, steps, tolerance)
+                    # going-round order: (0,0), (1,0), (1,1), (0,1); ∇ψ = J⁻ᵀ ∇̂ψ̂
+                    psi[0], psi[1], psi[2], psi[3] = (1 - s) * (1 - t), s * (1 - t), s * t, (1 - s) * t
+                    a = (tensor[1, 0] - tensor[0, 0]) * (1 - t) + (tensor[3, 0] - tensor[2, 0]) * t
+                    c = (tensor[1, 1] - tensor[0, 1]) * (1 - t) + (tensor[3, 1] - tensor[2, 1]) * t
+                    b = (tensor[2, 0] - tensor[0, 0]) * (1 - s) + (tensor[3, 0] - tensor[1, 0]) * s
+                    d = (tensor[2, 1] - tensor[0, 1]) * (1 - s) + (tensor[3, 1] - tensor[1, 1]) * s
+                    jac = a * d - b * c
+                    reference = ((-(1 - t), -(1 - s)), (1 - t, -s), (t, s), (-t, 1 - s))
+                    for r in range(4):
+                        gs, gt = reference[r]
+                        grad[r, 0] = (d * gs - c * gt) / jac
+                        grad[r, 1] = (a * gt - b * gs) / jac
+                for r in range(k):
+                    values[i, r] += w * psi[r]
+                    gradients[i, r, 0] += w * grad[r, 0]
+                    gradients[i, r, 1] += w * grad[r, 1]
+    return values, gradients
 
 
 @dataclass
