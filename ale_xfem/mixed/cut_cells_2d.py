@@ -183,8 +183,12 @@ def node_materials(cell_nodes, n_nodes, cell_material, material_volume, material
         share += np.bincount(np.repeat(material_of_slot[slot, present], k) * n_nodes + cell_nodes[present].ravel(),
                              np.repeat(material_volume[slot, present], k), minlength=size)
     share = share.reshape(n_materials, n_nodes)
-    has_pure = pure_count.sum(axis=0) > 0
-    owner = np.where(has_pure, np.argmax(pure_count, axis=0), np.argmax(share, axis=0))
+    # the most pure cells around the node, and among equals the larger area: a tie of pure
+    # cells (frequent on crossed triangles) went to the lower material id, so the run
+    # depended on the order the scene lists its materials in
+    total = share.sum(axis=0)
+    fraction = np.divide(share, total, out=np.zeros_like(share), where=total > 0)
+    owner = np.argmax(pure_count + 0.5 * fraction, axis=0)
     two_pure = (pure_count > 0).sum(axis=0) > 1
     return owner, two_pure
 
