@@ -226,20 +226,9 @@ def _newton_bilinear(x, points, xi, steps, tolerance):  # pragma: no cover (comp
     for _ in range(steps):
         largest, failed = 0.0, False
         for i in range(n):
-            x0, y0, x1, y1 = x[i, 0, 0], x[i, 0, 1], x[i, 1, 0], x[i, 1, 1]
-            x2, y2, x3, y3 = x[i, 2, 0], x[i, 2, 1], x[i, 3, 0], x[i, 3, 1]
             for q in range(k):
-                s, t = xi[i, q, 0], xi[i, q, 1]
-                mx = x0 * (1 - s) * (1 - t) + x1 * s * (1 - t) + x2 * (1 - s) * t + x3 * s * t
-                my = y0 * (1 - s) * (1 - t) + y1 * s * (1 - t) + y2 * (1 - s) * t + y3 * s * t
-                a = (x1 - x0) * (1 - t) + (x3 - x2) * t
-                c = (y1 - y0) * (1 - t) + (y3 - y2) * t
-                b = (x2 - x0) * (1 - s) + (x3 - x1) * s
-                d = (y2 - y0) * (1 - s) + (y3 - y1) * s
-                rx, ry = points[i, q, 0] - mx, points[i, q, 1] - my
-                det = a * d - b * c
-                step[i, q, 0] = (d * rx - b * ry) / det
-                step[i, q, 1] = (a * ry - c * rx) / det
+                step[i, q, 0], step[i, q, 1] = _newton_step(x[i], points[i, q, 0], points[i, q, 1],
+                                                            xi[i, q, 0], xi[i, q, 1])
         for i in range(n):
             for q in range(k):
                 for j in range(2):
@@ -254,23 +243,42 @@ def _newton_bilinear(x, points, xi, steps, tolerance):  # pragma: no cover (comp
 
 
 @numba.njit(cache=True)
+def _newton_step(x, px, py, s, t):  # pragma: no cover (compiled)
+    """Newton's step (Δξ, Δη) towards the physical point (px, py) from (ξ, η) = (s, t) in the
+    quadrilateral with nodes x (4, 2) in tensor order, each operation in the order of
+    :func:`bilinear_map`; J = [[a, b], [c, d]] = [∂x/∂ξ, ∂x/∂η], solved in closed form."""
+    x0, y0, x1, y1 = x[0, 0], x[0, 1], x[1, 0], x[1, 1]
+    x2, y2, x3, y3 = x[2, 0], x[2, 1], x[3, 0], x[3, 1]
+    mx = x0 * (1 - s) * (1 - t) + x1 * s * (1 - t) + x2 * (1 - s) * t + x3 * s * t
+    my = y0 * (1 - s) * (1 - t) + y1 * s * (1 - t) + y2 * (1 - s) * t + y3 * s * t
+    a = (x1 - x0) * (1 - t) + (x3 - x2) * t
+    c = (y1 - y0) * (1 - t) + (y3 - y2) * t
+    b = (x2 - x0) * (1 - s) + (x3 - x1) * s
+    d = (y2 - y0) * (1 - s) + (y3 - y1) * s
+    rx, ry = px - mx, py - my
+    det = a * d - b * c
+    return (d * rx - b * ry) / det, (a * ry - c * rx) / det
+
+
+@numba.njit(cache=True)
+def fan_point(polygon, j, r, q):  # pragma: no cover (compiled)
+    """The q-th point (px, py) of the rule ``r`` (q, 2) of the reference triangle on the
+    j-th triangle of the fan of ``polygon`` (m, 2) from its first vertex, and that
+    triangle's |det| (twice its area; the rule's weights sum to ½)."""
+    e1x, e1y = polygon[j, 0] - polygon[0, 0], polygon[j, 1] - polygon[0, 1]
+    e2x, e2y = polygon[j + 1, 0] - polygon[0, 0], polygon[j + 1, 1] - polygon[0, 1]
+    return (polygon[0, 0] + r[q, 0] * e1x + r[q, 1] * e2x, polygon[0, 1] + r[q, 0] * e1y + r[q, 1] * e2y,
+            abs(e1x * e2y - e1y * e2x))
+
+
+@numba.njit(cache=True)
 def reference_point(x, px, py, steps, tolerance):  # pragma: no cover (compiled)
     """(ξ, η) of the physical point (px, py) in the quadrilateral with nodes x (4, 2) in
     tensor order: Newton's method from the centre, until its step is below ``tolerance``
     (at most ``steps``) — the iteration of :func:`inverse_bilinear_map`, point by point."""
-    x0, y0, x1, y1 = x[0, 0], x[0, 1], x[1, 0], x[1, 1]
-    x2, y2, x3, y3 = x[2, 0], x[2, 1], x[3, 0], x[3, 1]
     s, t = 0.5, 0.5
     for _ in range(steps):
-        mx = x0 * (1 - s) * (1 - t) + x1 * s * (1 - t) + x2 * (1 - s) * t + x3 * s * t
-        my = y0 * (1 - s) * (1 - t) + y1 * s * (1 - t) + y2 * (1 - s) * t + y3 * s * t
-        a = (x1 - x0) * (1 - t) + (x3 - x2) * t
-        c = (y1 - y0) * (1 - t) + (y3 - y2) * t
-        b = (x2 - x0) * (1 - s) + (x3 - x1) * s
-        d = (y2 - y0) * (1 - s) + (y3 - y1) * s
-        rx, ry = px - mx, py - my
-        det = a * d - b * c
-        ds, dt = (d * rx - b * ry) / det, (a * ry - c * rx) / det
+        ds, dt = _newton_step(x, px, py, s, t)
         s += ds
         t += dt
         if abs(ds) < tolerance and abs(dt) < tolerance:
@@ -293,14 +301,10 @@ def _fan_moments(x, polygons, points, weights, exponents, quadrilateral, steps, 
             bx, by = x[i, 2, 0] - x[i, 0, 0], x[i, 2, 1] - x[i, 0, 1]
             det = ax * by - ay * bx
         for j in range(1, m - 1):
-            e1x, e1y = polygons[i, j, 0] - polygons[i, 0, 0], polygons[i, j, 1] - polygons[i, 0, 1]
-            e2x, e2y = polygons[i, j + 1, 0] - polygons[i, 0, 0], polygons[i, j + 1, 1] - polygons[i, 0, 1]
-            area = abs(e1x * e2y - e1y * e2x)
-            if area == 0.0:
-                continue
             for q in range(points.shape[0]):
-                px = polygons[i, 0, 0] + points[q, 0] * e1x + points[q, 1] * e2x
-                py = polygons[i, 0, 1] + points[q, 0] * e1y + points[q, 1] * e2y
+                px, py, area = fan_point(polygons[i], j, points, q)
+                if area == 0.0:
+                    break
                 if quadrilateral:
                     s, t = reference_point(x[i], px, py, steps, tolerance)
                     jx = (x[i, 1, 0] - x[i, 0, 0]) * (1 - t) + (x[i, 3, 0] - x[i, 2, 0]) * t

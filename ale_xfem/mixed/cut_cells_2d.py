@@ -37,7 +37,7 @@ import numpy as np
 from ale_xfem.geometry.shapes import polygon_area, polygon_centroid
 from ale_xfem.model.mesh import mesh_edges
 from ale_xfem.model.plic import Reconstruction, reconstruct, youngs_normals
-from forms.cut_quadrature import NEWTON_STEPS, NEWTON_TOLERANCE, reference_point
+from forms.cut_quadrature import NEWTON_STEPS, NEWTON_TOLERANCE, fan_point, reference_point
 
 # the rule on the triangles of a part's fan (∫ ψ_i, ∫ ∇ψ_i), by the cell's vertex count:
 # exact for the linear ψ of a triangle; through the inverse map of a quadrilateral, smooth
@@ -245,14 +245,10 @@ def _fan_shape_integrals(vertices, polygons, points, weights, steps, tolerance):
             for d in range(2):
                 tensor[0, d], tensor[1, d], tensor[2, d], tensor[3, d] = x[0, d], x[1, d], x[3, d], x[2, d]
         for j in range(1, m - 1):
-            f1x, f1y = polygons[i, j, 0] - polygons[i, 0, 0], polygons[i, j, 1] - polygons[i, 0, 1]
-            f2x, f2y = polygons[i, j + 1, 0] - polygons[i, 0, 0], polygons[i, j + 1, 1] - polygons[i, 0, 1]
-            area = abs(f1x * f2y - f1y * f2x)
-            if area == 0.0:
-                continue
             for q in range(points.shape[0]):
-                px = polygons[i, 0, 0] + points[q, 0] * f1x + points[q, 1] * f2x
-                py = polygons[i, 0, 1] + points[q, 0] * f1y + points[q, 1] * f2y
+                px, py, area = fan_point(polygons[i], j, points, q)
+                if area == 0.0:
+                    break
                 w = area * weights[q]
                 if k == 3:
                     dx, dy = px - x[0, 0], py - x[0, 1]
