@@ -1,7 +1,8 @@
-"""A linear system of compiled forms bound to one mesh (the submesh of the mixed cells):
-its forms, matrix, vectors and KSP created once, refilled and solved at every call — what
-the systems of :mod:`forms.enriched_interface` (and any other forms of a mixed-cell
-submesh) rely on."""
+"""A linear system of compiled forms bound to one mesh (a submesh around the mixed cells):
+its matrix and vectors created once, refilled and solved at every call (the forms made
+again, without compiling, when the cells integrated over change; the KSP made again when
+the operator does: a constrained system Cᵀ A C with a new C) — what the systems of
+:mod:`forms.enriched_interface` (and any other forms of a mixed-cell submesh) rely on."""
 
 from __future__ import annotations
 
@@ -45,7 +46,7 @@ class BoundSystem:
         self.residual = self.matrix.createVecRight()
         self.correction = self.matrix.createVecRight()
         self._factor_solver, self._petsc_options = factor_solver, dict(petsc_options or {})
-        self.solver, self._operator_size, self._options = None, None, []
+        self.solver, self._operator, self._options = None, None, []
         self._reduced, self._constraint = (), None
         self._make_solver()
 
@@ -60,8 +61,9 @@ class BoundSystem:
         self.solver.getPC().setType("lu")
         if self._factor_solver is not None:
             self.solver.getPC().setFactorSolverType(self._factor_solver)
-        # the options stay in PETSc's database until the first solve has read them (a
-        # factorisation reads its own at set-up), then leave it
+        # the options stay in PETSc's database until this KSP's first solve has read them (its
+        # factorisation reads its own then), then leave it: a factorisation of another
+        # operator (a new C) would not find them, so a new operator gets a new KSP
         self._options = []
         if self._petsc_options:
             prefix = f"ale_xfem_system_{next(_PREFIXES)}_"
@@ -128,9 +130,12 @@ class BoundSystem:
         self._reduced, self._constraint = (), None
 
     def _solve(self, operator, right, solution, residual, correction, what: str) -> None:
-        if self._operator_size is not None and operator.getSize() != self._operator_size:
+        # a factorisation cannot change its operator's size, and reads its options (the
+        # scene's petsc_options, which have left PETSc's database) when it is made: a new
+        # KSP for another operator than the last one
+        if self._operator is not None and operator is not self._operator:
             self._make_solver()
-        self._operator_size = operator.getSize()
+        self._operator = operator
         self.solver.setOperators(operator)
         try:
             self.solver.solve(right, solution)

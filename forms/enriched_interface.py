@@ -141,7 +141,7 @@ class InterfaceForms:
             for side in "ab":
                 self.coefficients[f"{name}_{side}"] = ufl.Coefficient(kinds[name])
         # free slip in 2D ties only the normal part of a sliding tied node's velocities
-        # (InterfaceSystem.solve)
+        # (InterfaceSystem._constraint)
         self.tie_normal = gdim == 2 and not stick
         for name in _CELL_COEFFICIENTS:
             self.coefficients[name] = ufl.Coefficient(kinds[name])
@@ -245,8 +245,8 @@ class InterfaceSystem:
     """The forms of :class:`InterfaceForms` bound to the cells ``cells`` of a mesh of their
     cell type (their submesh: a band around the interface), assembled and solved with PETSc
     over the band's cells made *active* (:meth:`activate`; at construction all of them);
-    matrix, vectors and KSP are created here once and refilled at every solve, the forms
-    are re-created (not compiled) at each activation.  Per-cell inputs and outputs are over
+    matrix and vectors are created here once and refilled at every solve, the forms are
+    re-created (not compiled) at each activation, the KSP for each new set of unknowns.  Per-cell inputs and outputs are over
     the active cells in the order given to :meth:`activate`.  ``petsc_options``: the KSP and
     PC settings (default: a direct LU solve by MUMPS)."""
 
@@ -364,8 +364,8 @@ class InterfaceSystem:
         return self._active_parent
 
     def set_geometry(self, parts, start, end, edge_flux, normal) -> None:
-        """Bind the cut geometry, each array over the mixed cells in the order given at
-        construction: parts (2, n, m, 2) each material's polygon in the cell; start, end
+        """Bind the cut geometry, each array over the active cells in the order given to
+        :meth:`activate`: parts (2, n, m, 2) each material's polygon in the cell; start, end
         (n, 2) the interface segment; edge_flux (2, n, k, 2) G_mi = Σ_e ∫_{e∩m} ψ_i n_e for
         the vertices of each cell in the order given to :meth:`vertex_order`; normal (n, 2)
         n_α, out of α."""
@@ -394,13 +394,13 @@ class InterfaceSystem:
         self._vertex_permutation = np.argmax(self.parent_nodes[self.active][:, :, None] == given[:, None, :], axis=2)
 
     def set_ghost(self, ghost) -> None:
-        """Per mixed cell (construction order): ghost (2, n), the weight of each material's
+        """Per active cell (the order given to :meth:`activate`): ghost (2, n), the weight of each material's
         strain-rate penalty over the other material's part (0: none, the default)."""
         for m, side in enumerate("ab"):
             self.functions[f"ghost_{side}"].x.array[self._dg0[self.active]] = ghost[m][self.input_index]
 
     def set_materials(self, compliance, offset, weight=None, penalty=None) -> None:
-        """Per mixed cell (construction order): compliance (2, n) g_m = −1/(D_m dt V_m),
+        """Per active cell (the order given to :meth:`activate`): compliance (2, n) g_m = −1/(D_m dt V_m),
         offset (2, n) c_m; Nitsche: weight (n,) w_α and penalty (n,) γ."""
         take = self.input_index
         if self.forms.stabilisation == "nitsche" and (weight is None or penalty is None):
@@ -461,7 +461,7 @@ class InterfaceSystem:
         return out
 
     def dissipated_work(self, velocity) -> np.ndarray:
-        """(k, n) per mixed cell (construction order): what the dissipative terms take from
+        """(k, n) per active cell (the order given to :meth:`activate`): what the dissipative terms take from
         ``velocity`` [m] (2, n_parent_nodes), as rates — each material's ghost viscosity
         (rows 0, 1) and Nitsche's penalty (row 2, Nitsche only)."""
         for m in range(2):
@@ -525,6 +525,16 @@ class InterfaceSystem:
         slides = np.zeros(nodes.size, dtype=bool)
         if self.forms.tie_normal and sliding is not None:
             slides = sliding[nodes]
+            normal = np.zeros((nodes.size, 2))
+            if tie_normal is None:
+                normal[slides] = self._mean_normals()[nodes[slides]]
+            else:
+                normal[slides] = tie_normal[:, nodes[slides]].T
+            # a sliding node whose cells' normals cancel (a filament one cell thick) has no
+            # direction to tie along: it stays untied (its columns would be zero)
+            untied = slides & (np.linalg.norm(normal, axis=1) == 0.0)
+            nodes, slides, normal = nodes[~untied], slides[~untied], normal[~untied]
+            block = [b[~untied] for b in block]
         dof_a, dof_b = blocks[0][block[0]], blocks[1][block[1]]  # (n_tied, gdim)
         kept[dof_a.ravel()] = kept[dof_b.ravel()] = False  # joined below
         free = np.flatnonzero(kept)
@@ -540,10 +550,7 @@ class InterfaceSystem:
             values.append(np.ones(count))
         column += count
         if slides.any():  # one normal unknown shared, each material its own tangential one
-            if tie_normal is None:
-                normal = self._mean_normals()[nodes[slides]]
-            else:
-                normal = tie_normal[:, nodes[slides]].T
+            normal = normal[slides]
             tangent = np.stack([-normal[:, 1], normal[:, 0]], axis=1)
             k = int(slides.sum())
             normal_column = column + np.arange(k)

@@ -176,7 +176,7 @@ def test_a_node_between_pure_cells_of_both_materials_is_tied(stabilisation, cell
     both materials meet along an edge,
     where no mixed cell carries an interface; each material's share of a uniform pressure
     does not balance there, only their sum.  The node's two velocities are one unknown
-    (InterfaceSystem._ties): the state at rest stays at rest to round-off; untied, it
+    (InterfaceSystem._constraint): the state at rest stays at rest to round-off; untied, it
     would not."""
     case = InterfaceCase(12, "kink", cell=cell)  # along mesh edges left of (½, ½), through cells right of it
     assert case.tied.any()
@@ -311,3 +311,45 @@ def test_nitsches_stiffness_keeps_a_floor_where_the_sound_speed_vanishes():
     sound = np.sqrt(area) / (2.0 * dt)  # c dt = h / 2
     loud = nitsche_stiffness(rho, np.full((2, 2), sound**2), area, dt)
     assert np.array_equal(loud, rho * sound**2 * dt)
+
+
+def _kink_system(petsc_options=None):
+    """The kink case (tied nodes) bound with ``petsc_options``, its geometry and materials set
+    as InterfaceCase.solve sets them; returns (case, system, mass, rhs)."""
+    from ale_xfem.studies.interface import BULK
+
+    case = InterfaceCase(12, "kink")
+    system = InterfaceSystem(case.dolfinx_mesh, case.mixed, interface_forms("bubble", "free", case.cell),
+                             petsc_options)
+    system.vertex_order(case.mesh.cell_nodes[case.mixed])
+    reconstruction = case.cut.reconstruction
+    system.set_geometry((reconstruction.alpha, reconstruction.beta), reconstruction.start, reconstruction.end,
+                        case.cut.edge_flux, case.cut.normal)
+    bulk = np.array(BULK)[:, None] * np.ones((2, case.mixed.size))
+    system.set_materials(1.0 / (bulk * DT), np.full((2, case.mixed.size), PRESSURE))
+    return case, system, *case.inertia_and_rhs()
+
+
+def test_the_scenes_petsc_options_reach_every_factorisation():
+    """A new constraint matrix C every step (set_geometry) makes a new reduced operator: its
+    factorisation must still read the scene's options (MUMPS's ICNTL(14) here), though they
+    left PETSc's database after the first solve (a review found them dropped after step 1
+    when C kept its size)."""
+    case, system, mass, rhs = _kink_system({"mat_mumps_icntl_14": 77})
+    assert case.tied.any()
+    for _ in range(3):
+        system.solve(mass, rhs, case.tied)
+        factor = system.system.solver.getPC().getFactorMatrix()
+        assert factor.getMumpsIcntl(14) == 77
+        reconstruction = case.cut.reconstruction
+        system.set_geometry((reconstruction.alpha, reconstruction.beta), reconstruction.start, reconstruction.end,
+                            case.cut.edge_flux, case.cut.normal)
+
+
+def test_a_sliding_tie_without_a_direction_leaves_the_node_untied():
+    """A sliding tied node whose cells' normals cancel (a filament one cell thick) has no
+    normal to tie along: it stays untied instead of giving C empty columns (a singular
+    reduced system, the KSP failing)."""
+    case, system, mass, rhs = _kink_system()
+    out = system.solve(mass, rhs, case.tied, sliding=case.tied, tie_normal=np.zeros((2, case.mesh.n_nodes)))
+    assert all(np.all(np.isfinite(u)) for u in out["velocity"])

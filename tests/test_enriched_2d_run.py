@@ -222,7 +222,7 @@ def test_a_band_around_the_interface_gives_the_run_of_a_system_bound_to_the_mixe
     """The interface system bound to a band (the mixed cells and two rings around them)
     and active on the mixed cells only solves the same equations as one bound to the mixed
     cells themselves (a band of no rings, bound again at every change), having bound far
-    fewer submeshes: on quadrilaterals the sheared tube ends in the same state to 1e-13.  On
+    fewer submeshes: on quadrilaterals the sheared tube ends in the same state (1e-13 measured).  On
     triangles the two runs agree to 1e-12 for 14 steps, then a discrete choice that
     round-off can tip (as which material a node lies in, decided by an argmax) moves them
     apart by 1e-5 at step 15, and they stay within 2e-5."""
