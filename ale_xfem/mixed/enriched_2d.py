@@ -48,6 +48,7 @@ from ale_xfem.mixed.common import SharedClosure
 from ale_xfem.mixed.cut_cells_2d import by_material, enriched_geometry
 from ale_xfem.mixed.enriched_step_2d import EnrichedStep2D, MaterialStart
 from ale_xfem.mixed.equilibrium import MixedCellFailure
+from ale_xfem.model.mesh import cells_around
 from ale_xfem.model.mixed_cells import MixedCells
 from forms.enriched_interface import InterfaceForms, InterfaceSystem
 
@@ -111,13 +112,10 @@ class EnrichedClosure2D(SharedClosure):
 
     def _band(self, cells) -> np.ndarray:
         """(n_cells,) bool: ``cells`` and BAND_RINGS rings of cells around them (sharing a node)."""
-        cell_nodes = self.mesh.cell_nodes
-        band = np.zeros(cell_nodes.shape[0], dtype=bool)
-        band[cells] = True
         for _ in range(BAND_RINGS):
-            near = np.zeros(self.mesh.n_nodes, dtype=bool)
-            near[cell_nodes[band]] = True
-            band = near[cell_nodes].any(axis=1)
+            cells = cells_around(self.mesh, cells)
+        band = np.zeros(self.mesh.n_cells, dtype=bool)
+        band[cells] = True
         return band
 
     # -- the implicit solve ---------------------------------------------------------------
