@@ -192,16 +192,34 @@ def bilinear_map(x, xi):
 
 
 @numba.njit(cache=True)
+def bilinear_point(x, s, t):  # pragma: no cover (compiled)
+    """x(ξ) = x₀(1−s)(1−t) + x₁s(1−t) + x₂(1−s)t + x₃st of the quadrilateral with nodes x
+    (4, 2) in tensor order, at (ξ, η) = (s, t): (x, y)."""
+    return (x[0, 0] * (1 - s) * (1 - t) + x[1, 0] * s * (1 - t) + x[2, 0] * (1 - s) * t + x[3, 0] * s * t,
+            x[0, 1] * (1 - s) * (1 - t) + x[1, 1] * s * (1 - t) + x[2, 1] * (1 - s) * t + x[3, 1] * s * t)
+
+
+@numba.njit(cache=True)
+def bilinear_jacobian(x, s, t):  # pragma: no cover (compiled)
+    """J = [[a, b], [c, d]] = [∂x/∂ξ, ∂x/∂η] of the bilinear map of x (4, 2) at (s, t):
+    (a, b, c, d) — the one Jacobian every kernel of the cut geometry uses."""
+    a = (x[1, 0] - x[0, 0]) * (1 - t) + (x[3, 0] - x[2, 0]) * t
+    c = (x[1, 1] - x[0, 1]) * (1 - t) + (x[3, 1] - x[2, 1]) * t
+    b = (x[2, 0] - x[0, 0]) * (1 - s) + (x[3, 0] - x[1, 0]) * s
+    d = (x[2, 1] - x[0, 1]) * (1 - s) + (x[3, 1] - x[1, 1]) * s
+    return a, b, c, d
+
+
+@numba.njit(cache=True)
 def _bilinear(x, xi, mapped, jacobian):  # pragma: no cover (compiled)
-    """x(ξ) = x₀(1−s)(1−t) + x₁s(1−t) + x₂(1−s)t + x₃st and its Jacobian at every point."""
+    """The bilinear map and its Jacobian at every point ξ (n, k, 2) of the cells x (n, 4, 2)."""
     for i in range(xi.shape[0]):
         for q in range(xi.shape[1]):
             s, t = xi[i, q, 0], xi[i, q, 1]
-            for d in range(2):
-                x0, x1, x2, x3 = x[i, 0, d], x[i, 1, d], x[i, 2, d], x[i, 3, d]
-                mapped[i, q, d] = x0 * (1 - s) * (1 - t) + x1 * s * (1 - t) + x2 * (1 - s) * t + x3 * s * t
-                jacobian[i, q, d, 0] = (x1 - x0) * (1 - t) + (x3 - x2) * t
-                jacobian[i, q, d, 1] = (x2 - x0) * (1 - s) + (x3 - x1) * s
+            mapped[i, q, 0], mapped[i, q, 1] = bilinear_point(x[i], s, t)
+            a, b, c, d = bilinear_jacobian(x[i], s, t)
+            jacobian[i, q, 0, 0], jacobian[i, q, 0, 1] = a, b
+            jacobian[i, q, 1, 0], jacobian[i, q, 1, 1] = c, d
 
 
 def inverse_bilinear_map(x, points):
@@ -247,14 +265,8 @@ def _newton_step(x, px, py, s, t):  # pragma: no cover (compiled)
     """Newton's step (Δξ, Δη) towards the physical point (px, py) from (ξ, η) = (s, t) in the
     quadrilateral with nodes x (4, 2) in tensor order, each operation in the order of
     :func:`bilinear_map`; J = [[a, b], [c, d]] = [∂x/∂ξ, ∂x/∂η], solved in closed form."""
-    x0, y0, x1, y1 = x[0, 0], x[0, 1], x[1, 0], x[1, 1]
-    x2, y2, x3, y3 = x[2, 0], x[2, 1], x[3, 0], x[3, 1]
-    mx = x0 * (1 - s) * (1 - t) + x1 * s * (1 - t) + x2 * (1 - s) * t + x3 * s * t
-    my = y0 * (1 - s) * (1 - t) + y1 * s * (1 - t) + y2 * (1 - s) * t + y3 * s * t
-    a = (x1 - x0) * (1 - t) + (x3 - x2) * t
-    c = (y1 - y0) * (1 - t) + (y3 - y2) * t
-    b = (x2 - x0) * (1 - s) + (x3 - x1) * s
-    d = (y2 - y0) * (1 - s) + (y3 - y1) * s
+    mx, my = bilinear_point(x, s, t)
+    a, b, c, d = bilinear_jacobian(x, s, t)
     rx, ry = px - mx, py - my
     det = a * d - b * c
     return (d * rx - b * ry) / det, (a * ry - c * rx) / det
@@ -307,11 +319,8 @@ def _fan_moments(x, polygons, points, weights, exponents, quadrilateral, steps, 
                     break
                 if quadrilateral:
                     s, t = reference_point(x[i], px, py, steps, tolerance)
-                    jx = (x[i, 1, 0] - x[i, 0, 0]) * (1 - t) + (x[i, 3, 0] - x[i, 2, 0]) * t
-                    jy = (x[i, 1, 1] - x[i, 0, 1]) * (1 - t) + (x[i, 3, 1] - x[i, 2, 1]) * t
-                    kx = (x[i, 2, 0] - x[i, 0, 0]) * (1 - s) + (x[i, 3, 0] - x[i, 1, 0]) * s
-                    ky = (x[i, 2, 1] - x[i, 0, 1]) * (1 - s) + (x[i, 3, 1] - x[i, 1, 1]) * s
-                    jacobian = abs(jx * ky - kx * jy)
+                    a, b, c, d = bilinear_jacobian(x[i], s, t)
+                    jacobian = abs(a * d - b * c)
                 else:
                     dx, dy = px - x[i, 0, 0], py - x[i, 0, 1]
                     s = (dx * by - dy * bx) / det

@@ -134,8 +134,7 @@ class InterfaceForms:
         kinds = {"mass": function_space("Lagrange", 1, (gdim,)), "part": quadrature,
                  "edge_flux": function_space("DG", 1, (gdim,)), "compliance": function_space("DG", 0), "ghost": function_space("DG", 0),
                  "offset": function_space("DG", 0), "normal": function_space("DG", 0, (gdim,)),
-                 "interface": quadrature, "weight": function_space("DG", 0), "penalty": function_space("DG", 0),
-}
+                 "interface": quadrature, "weight": function_space("DG", 0), "penalty": function_space("DG", 0)}
         self.coefficients = {}
         for name in _MATERIAL_COEFFICIENTS:
             for side in "ab":
@@ -491,8 +490,9 @@ class InterfaceSystem:
         (:meth:`BoundSystem.solve`; None: all of them): those of the active cells — the
         inactive cells of the band carry no equation — with the tied nodes' velocities
         joined.  The tied nodes (pure cells of both materials around them: no mixed cell
-        carries an interface there) move as one: their two velocities are one unknown.  Under free slip in 2D a *sliding* tied node (Γ passes through
-        it between mixed cells, along no mesh edge) shares only the normal part, along the
+        carries an interface there) move as one: their two velocities are one unknown.
+        Under free slip in 2D a *sliding* tied node (Γ passes through it between mixed
+        cells, along no mesh edge) shares only the normal part, along the
         node's normal to Γ (``tie_normal``, default the mean of its mixed cells' normals):
         the materials still slide past it (a spinning disk whose rim runs through nodes
         handed 11 % of its angular momentum to the fluid around it in one step when the

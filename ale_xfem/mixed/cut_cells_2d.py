@@ -37,7 +37,8 @@ import numpy as np
 from ale_xfem.geometry.shapes import polygon_area, polygon_centroid
 from ale_xfem.model.mesh import mesh_edges
 from ale_xfem.model.plic import Reconstruction, reconstruct, youngs_normals
-from forms.cut_quadrature import NEWTON_STEPS, NEWTON_TOLERANCE, fan_point, reference_point
+from forms.cut_quadrature import (NEWTON_STEPS, NEWTON_TOLERANCE, bilinear_jacobian, fan_point,
+                                  reference_point)
 
 # the rule on the triangles of a part's fan (∫ ψ_i, ∫ ∇ψ_i), by the cell's vertex count:
 # exact for the linear ψ of a triangle; through the inverse map of a quadrilateral, smooth
@@ -259,10 +260,7 @@ def _fan_shape_integrals(vertices, polygons, points, weights, steps, tolerance):
                     s, t = reference_point(tensor, px, py, steps, tolerance)
                     # going-round order: (0,0), (1,0), (1,1), (0,1); ∇ψ = J⁻ᵀ ∇̂ψ̂
                     psi[0], psi[1], psi[2], psi[3] = (1 - s) * (1 - t), s * (1 - t), s * t, (1 - s) * t
-                    a = (tensor[1, 0] - tensor[0, 0]) * (1 - t) + (tensor[3, 0] - tensor[2, 0]) * t
-                    c = (tensor[1, 1] - tensor[0, 1]) * (1 - t) + (tensor[3, 1] - tensor[2, 1]) * t
-                    b = (tensor[2, 0] - tensor[0, 0]) * (1 - s) + (tensor[3, 0] - tensor[1, 0]) * s
-                    d = (tensor[2, 1] - tensor[0, 1]) * (1 - s) + (tensor[3, 1] - tensor[1, 1]) * s
+                    a, b, c, d = bilinear_jacobian(tensor, s, t)
                     jac = a * d - b * c
                     reference = ((-(1 - t), -(1 - s)), (1 - t, -s), (t, s), (-t, 1 - s))
                     for r in range(4):
