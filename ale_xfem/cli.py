@@ -49,6 +49,9 @@ def _parser() -> argparse.ArgumentParser:
                           help="with a scene: a key and its values; every combination is run (repeatable)")
     accuracy.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                           help="with a scene: override a key in every variant (repeatable)")
+    accuracy.add_argument("--error", choices=("density", "velocity", "pressure"), default=None,
+                          help="the L1 error the variants are ranked and charted by (default: the study's, "
+                               "or density)")
     accuracy.add_argument("--out", type=Path, default=None, help="output folder (default: out/study-<name>)")
     stability = kinds.add_parser(
         "stability", help="the hard cases (Toro 1-5, LeBlanc, water-air, plate impact, slivers, long run, "
@@ -165,6 +168,8 @@ def _study(args) -> int:
                 raise SceneError("target", args.target, "a shipped study or scene (see `ale-xfem list`), "
                                                         "or a study or scene file")
             study = study_from_vary(args.target, cells or list(DEFAULT_CELLS), args.vary, args.overrides)
+        if args.error is not None:
+            study.error = args.error
         check_study(study)
     except (SceneError, ValueError) as error:
         print(f"error: {error}", file=sys.stderr)

@@ -7,8 +7,14 @@ import sys
 
 import pytest
 
-from ale_xfem.studies.accuracy import (check_study, load_study, run_accuracy_study, shipped_studies,
-                              study_from_vary)
+from ale_xfem.scene import SceneError, load_scene, resolve_scene_path
+from ale_xfem.studies.accuracy import (SYMBOL, check_study, cheapest_for, load_study, run_accuracy_study,
+                                       shipped_studies, study_from_vary)
+
+
+# the shipped 2D studies run in the tests at these sides (their own resolutions are studies' sizes)
+SMALL_2D_CELLS = [16, 32]
+SMALL_2D_T_END = 0.25  # and run to this time at most
 
 
 def _cli(*args):
@@ -48,12 +54,44 @@ def test_shipped_studies_are_valid_and_run_at_small_size(path, tmp_path):
     study = load_study(path)
     check_study(study)
     assert len(study.variants) >= 2
-    study.cells = [40, 80]
+    # the error the study ranks by falls from the smaller resolution to the larger
+    scene = load_scene(resolve_scene_path(study.variants[0].scene))
+    study.cells = SMALL_2D_CELLS if scene.dimension == 2 else [40, 80]
+    if scene.dimension == 2 and scene.t_end > SMALL_2D_T_END:
+        for variant in study.variants:
+            variant.overrides.append(f"t_end={SMALL_2D_T_END}")
     rows = run_accuracy_study(study, tmp_path, echo=lambda line: None)
     assert all(r["status"] == "ok" for r in rows), [r for r in rows if r["status"] != "ok"]
     for variant in study.variants:
-        errors = [r["L1_density"] for r in rows if r["variant"] == variant.label]
+        errors = [r[f"L1_{study.error}"] for r in rows if r["variant"] == variant.label]
         assert errors[1] < errors[0], variant.label
+    assert f"L1({SYMBOL[study.error]}) down to" in (tmp_path / "accuracy.md").read_text()
+
+
+def test_a_study_ranks_by_the_error_it_names():
+    # one variant cheaper for the density, the other for the velocity
+    rows = [dict(variant=v, status="ok", cells=n, wall_seconds=t, L1_density=d, L1_velocity=u, L1_pressure=1.0)
+            for v, n, t, d, u in (("a", 10, 1.0, 1e-2, 1e-1), ("a", 20, 4.0, 5e-3, 5e-2),
+                                  ("b", 10, 2.0, 2e-2, 4e-2), ("b", 20, 8.0, 1e-2, 2e-2))]
+    assert cheapest_for(rows)[1][0][0] == "a"
+    assert cheapest_for(rows, "velocity")[1][0][0] == "b"
+
+
+def test_the_cheapest_run_counts_when_a_variant_starts_below_the_target_or_rises_again():
+    # b's coarsest run already beats a's finest, and b's error rises on its finest mesh
+    rows = [dict(variant=v, status="ok", cells=n, wall_seconds=t, L1_density=d)
+            for v, n, t, d in (("a", 10, 1.0, 4e-2), ("a", 20, 3.0, 3e-2), ("a", 40, 7.0, 2.4e-2),
+                               ("b", 10, 4.0, 2.2e-2), ("b", 20, 12.0, 1.5e-2), ("b", 40, 40.0, 2.2e-2))]
+    target, costs = cheapest_for(rows)
+    assert target == 2.4e-2
+    assert costs[0] == ("b", 4.0, True) and costs[1][0] == "a" and costs[1][1] == pytest.approx(7.0)
+
+
+def test_a_bad_study_error_is_named(tmp_path):
+    path = tmp_path / "bad.toml"
+    path.write_text('error = "velocty"\ncells = [10, 20]\n[[variants]]\nlabel = "a"\nscene = "sod"\n')
+    with pytest.raises(SceneError, match="error.*velocty.*density, velocity, pressure"):
+        load_study(path)
 
 
 def test_a_bad_vary_key_is_one_line_and_runs_nothing(tmp_path):

@@ -2,8 +2,11 @@
 
 A study runs every variant at every resolution and writes, into its output folder:
 ``accuracy.csv`` (a row per run), ``accuracy.md`` (the table, the fitted convergence
-rates, and which variant is cheapest for a given L1(ρ)), and ``accuracy.png`` (L1(ρ)
-against cells, and the work-precision chart: L1(ρ) against wall time, a line per variant).
+rates, and which variant is cheapest for a given error), and ``accuracy.png`` (the error
+against cells, and the work-precision chart: the error against wall time, a line per
+variant).  The error ranked and charted is L1(ρ) unless the study names another
+(``error = "velocity"`` or ``"pressure"``: where the density's does not show what the
+variants differ in — a slip line moves no density).
 
 Variants come either from ``--vary key=v1,v2`` on one scene (every combination), or from a
 shipped study (``demos/studies/*.toml``): a list of labelled (scene, overrides) variants.
@@ -28,6 +31,8 @@ STUDIES_DIR = Path(__file__).resolve().parents[2] / "demos" / "studies"
 DEFAULT_CELLS = (100, 200, 400, 800, 1600)
 COLUMNS = ("variant", "scene", "cells", "status", "steps", "wall_seconds", "L1_density", "L1_velocity",
            "L1_pressure", "ms_per_step_lagrange", "ms_per_step_mixed_cell_solve", "ms_per_step_remap")
+ERRORS = ("density", "velocity", "pressure")  # what a study may rank its variants by
+SYMBOL = {"density": "ρ", "velocity": "u", "pressure": "p"}
 
 
 @dataclass
@@ -43,6 +48,7 @@ class Study:
     description: str
     cells: list[int]
     variants: list[Variant]
+    error: str = "density"  # the L1 error ranked and charted: one of ERRORS
 
 
 def shipped_studies() -> list[Path]:
@@ -62,15 +68,19 @@ def study_path(name: str) -> Path | None:
 
 def load_study(path: Path) -> Study:
     """A shipped (or user) study file: name, description, cells, [[variants]] with label,
-    scene and optional set = ["key=value", ...]."""
+    scene and optional set = ["key=value", ...]; optional error = "density" | "velocity" |
+    "pressure" (what the variants are ranked and charted by; density by default)."""
     data = tomllib.loads(path.read_text())
-    allowed = {"name", "description", "cells", "variants"}
+    allowed = {"name", "description", "cells", "variants", "error"}
     for key in data:
         if key not in allowed:
             raise SceneError(key, data[key], f"a study key ({', '.join(sorted(allowed))})")
     cells = data.get("cells", list(DEFAULT_CELLS))
     if not isinstance(cells, list) or not cells or not all(isinstance(c, int) and c > 0 for c in cells):
         raise SceneError("cells", cells, "a list of positive integers")
+    error = data.get("error", "density")
+    if error not in ERRORS:
+        raise SceneError("error", error, f"the L1 error to rank by: {', '.join(ERRORS)}")
     variants = []
     for i, table in enumerate(data["variants"]):
         for key in table:
@@ -82,7 +92,7 @@ def load_study(path: Path) -> Study:
         if not isinstance(overrides, list) or not all(isinstance(o, str) for o in overrides):
             raise SceneError(f"variants.{i}.set", overrides, 'a list of "key=value" strings')
         variants.append(Variant(str(table["label"]), str(table["scene"]), list(overrides)))
-    return Study(str(data.get("name", path.stem)), str(data.get("description", "")), cells, variants)
+    return Study(str(data.get("name", path.stem)), str(data.get("description", "")), cells, variants, error)
 
 
 def study_from_vary(scene: str, cells: list[int], vary: list[str], overrides: list[str]) -> Study:
@@ -162,12 +172,12 @@ def run_accuracy_study(study: Study, out: Path, echo=print) -> list[dict]:
                    "ms_per_step_remap": 1e3 * phases.get("remap", 0.0) / steps}
             rows.append(row)
             echo(f"[{len(rows):>3}/{total}] {variant.label:<40} {cells:>6} cells  {result.status:<6} "
-                 f"L1(ρ) {row['L1_density']:.3e}  {result.wall_seconds:7.2f} s"
+                 f"L1({SYMBOL[study.error]}) {row['L1_' + study.error]:.3e}  {result.wall_seconds:7.2f} s"
                  f"  ({time.perf_counter() - clock:.0f} s so far)")
     write_csv(rows, out / "accuracy.csv")
     rates = fitted_rates(rows)
     (out / "accuracy.md").write_text(markdown_report(study, rows, rates))
-    work_precision_chart(study.name, rows, rates, out / "accuracy.png")
+    work_precision_chart(study.name, rows, rates, out / "accuracy.png", study.error)
     return rows
 
 
@@ -209,19 +219,31 @@ def time_to_reach(errors, seconds, target: float) -> float:
     return float(np.exp(np.interp(math.log(target), log_e[order], log_t[order])))
 
 
-def cheapest_for(rows: list[dict]) -> tuple[float, list[tuple[str, float]]] | None:
-    """The L1(ρ) that every variant reaches, and each variant's wall time to reach it
-    (log-log interpolation between its two resolutions around it), cheapest first."""
+def cheapest_for(rows: list[dict], error: str = "density") -> tuple[float, list[tuple[str, float, bool]]] | None:
+    """The L1 ``error`` (one of ERRORS) that every variant reaches, and each variant's wall
+    time to reach it, cheapest first: (target, [(label, seconds, at_most)]).  A variant
+    reaches it at its first resolution (in increasing order) whose error is at or below it:
+    the time is interpolated log-log from the resolution before that one, or, when its
+    coarsest run already reaches it, that run's time, an upper bound (``at_most``).  The
+    first resolution counts, not the finest: an error that rises again on finer meshes
+    does not hide a cheap run."""
+    key = f"L1_{error}"
     curves = {}
     for label in dict.fromkeys(r["variant"] for r in rows):
         mine = sorted((r for r in rows if r["variant"] == label and r["status"] == "ok"
-                       and np.isfinite(r["L1_density"])), key=lambda r: r["cells"])
+                       and np.isfinite(r[key])), key=lambda r: r["cells"])
         if len(mine) >= 2:
-            curves[label] = ([r["L1_density"] for r in mine], [r["wall_seconds"] for r in mine])
+            curves[label] = ([r[key] for r in mine], [r["wall_seconds"] for r in mine])
     if len(curves) < 2:
         return None
     target = max(min(errors) for errors, _ in curves.values())
-    costs = [(label, time_to_reach(errors, seconds, target)) for label, (errors, seconds) in curves.items()]
+    costs = []
+    for label, (errors, seconds) in curves.items():
+        k = next(i for i, e in enumerate(errors) if e <= target)
+        if k == 0:
+            costs.append((label, seconds[0], True))
+        else:
+            costs.append((label, time_to_reach(errors[k - 1:k + 1], seconds[k - 1:k + 1], target), False))
     return target, sorted(costs, key=lambda item: item[1])
 
 
@@ -239,19 +261,21 @@ def markdown_report(study: Study, rows: list[dict], rates: dict) -> str:
               "| variant | ρ | u | p |", "|---|---:|---:|---:|"]
     for label, r in rates.items():
         lines.append(f"| {label} | {r['density']:.2f} | {r['velocity']:.2f} | {r['pressure']:.2f} |")
-    cheapest = cheapest_for(rows)
+    cheapest = cheapest_for(rows, study.error)
     if cheapest is not None:
         target, costs = cheapest
-        lines += ["", f"Wall time to reach L1(ρ) = {target:.3e} (the finest error every variant reaches; "
-                      "log-log interpolation between resolutions):", ""]
-        lines += [f"- {label}: {seconds:.3g} s" for label, seconds in costs]
-        lines += ["", f"For L1(ρ) down to {target:.3e} on this problem, **{costs[0][0]}** is cheapest."]
+        symbol = SYMBOL[study.error]
+        lines += ["", f"Wall time to reach L1({symbol}) = {target:.3e} (the finest error every variant reaches; "
+                      "log-log interpolation from the resolution before the first that reaches it):", ""]
+        lines += [f"- {label}: " + (f"at most {seconds:.3g} s (its coarsest run reaches it)" if at_most
+                                    else f"{seconds:.3g} s") for label, seconds, at_most in costs]
+        lines += ["", f"For L1({symbol}) down to {target:.3e} on this problem, **{costs[0][0]}** is cheapest."]
     return "\n".join(lines) + "\n"
 
 
-def work_precision_chart(title: str, rows: list[dict], rates: dict, path: Path) -> None:
-    """Convergence (L1(ρ) against cells) and work-precision (L1(ρ) against wall time), a
-    line per variant; ``rows`` as written by a study (variant, status, cells, L1_density,
+def work_precision_chart(title: str, rows: list[dict], rates: dict, path: Path, error: str = "density") -> None:
+    """Convergence (the L1 ``error`` against cells) and work-precision (against wall time),
+    a line per variant; ``rows`` as written by a study (variant, status, cells, L1_<error>,
     wall_seconds)."""
     import matplotlib
     import matplotlib.ticker
@@ -261,25 +285,27 @@ def work_precision_chart(title: str, rows: list[dict], rates: dict, path: Path) 
 
     figure, (by_cells, by_time) = plt.subplots(1, 2, figsize=(11, 4.2))
     for label in dict.fromkeys(r["variant"] for r in rows):
-        mine = [r for r in rows if r["variant"] == label and r["status"] == "ok" and np.isfinite(r["L1_density"])]
+        mine = [r for r in rows if r["variant"] == label and r["status"] == "ok" and np.isfinite(r[f"L1_{error}"])]
         if not mine:
             continue
         cells = [r["cells"] for r in mine]
-        error = [r["L1_density"] for r in mine]
+        values = [r[f"L1_{error}"] for r in mine]
         wall = [max(r["wall_seconds"], 1e-4) for r in mine]
-        rate = rates[label]["density"]
-        by_cells.loglog(cells, error, "o-", label=f"{label} (rate {rate:.2f})")
-        by_time.loglog(wall, error, "o-", label=label)
+        rate = rates[label][error]
+        by_cells.loglog(cells, values, "o-", label=f"{label} (rate {rate:.2f})")
+        by_time.loglog(wall, values, "o-", label=label)
     by_cells.set_xlabel("cells")
-    by_cells.set_ylabel("L1 error of density")
+    by_cells.set_ylabel(f"L1 error of {error}")
     by_cells.set_title("convergence")
     by_time.set_xlabel("wall time of the run (s)")
-    by_time.set_ylabel("L1 error of density")
+    by_time.set_ylabel(f"L1 error of {error}")
     by_time.set_title("work-precision (lower left is better)")
     for axes in (by_cells, by_time):
         axes.grid(True, which="both", alpha=0.3)
-        axes.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
-        axes.yaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
+        for axis in (axes.xaxis, axes.yaxis):
+            low, high = sorted(axis.get_view_interval())
+            if high > 10.0 * low:  # a decade's labels are enough; within one, the minor ticks carry them
+                axis.set_minor_formatter(matplotlib.ticker.NullFormatter())
     by_cells.legend(fontsize=7)
     figure.suptitle(title)
     figure.tight_layout()
