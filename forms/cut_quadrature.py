@@ -83,6 +83,7 @@ class CutQuadrature:
             raise ValueError(f"exact_degree {exact_degree} needs {len(self.exponents)} points; the rule of degree "
                              f"{rule_degree} has {self.weights.size}")
         self.stats = {"min_weight": 1.0, "negative_weights": 0}
+        self._fitting = None  # the moments → weights map (the Vandermonde's pseudo-inverse), made once
         self._dofs = np.asarray(self.space.dofmap.list)  # (cells, points)
         self._nodes = np.asarray(mesh.geometry.dofmaps[0])
 
@@ -159,8 +160,10 @@ class CutQuadrature:
         values[:] = 0.0
         values[self._dofs[np.asarray(full_cells, dtype=np.int64)]] = 1.0
         if cut_cells.size:
-            vandermonde = np.stack([np.prod(self.points ** np.asarray(e), axis=1) for e in self.exponents])
-            fitted = moments @ np.linalg.pinv(vandermonde).T  # (n, points)
+            if self._fitting is None:  # the rule's points and the moments' exponents are fixed
+                vandermonde = np.stack([np.prod(self.points ** np.asarray(e), axis=1) for e in self.exponents])
+                self._fitting = np.linalg.pinv(vandermonde).T
+            fitted = moments @ self._fitting  # (n, points)
             ratio = fitted / self.weights
             if with_jacobian:
                 x = self.cell_vertices(cut_cells)

@@ -151,6 +151,21 @@ def cut_cells(cell_nodes, node_position, cells, reconstruction: Reconstruction, 
 
 def _edge_neighbours(cell_nodes, cells):
     """(n, k): the cell across local edge j (vertices j → j+1) of each of ``cells``."""
+    return _all_edge_neighbours(cell_nodes)[np.asarray(cells)]
+
+
+_NEIGHBOURS = [None, None]  # (a weak reference to the last cell_nodes array, its edge neighbours)
+
+
+def _all_edge_neighbours(cell_nodes):
+    """(n_cells, k): the cell across each local edge of every cell (−1 on the boundary), kept
+    for the last mesh (every cut geometry asks again)."""
+    if _NEIGHBOURS[0] is None or _NEIGHBOURS[0]() is not cell_nodes:
+        _NEIGHBOURS[:] = [weakref.ref(cell_nodes), _find_edge_neighbours(cell_nodes, np.arange(cell_nodes.shape[0]))]
+    return _NEIGHBOURS[1]
+
+
+def _find_edge_neighbours(cell_nodes, cells):
     k = cell_nodes.shape[1]
     start, end = cell_nodes.ravel(), np.roll(cell_nodes, -1, axis=1).ravel()
     key = np.minimum(start, end) * (cell_nodes.max() + 1) + np.maximum(start, end)

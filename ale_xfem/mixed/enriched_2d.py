@@ -87,9 +87,7 @@ class EnrichedClosure2D(SharedClosure):
 
     def _to_dolfinx(self, node_values):
         """A node field (..., n_nodes) in DOLFINx's node order."""
-        out = np.empty_like(node_values)
-        out[..., self.dolfinx_node] = node_values
-        return out
+        return np.take(node_values, self.node_of_dolfinx, axis=-1)
 
     def bind(self, mixed: MixedCells) -> None:
         """The interface system over the mixed cells: bound to a band of cells around them
