@@ -69,6 +69,9 @@ CASES = {
     "sod-2d": ("sod-2d", ["mesh.cells=[16,16]"]),
     "shock-disk": ("shock-disk", ["mesh.cells=[24,12]"]),
     "shock-disk-enriched": ("shock-disk", ["mesh.cells=[24,12]", "interface.model=enriched"]),
+    "sliding-block": ("sliding-block", ["mesh.cells=[24,12]", "t_end=0.1"]),
+    "sliding-block-single-velocity": ("sliding-block", ["mesh.cells=[24,12]", "t_end=0.1",
+                                                        "interface.model=single_velocity"]),
 }
 
 # figures of the summary that measure the machine, not the physics

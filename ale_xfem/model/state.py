@@ -273,6 +273,19 @@ def material_angular_momenta(state: State, layout: MaterialLayout, cell_nodes: n
                      for m in range(layout.n_materials)])
 
 
+def material_momenta(state: State, layout: MaterialLayout, cell_nodes: np.ndarray) -> np.ndarray:
+    """Each material's momentum (2D, per unit length; (n_materials, 2)): Σ_K m_α,K ū_K, ū_K
+    the mean velocity of the cell's nodes (``cell_nodes`` (n_cells, k)) — with one velocity
+    field what a material's cells carry; where the state carries one velocity per material
+    (2D enriched mixed cells), Σ_i M_α,i u_α,i over its own nodal masses: the momentum the
+    run conserves."""
+    if state.material_node_velocity is not None:
+        return np.einsum("mn,mdn->md", state.material_node_mass, state.material_node_velocity)
+    velocity = state.node_velocity[:2, cell_nodes].mean(axis=2)  # (2, n_cells)
+    return np.array([[np.sum(np.where(layout.cell_material == m, state.material_mass, 0.0) * velocity[d])
+                      for d in range(2)] for m in range(layout.n_materials)])
+
+
 def totals(state: State, node_mass: np.ndarray) -> dict[str, float]:
     """Mass, momentum (per component) and total energy of a state (with one velocity per
     material on the nodes of enriched 2D mixed cells: of each material's velocities with
