@@ -65,6 +65,8 @@ def test_shipped_studies_are_valid_and_run_at_small_size(path, tmp_path):
     for variant in study.variants:
         errors = [r[f"L1_{study.error}"] for r in rows if r["variant"] == variant.label]
         assert errors[1] < errors[0], variant.label
+        if "interface.model=enriched" in variant.overrides:  # the predictor/corrector's iterations
+            assert all(r["mixed_iterations_mean"] >= 1.0 for r in rows if r["variant"] == variant.label)
     assert f"L1({SYMBOL[study.error]}) down to" in (tmp_path / "accuracy.md").read_text()
 
 
