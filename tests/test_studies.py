@@ -8,8 +8,8 @@ import sys
 import pytest
 
 from ale_xfem.scene import SceneError, load_scene, resolve_scene_path
-from ale_xfem.studies.accuracy import (SYMBOL, check_study, cheapest_for, load_study, run_accuracy_study,
-                                       shipped_studies, study_from_vary)
+from ale_xfem.studies.accuracy import (SYMBOL, check_study, cheapest_for, cheapest_named, load_study,
+                                       run_accuracy_study, shipped_studies, study_from_vary)
 
 
 # the shipped 2D studies run in the tests at these sides (their own resolutions are studies' sizes)
@@ -87,6 +87,28 @@ def test_the_cheapest_run_counts_when_a_variant_starts_below_the_target_or_rises
     target, costs = cheapest_for(rows)
     assert target == 2.4e-2
     assert costs[0] == ("b", 4.0, True) and costs[1][0] == "a" and costs[1][1] == pytest.approx(7.0)
+
+
+def test_upper_bounds_that_cannot_be_told_apart_are_named_together():
+    # a and b reach the target with their coarsest runs (upper bounds); c needs more
+    rows = [dict(variant=v, status="ok", cells=n, wall_seconds=t, L1_density=d)
+            for v, n, t, d in (("a", 10, 3.0, 1e-2), ("a", 20, 9.0, 5e-3), ("b", 10, 4.0, 1.2e-2),
+                               ("b", 20, 12.0, 6e-3), ("c", 10, 1.0, 4e-2), ("c", 20, 5.0, 1.2e-2))]
+    target, costs = cheapest_for(rows)
+    assert target == 1.2e-2 and [label for label, _, _ in costs] == ["a", "b", "c"]
+    assert cheapest_named(costs) == ["a", "b"]
+    assert cheapest_named([("c", 5.0, False), ("a", 6.0, True)]) == ["c"]
+    assert cheapest_named([("a", 3.0, True), ("c", 5.0, False), ("b", 6.0, True)]) == ["a"]
+
+
+def test_the_command_line_ranks_by_the_error_it_is_asked_for(tmp_path):
+    out = tmp_path / "study"
+    done = _cli("study", "accuracy", "sod", "--cells", "50,100", "--vary", "numerics.cfl=0.3,0.5",
+                "--error", "velocity", "--out", str(out))
+    assert done.returncode == 0, done.stderr
+    assert "L1(u) down to" in (out / "accuracy.md").read_text()
+    done = _cli("study", "accuracy", "sod", "--error", "speed", "--out", str(tmp_path / "never"))
+    assert done.returncode == 2 and "--error" in done.stderr and not (tmp_path / "never").exists()
 
 
 def test_a_bad_study_error_is_named(tmp_path):

@@ -136,7 +136,10 @@ def cells_override(path, cells: int) -> str:
 
 
 def check_study(study: Study) -> None:
-    """Load every variant's scene at every resolution (SceneError on the first bad one)."""
+    """Load every variant's scene at every resolution (SceneError on the first bad one), and
+    check the error the study ranks by."""
+    if study.error not in ERRORS:
+        raise SceneError("error", study.error, f"the L1 error to rank by: {', '.join(ERRORS)}")
     for variant in study.variants:
         path = resolve_scene_path(variant.scene)
         for cells in study.cells:
@@ -171,8 +174,10 @@ def run_accuracy_study(study: Study, out: Path, echo=print) -> list[dict]:
                    "ms_per_step_lagrange": 1e3 * phases.get("lagrange", 0.0) / steps,
                    "ms_per_step_mixed_cell_solve": 1e3 * phases.get("mixed_cell_solve", 0.0) / steps,
                    "ms_per_step_remap": 1e3 * phases.get("remap", 0.0) / steps,
-                   # the mixed cells' predictor/corrector iterations per step (nan without them)
-                   "mixed_iterations_mean": float((result.mixed_cells or {}).get("iterations_mean", math.nan))}
+                   # the mixed cells' predictor/corrector iterations per step (nan where no
+                   # iteration was counted: no mixed cells, or a closure that does not iterate)
+                   "mixed_iterations_mean": float((result.mixed_cells or {}).get("iterations_mean", 0.0)
+                                                  or math.nan)}
             rows.append(row)
             echo(f"[{len(rows):>3}/{total}] {variant.label:<40} {cells:>6} cells  {result.status:<6} "
                  f"L1({SYMBOL[study.error]}) {row['L1_' + study.error]:.3e}  {result.wall_seconds:7.2f} s"
@@ -223,8 +228,9 @@ def time_to_reach(errors, seconds, target: float) -> float:
 
 
 def cheapest_for(rows: list[dict], error: str = "density") -> tuple[float, list[tuple[str, float, bool]]] | None:
-    """The L1 ``error`` (one of ERRORS) that every variant reaches, and each variant's wall
-    time to reach it, cheapest first: (target, [(label, seconds, at_most)]).  A variant
+    """The L1 ``error`` (one of ERRORS) that every variant with two finished runs reaches,
+    and each such variant's wall time to reach it, cheapest first: (target, [(label,
+    seconds, at_most)]).  A variant
     reaches it at its first resolution (in increasing order) whose error is at or below it:
     the time is interpolated log-log from the resolution before that one, or, when its
     coarsest run already reaches it, that run's time, an upper bound (``at_most``).  The
@@ -250,6 +256,16 @@ def cheapest_for(rows: list[dict], error: str = "density") -> tuple[float, list[
     return target, sorted(costs, key=lambda item: item[1])
 
 
+def cheapest_named(costs: list[tuple[str, float, bool]]) -> list[str]:
+    """The variants that are cheapest for sure: the first of ``costs`` (cheapest_for's), and
+    with it every other upper bound (``at_most``) below the first time that is not one —
+    between upper bounds these resolutions cannot tell which is cheaper."""
+    first_known = next((seconds for _, seconds, at_most in costs if not at_most), math.inf)
+    if not costs[0][2]:
+        return [costs[0][0]]
+    return [label for label, seconds, at_most in costs if at_most and seconds < first_known]
+
+
 def markdown_report(study: Study, rows: list[dict], rates: dict) -> str:
     lines = [f"# Accuracy against cost: {study.name}", "", study.description, "",
              "| variant | cells | status | steps | L1(ρ) | L1(u) | L1(p) | wall s | ms/step explicit "
@@ -272,7 +288,14 @@ def markdown_report(study: Study, rows: list[dict], rates: dict) -> str:
                       "log-log interpolation from the resolution before the first that reaches it):", ""]
         lines += [f"- {label}: " + (f"at most {seconds:.3g} s (its coarsest run reaches it)" if at_most
                                     else f"{seconds:.3g} s") for label, seconds, at_most in costs]
-        lines += ["", f"For L1({symbol}) down to {target:.3e} on this problem, **{costs[0][0]}** is cheapest."]
+        leaders = cheapest_named(costs)
+        if len(leaders) == 1:
+            lines += ["", f"For L1({symbol}) down to {target:.3e} on this problem, **{leaders[0]}** is cheapest."]
+        else:
+            names = ", ".join(f"**{label}**" for label in leaders)
+            lines += ["", f"For L1({symbol}) down to {target:.3e} on this problem, {names} are cheaper than the "
+                          "others (their coarsest runs already reach it; which of them is cheapest, these "
+                          "resolutions cannot tell)."]
     return "\n".join(lines) + "\n"
 
 
@@ -313,8 +336,14 @@ def work_precision_chart(title: str, rows: list[dict], rates: dict, path: Path, 
         axes.grid(True, which="both", alpha=0.3)
         for axis in (axes.xaxis, axes.yaxis):
             low, high = sorted(axis.get_view_interval())
-            if high > 10.0 * low:  # a decade's labels are enough; within one, the minor ticks carry them
+            # two powers of ten inside label the axis; with fewer, ticks at 2, 3 and 5 times
+            # them carry plain labels too
+            if math.floor(math.log10(high)) - math.ceil(math.log10(low)) >= 1:
                 axis.set_minor_formatter(matplotlib.ticker.NullFormatter())
+            else:
+                axis.set_minor_locator(matplotlib.ticker.LogLocator(subs=(2.0, 3.0, 5.0)))
+                axis.set_minor_formatter(matplotlib.ticker.FormatStrFormatter("%g"))
+                axis.set_major_formatter(matplotlib.ticker.FormatStrFormatter("%g"))
     by_cells.legend(fontsize=7)
     figure.suptitle(title)
     figure.tight_layout()
