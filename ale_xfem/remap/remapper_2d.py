@@ -445,7 +445,18 @@ class Remapper2D:
             velocity[m][:, node_mass[m] <= 0] = mesh_velocity[:, node_mass[m] <= 0]
         old_mass, old_velocity = state.material_node_mass, state.material_node_velocity
         kinetic_before = 0.5 * np.sum(old_mass[:, None] * old_velocity**2, axis=(0, 1))
-        in_nodes = np.bincount(flat, (share * kinetic_in[:, None, :]).sum(axis=0).ravel(), n_nodes)
+        # the fluxes' kinetic energy by corner shares: the new ones, or, in a cell the material
+        # has left (its outflow counted there, or a trace of it moved away), the old ones —
+        # every cell's share reaches the nodes, so the losses sum to the kinetic energy the
+        # remap changed (by the new shares alone, what left a cell was lost: total energy
+        # drifted by 10⁻⁶ a remap on the sheared tube)
+        old_corner_mass = state.material_corner_mass
+        old_cell_mass = old_corner_mass.sum(axis=1)
+        k = old_corner_mass.shape[1]
+        old_share = np.divide(old_corner_mass, old_cell_mass[:, None, :], out=np.full_like(old_corner_mass, 1.0 / k),
+                              where=old_cell_mass[:, None, :] > 0)
+        flux_share = np.where(cell_mass[:, None, :] > 0, share, old_share)
+        in_nodes = np.bincount(flat, (flux_share * kinetic_in[:, None, :]).sum(axis=0).ravel(), n_nodes)
         loss = kinetic_before + in_nodes - 0.5 * np.sum(node_mass[:, None] * velocity**2, axis=(0, 1))
         self.wall_impulse, self.wall_work = np.zeros(2), 0.0
         for boundary in self.constraints:
