@@ -79,9 +79,7 @@ def load_study(path: Path) -> Study:
     cells = data.get("cells", list(DEFAULT_CELLS))
     if not isinstance(cells, list) or not cells or not all(isinstance(c, int) and c > 0 for c in cells):
         raise SceneError("cells", cells, "a list of positive integers")
-    error = data.get("error", "density")
-    if error not in ERRORS:
-        raise SceneError("error", error, f"the L1 error to rank by: {', '.join(ERRORS)}")
+    error = _checked_error(data.get("error", "density"))
     variants = []
     for i, table in enumerate(data["variants"]):
         for key in table:
@@ -94,6 +92,13 @@ def load_study(path: Path) -> Study:
             raise SceneError(f"variants.{i}.set", overrides, 'a list of "key=value" strings')
         variants.append(Variant(str(table["label"]), str(table["scene"]), list(overrides)))
     return Study(str(data.get("name", path.stem)), str(data.get("description", "")), cells, variants, error)
+
+
+def _checked_error(error):
+    """The error a study ranks by, if it is one of ERRORS (SceneError otherwise)."""
+    if error not in ERRORS:
+        raise SceneError("error", error, f"the L1 error to rank by: {', '.join(ERRORS)}")
+    return error
 
 
 def study_from_vary(scene: str, cells: list[int], vary: list[str], overrides: list[str]) -> Study:
@@ -138,8 +143,7 @@ def cells_override(path, cells: int) -> str:
 def check_study(study: Study) -> None:
     """Load every variant's scene at every resolution (SceneError on the first bad one), and
     check the error the study ranks by."""
-    if study.error not in ERRORS:
-        raise SceneError("error", study.error, f"the L1 error to rank by: {', '.join(ERRORS)}")
+    _checked_error(study.error)
     for variant in study.variants:
         path = resolve_scene_path(variant.scene)
         for cells in study.cells:
@@ -230,12 +234,11 @@ def time_to_reach(errors, seconds, target: float) -> float:
 def cheapest_for(rows: list[dict], error: str = "density") -> tuple[float, list[tuple[str, float, bool]]] | None:
     """The L1 ``error`` (one of ERRORS) that every variant with two finished runs reaches,
     and each such variant's wall time to reach it, cheapest first: (target, [(label,
-    seconds, at_most)]).  A variant
-    reaches it at its first resolution (in increasing order) whose error is at or below it:
-    the time is interpolated log-log from the resolution before that one, or, when its
-    coarsest run already reaches it, that run's time, an upper bound (``at_most``).  The
-    first resolution counts, not the finest: an error that rises again on finer meshes
-    does not hide a cheap run."""
+    seconds, at_most)]).  A variant reaches it at its first resolution (in increasing
+    order) whose error is at or below it: the time is interpolated log-log from the
+    resolution before that one, or, when its coarsest run already reaches it, that run's
+    time, an upper bound (``at_most``).  The first resolution counts, not the finest: an
+    error that rises again on finer meshes does not hide a cheap run."""
     key = f"L1_{error}"
     curves = {}
     for label in dict.fromkeys(r["variant"] for r in rows):
