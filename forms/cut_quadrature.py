@@ -302,6 +302,18 @@ def reference_point(x, px, py, steps, tolerance):  # pragma: no cover (compiled)
 
 
 @numba.njit(cache=True)
+def triangle_reference_point(x, px, py):  # pragma: no cover (compiled)
+    """(ξ, η) of the physical point (px, py) in the triangle with vertices x (3, 2): the
+    affine map's inverse, its barycentric coordinates λ₁, λ₂ — the one every kernel of the
+    cut geometry uses."""
+    ax, ay = x[1, 0] - x[0, 0], x[1, 1] - x[0, 1]
+    bx, by = x[2, 0] - x[0, 0], x[2, 1] - x[0, 1]
+    det = ax * by - ay * bx
+    dx, dy = px - x[0, 0], py - x[0, 1]
+    return (dx * by - dy * bx) / det, (ax * dy - ay * dx) / det
+
+
+@numba.njit(cache=True)
 def _fan_moments(x, polygons, points, weights, exponents, quadrilateral, steps, tolerance):  # pragma: no cover
     """(n, e): ∫_polygon ξ^a η^b / |det J| dx over each polygon (n, m, 2) fanned from its
     first vertex into triangles, the reference triangle's rule ``points``, ``weights`` on
@@ -311,10 +323,9 @@ def _fan_moments(x, polygons, points, weights, exponents, quadrilateral, steps, 
     for i in range(n):
         if quadrilateral:
             det = 0.0
-        else:  # the affine map's inverse and |det J|
-            ax, ay = x[i, 1, 0] - x[i, 0, 0], x[i, 1, 1] - x[i, 0, 1]
-            bx, by = x[i, 2, 0] - x[i, 0, 0], x[i, 2, 1] - x[i, 0, 1]
-            det = ax * by - ay * bx
+        else:  # |det J| of the affine map
+            det = ((x[i, 1, 0] - x[i, 0, 0]) * (x[i, 2, 1] - x[i, 0, 1])
+                   - (x[i, 1, 1] - x[i, 0, 1]) * (x[i, 2, 0] - x[i, 0, 0]))
         for j in range(1, m - 1):
             for q in range(points.shape[0]):
                 px, py, area = fan_point(polygons[i], j, points, q)
@@ -325,9 +336,7 @@ def _fan_moments(x, polygons, points, weights, exponents, quadrilateral, steps, 
                     a, b, c, d = bilinear_jacobian(x[i], s, t)
                     jacobian = abs(a * d - b * c)
                 else:
-                    dx, dy = px - x[i, 0, 0], py - x[i, 0, 1]
-                    s = (dx * by - dy * bx) / det
-                    t = (ax * dy - ay * dx) / det
+                    s, t = triangle_reference_point(x[i], px, py)
                     jacobian = abs(det)
                 weight = area * weights[q] / jacobian
                 for r in range(e):

@@ -38,7 +38,7 @@ from ale_xfem.geometry.shapes import polygon_area, polygon_centroid
 from ale_xfem.model.mesh import mesh_edges
 from ale_xfem.model.plic import Reconstruction, reconstruct, youngs_normals
 from forms.cut_quadrature import (NEWTON_STEPS, NEWTON_TOLERANCE, bilinear_jacobian, fan_point,
-                                  reference_point)
+                                  reference_point, triangle_reference_point)
 
 # the rule on the triangles of a part's fan (∫ ψ_i, ∫ ∇ψ_i), by the cell's vertex count:
 # exact for the linear ψ of a triangle; through the inverse map of a quadrilateral, smooth
@@ -267,9 +267,7 @@ def _fan_shape_integrals(vertices, polygons, points, weights, steps, tolerance):
                     break
                 w = area * weights[q]
                 if k == 3:
-                    dx, dy = px - x[0, 0], py - x[0, 1]
-                    l1 = (dx * e2y - dy * e2x) / det
-                    l2 = (e1x * dy - e1y * dx) / det
+                    l1, l2 = triangle_reference_point(x, px, py)
                     psi[0], psi[1], psi[2] = 1.0 - l1 - l2, l1, l2
                 else:
                     s, t = reference_point(tensor, px, py, steps, tolerance)
