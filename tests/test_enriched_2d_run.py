@@ -107,7 +107,8 @@ def test_the_spinning_disk_slides_inside_the_fluid_around_it():
 
 
 @pytest.mark.xfail(strict=True, reason="the disk's angular momentum leaks to the fluid faster on finer meshes "
-                   "(the mesh's shear at the mixed cells' nodes and the nodal level set's error: "
+                   "(the mesh's shear at the mixed cells' nodes and the nodal level set's error; later also the "
+                   "slip line's Kelvin–Helmholtz waves, which finer meshes resolve and grow faster: "
                    "docs/design.md §4, 'Sliding is not clean')")
 @pytest.mark.parametrize("stabilisation", ["bubble", "nitsche"])
 def test_the_spinning_disks_loss_falls_with_resolution(stabilisation):
