@@ -184,6 +184,31 @@ def test_the_lagrange_steps_of_enriched_cells_keep_total_energy(cell, stabilisat
     assert steps.max() < 1e-14 * energy[0], steps
 
 
+def test_momentum_is_kept_whatever_the_interface_solves_residual(monkeypatch):
+    """The interface system's n+1 forces sum to zero only as far as its solve is exact; on
+    the nearly singular systems of slivers its residual moved momentum (9 × 10⁻⁶ of it on
+    the shock through the heavy disk, 80 × 40 triangles).  With every solve's velocities
+    perturbed by 10⁻⁶ of the flow's, the spinning disk (no wall touches its mixed cells)
+    still keeps momentum to round-off: the residual is taken out by one shift of the
+    nodes' velocities."""
+    from ale_xfem.mixed.enriched_step_2d import EnrichedStep2D
+
+    solve = EnrichedStep2D.solve
+    noise = np.random.default_rng(5)
+
+    def perturbed(self, *args, **kwargs):
+        out = solve(self, *args, **kwargs)
+        out["velocity"] = [v + 1e-6 * noise.standard_normal(v.shape) for v in out["velocity"]]
+        return out
+
+    monkeypatch.setattr(EnrichedStep2D, "solve", perturbed)
+    problem = build_problem(load_scene(resolve_scene_path("spinning-disk"), [
+        "mesh.cells=[16,16]", "interface.model=enriched"]))
+    result = simulate(problem, stop_after_steps=4)
+    assert result.status == "ok"
+    assert abs(result.conservation["momentum"]) < 1e-14, result.conservation["momentum"]
+
+
 def test_the_sliding_block_keeps_its_momentum_where_one_velocity_field_drags_its_sides():
     """A dense block sliding along its length through a light gas at rest (`sliding-block`,
     at 20° to an Eulerian mesh, to t = 0.25): its ends push and pull the gas (form drag, the
@@ -255,7 +280,7 @@ def test_the_sheared_tube_keeps_its_slip_line_sharper_than_one_velocity_field():
     keeping its tangential velocity), free slip gives a smaller L1 velocity error than one
     velocity field, and stick — the tangential velocity continuous, one velocity field's
     constraint — a larger one than free slip; density and pressure stay as close as one
-    velocity field's (within 30 %).  Momentum is conserved to the solve's accuracy though
+    velocity field's (within 30 %).  Momentum is conserved to round-off though
     the interface meets the walls (their reactions on the mixed cells' nodes are counted,
     and the external nodes' force at n acts through the internal ones)."""
     single = shear_tube("single_velocity")
