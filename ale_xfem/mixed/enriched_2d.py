@@ -62,6 +62,12 @@ BAND_RINGS = 2
 GHOST_VISCOSITY = 0.1
 
 
+def held_nodes(step, nodes, d: int) -> np.ndarray:
+    """The ``nodes`` whose component ``d`` a wall or a piston of the step holds."""
+    held = [b.nodes for b in step.constraints if b.kind == "velocity" or abs(b.normal[d]) > 0.5]
+    return np.intersect1d(np.concatenate(held), nodes) if held else np.zeros(0, dtype=np.int64)
+
+
 class EnrichedClosure2D(SharedClosure):
     """2D mixed cells with doubled velocities (module docstring).  ``stabilisation``:
     bubble | nitsche | none; ``slip``: free | stick; ``nitsche_penalty``: Nitsche's
@@ -303,10 +309,8 @@ class EnrichedClosure2D(SharedClosure):
                               axis=(0, 2)) / dt
         residual = change - explicit_force
         for d in range(2):
-            held = [b.nodes for b in step.constraints if b.kind == "velocity" or abs(b.normal[d]) > 0.5]
-            if (held and np.intersect1d(np.concatenate(held), sub).size) or not mass > 0.0:
-                continue
-            mean_velocity[:, d, sub] -= residual[d] * dt / (2.0 * mass)
+            if held_nodes(step, sub, d).size == 0 and mass > 0.0:
+                mean_velocity[:, d, sub] -= residual[d] * dt / (2.0 * mass)
 
     @staticmethod
     def _wall_reactions(step, mean_force, sub, node_mass, velocity, new_velocity, explicit_force, dt):
@@ -320,19 +324,20 @@ class EnrichedClosure2D(SharedClosure):
         change = np.sum(node_mass[:, None, sub] * (new_velocity[:, :, sub] - velocity[:, :, sub]), axis=(0, 2)) / dt
         reaction = change - explicit_force
         for d in range(2):
-            held = [b.nodes for b in step.constraints if b.kind == "velocity" or abs(b.normal[d]) > 0.5]
-            held = np.intersect1d(np.concatenate(held), sub) if held else np.zeros(0, dtype=np.int64)
+            held = held_nodes(step, sub, d)
             if held.size:
                 mean_force[d, held] -= reaction[d] / held.size
 
     # -- the step's end --------------------------------------------------------------------
 
     def end_of_step(self, state, first, predicted, x_new, e_new, solution):
-        """The materials' parts scaled to the Lagrangian cell (module docstring); (V_α, V_β,
-        details) in the state's slot order."""
+        """The pure cells' work on their own materials' velocities (:meth:`_pure_cells_work`,
+        into ``e_new``), then the materials' parts scaled to the Lagrangian cell (module
+        docstring); (V_α, V_β, details) in the state's slot order."""
         last = self._last
         if last is None or last["time"] != state.time:
             raise RuntimeError("end_of_step without the interface solve of its step")
+        self._pure_cells_work(state, x_new, e_new)
         mixed = self.mixed
         out, mass = last["out"], last["mass"]
         area = self.mesh.cell_geometry(x_new, mixed.cells)[0]
@@ -370,7 +375,6 @@ class EnrichedClosure2D(SharedClosure):
         cells = self.mixed.cells
         va, vb, details = solution
         e_new[0, cells], e_new[1, cells] = details[0], details[1]
-        self._pure_cells_work(state, x_new, e_new)
         volumes = self.slot_volumes(step.two_slots, cell_volume, va, vb)
         fields = dict(interface_pressure=self._last["interface_pressure"], interface_velocity=np.zeros(cells.size))
         fields.update(self._material_fields(u_new))
