@@ -266,11 +266,10 @@ def material_angular_momenta(state: State, layout: MaterialLayout, cell_nodes: n
         arm = state.node_position - np.asarray(center, dtype=float)[:, None]
         u = state.material_node_velocity
         return np.sum(state.material_node_mass * (arm[0] * u[:, 1] - arm[1] * u[:, 0]), axis=1)
-    velocity = state.node_velocity[:, cell_nodes].mean(axis=2)  # (2, n_cells)
+    velocity = _cells_mean_velocity(state, cell_nodes)
     arm = centroids - np.asarray(center, dtype=float)
     moment = arm[:, 0] * velocity[1] - arm[:, 1] * velocity[0]
-    return np.array([np.sum(np.where(layout.cell_material == m, state.material_mass, 0.0) * moment)
-                     for m in range(layout.n_materials)])
+    return np.array([_material_sum(state, layout, m, moment) for m in range(layout.n_materials)])
 
 
 def material_momenta(state: State, layout: MaterialLayout, cell_nodes: np.ndarray) -> np.ndarray:
@@ -281,9 +280,19 @@ def material_momenta(state: State, layout: MaterialLayout, cell_nodes: np.ndarra
     run conserves."""
     if state.material_node_velocity is not None:
         return np.einsum("mn,mdn->md", state.material_node_mass, state.material_node_velocity)
-    velocity = state.node_velocity[:2, cell_nodes].mean(axis=2)  # (2, n_cells)
-    return np.array([[np.sum(np.where(layout.cell_material == m, state.material_mass, 0.0) * velocity[d])
-                      for d in range(2)] for m in range(layout.n_materials)])
+    velocity = _cells_mean_velocity(state, cell_nodes)
+    return np.array([[_material_sum(state, layout, m, velocity[d]) for d in range(2)]
+                     for m in range(layout.n_materials)])
+
+
+def _cells_mean_velocity(state: State, cell_nodes: np.ndarray) -> np.ndarray:
+    """(2, n_cells): the mean velocity of each cell's nodes (one velocity field)."""
+    return state.node_velocity[:2, cell_nodes].mean(axis=2)
+
+
+def _material_sum(state: State, layout: MaterialLayout, m: int, per_cell: np.ndarray) -> float:
+    """Σ_K m_m,K f_K: material m's masses in its cells (every slot) times a cell field."""
+    return np.sum(np.where(layout.cell_material == m, state.material_mass, 0.0) * per_cell)
 
 
 def totals(state: State, node_mass: np.ndarray) -> dict[str, float]:
