@@ -276,7 +276,7 @@ def test_hourglass_control_damps_the_hourglass_mode_and_leaves_linear_fields_alo
     stepper = make_stepper(problem)
     evaluation = stepper.evaluate(problem.state.node_position, velocity, problem.state.material_mass,
                                   problem.state.material_energy)
-    assert max(np.abs(f[d]).max() for f in evaluation.hourglass_force for d in range(2)) < 1e-14
+    assert np.abs(evaluation.hourglass_force[2]).max() < 1e-14  # Q: the hourglass velocity's resistance
 
 
 def _viscous_damping_times_time_step(tmp_path, shift, viscous_time_step):

@@ -21,7 +21,7 @@ MAY_IMPORT = {
     "forms": set(),
     "scene": {"eos", "geometry"},
     "model": {"eos", "geometry"},
-    "lagrange": {"model"},
+    "lagrange": {"model", "eos"},
     "mixed": {"model", "lagrange", "forms", "geometry"},
     "problem": {"scene", "model", "exact", "geometry", "eos", "mixed"},
     "remap": {"model", "geometry"},

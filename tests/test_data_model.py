@@ -1,5 +1,5 @@
 """The data model is dimension-generic: the same explicit loop on 2D quadrilaterals and
-triangles, and numpy corner forces equal to the assembled UFL weak form."""
+triangles, and the compiled corner forces equal to the assembled UFL weak form."""
 
 import numpy as np
 import pytest
@@ -48,18 +48,48 @@ def _perturbed(mesh, amplitude, seed=0):
     return from_dolfinx(mesh.dolfinx_mesh)
 
 
+def _compiled(mesh, x, u, stress, coefficient=0.0, rho=None, c=None):
+    """What the step's compiled kernels give on a mesh: (volume, shape, CFL length, velocity
+    jump, corner forces (dim, k, n), nodal forces (dim, n_nodes), hourglass (s0, s1, Q))."""
+    from ale_xfem.lagrange import kernels
+    from ale_xfem.model.cell_kernels import CELL_TYPE_CODES, corner_runs, quad_combinations
+
+    n, k, dim = mesh.n_cells, mesh.cell_type.nodes_per_cell, mesh.dimension
+    code, nodes = CELL_TYPE_CODES[mesh.cell_type.name], np.ascontiguousarray(mesh.cell_nodes)
+    runs, none = corner_runs(nodes), np.zeros(0)
+    volume, shape, length, jump = np.empty(n), np.empty((3, 2, n if dim > 1 else 0)), np.empty(n), np.empty(n)
+    combos = np.empty((3, u.shape[0], n if k == 4 else 0))
+    if k == 4:
+        quad_combinations(u, nodes, runs, True, combos)
+    kernels.geometry_and_rates(code, x, u, combos, nodes, runs, True, dim > 1, False, none, volume, shape, none,
+                               length, none, jump)
+    rho = np.ones(n) if rho is None else rho
+    c = np.ones(n) if c is None else c
+    hourglass = (np.empty(n), np.empty(n), np.empty((2, n)))
+    rows, forces = np.empty((dim, k, n)), np.empty((dim, mesh.n_nodes))
+    kernels.stress_and_corner_forces(code, volume, shape, combos, jump, rho, c, stress, 1.0, 0.5, False,
+                                     np.zeros(0, dtype=np.int64), none, none, none, coefficient > 0, coefficient > 0,
+                                     coefficient, *hourglass, np.empty(n), np.empty(n), rows)
+    for mode in ((kernels.RUNS,) if mesh.corners.grid is not None or mesh.corners.all_slices
+                 else (kernels.PER_CORNER, kernels.FLAT)):
+        kernels.scatter_corners(code, stress, rows, nodes, runs, mode, np.zeros(k, dtype=bool),
+                                np.empty(mesh.n_nodes), forces)
+    if dim == 1:
+        rows[0] = [-stress, stress]
+        length = volume
+    return volume, shape, length, jump, rows, forces, hourglass, combos
+
+
 @pytest.mark.parametrize("make", [lambda: interval_mesh([0.0, 1.0], 9),
                                   lambda: rectangle_mesh([[0.0, 1.0], [0.0, 1.0]], [5, 4], "quadrilateral"),
                                   lambda: rectangle_mesh([[0.0, 1.0], [0.0, 1.0]], [5, 4], "triangle")],
                          ids=["interval", "quadrilateral", "triangle"])
-def test_numpy_corner_forces_equal_the_assembled_weak_form(make):
+def test_compiled_corner_forces_equal_the_assembled_weak_form(make):
     mesh = _perturbed(make(), 0.04)
     stress = np.random.default_rng(1).uniform(0.5, 2.0, mesh.n_cells)
-    gradient = mesh.cell_type.volume_and_gradient(mesh.corners.gather(mesh.node_position))[1]
-    numpy_forces = np.stack([mesh.corners.scatter_scaled([g[d] for g in gradient], stress)
-                             for d in range(mesh.dimension)])
+    forces = _compiled(mesh, mesh.node_position, np.zeros((mesh.dimension, mesh.n_nodes)), stress)[5]
     form_forces = CornerForceForm(mesh.dolfinx_mesh).nodal_forces(stress, mesh.n_nodes)
-    np.testing.assert_allclose(numpy_forces, form_forces, atol=1e-13 * np.abs(form_forces).max())
+    np.testing.assert_allclose(forces, form_forces, atol=1e-13 * np.abs(form_forces).max())
     assert np.abs(form_forces).max() > 0.1
 
 
@@ -72,47 +102,51 @@ def test_cell_volumes_sum_to_the_domain_and_cells_are_counter_clockwise():
 
 
 def test_quadrilateral_two_corner_kernel_equals_the_textbook_corner_sums():
-    """The quadrilateral kernel (QuadGradient, QuadHourglass: two independent corners) gives
-    the shoelace area and gradient, Flanagan–Belytschko's hourglass forces written corner by
-    corner (γ_i = h_i − (Σ_j h_j x_j)·∇_i A / A), their corner work, and the CFL length from
-    the medians, on a perturbed mesh with random velocities."""
-    from ale_xfem.model.mesh import QuadCorners, QuadHourglass, _polygon_geometry
+    """The compiled quadrilateral kernels (two independent corners) give the shoelace area
+    and gradient, Flanagan–Belytschko's hourglass forces written corner by corner
+    (γ_i = h_i − (Σ_j h_j x_j)·∇_i A / A), the compatible work of the corner forces, the
+    volume rate and the CFL length from the medians, on a perturbed mesh with random
+    velocities."""
+    from ale_xfem.lagrange import kernels
+    from ale_xfem.model.cell_kernels import CELL_TYPE_CODES, corner_runs
+    from ale_xfem.model.mesh import _polygon_geometry
 
     mesh = _perturbed(rectangle_mesh([[0.0, 1.0], [0.0, 1.0]], [6, 5], "quadrilateral"), 0.05)
     rng = np.random.default_rng(3)
     x = mesh.corners.gather(mesh.node_position)
-    u = mesh.corners.gather(rng.normal(size=(2, mesh.n_nodes)))
-    area, gradient = mesh.cell_type.volume_and_gradient(x)
+    velocity = rng.normal(size=(2, mesh.n_nodes))
+    u = mesh.corners.gather(velocity)
+    rho, c, kappa = rng.uniform(1, 2, mesh.n_cells), rng.uniform(1, 2, mesh.n_cells), 0.3
+    stress = rng.uniform(0.5, 2.0, mesh.n_cells)
+    area, shape, length, jump, rows, _, hourglass, combos = _compiled(mesh, mesh.node_position, velocity, stress,
+                                                                      kappa, rho, c)
     shoelace_area, shoelace_gradient = _polygon_geometry(x)
     np.testing.assert_allclose(area, shoelace_area, rtol=1e-14)
-    for i in range(4):
-        np.testing.assert_allclose(gradient[i], shoelace_gradient[i], atol=1e-15)
-    rho, c, kappa = rng.uniform(1, 2, mesh.n_cells), rng.uniform(1, 2, mesh.n_cells), 0.3
-    hourglass = QuadHourglass(gradient, QuadCorners.gathered(u), area, rho, c, kappa)
     h = (1.0, -1.0, 1.0, -1.0)
-    shape = [sum(h[j] * x[j][d] for j in range(4)) for d in range(2)]
-    gamma = [h[i] - (shape[0] * shoelace_gradient[i][0] + shape[1] * shoelace_gradient[i][1]) / area
-             for i in range(4)]
+    hourglass_shape = [sum(h[j] * x[j][d] for j in range(4)) for d in range(2)]
+    gamma = [h[i] - (hourglass_shape[0] * shoelace_gradient[i][0] + hourglass_shape[1] * shoelace_gradient[i][1])
+             / area for i in range(4)]
     expected = []
     for i in range(4):
         q = [sum(gamma[j] * u[j][d] for j in range(4)) for d in range(2)]
         expected.append([-0.25 * kappa * rho * c * np.sqrt(area) * q[d] * gamma[i] for d in range(2)])
-    for got, want in zip(hourglass, expected):
-        np.testing.assert_allclose(got, want, atol=1e-13)
-    stress = rng.uniform(0.5, 2.0, mesh.n_cells)
-    rows = np.empty((4, mesh.n_cells))
     for d in range(2):
-        gradient.corner_forces(stress, hourglass, d, rows)
         for i in range(4):
-            np.testing.assert_allclose(rows[i], stress * shoelace_gradient[i][d] + expected[i][d], atol=1e-13)
-    work = sum(expected[i][d] * u[i][d] for i in range(4) for d in range(2))
-    np.testing.assert_allclose(hourglass.dot(QuadCorners.gathered(u)), work, atol=1e-13)
+            np.testing.assert_allclose(rows[d, i], stress * shoelace_gradient[i][d] + expected[i][d], atol=1e-13)
+    # the compatible work of these forces on the velocities, Σ_i F_i·u_i: the energy update
+    # with dt = 2 and unit masses from e = 0 gives −Σ_i F_i·u_i
+    work = np.empty(mesh.n_cells)
+    kernels.compatible_energy(CELL_TYPE_CODES["quadrilateral"], np.ascontiguousarray(mesh.cell_nodes),
+                              corner_runs(mesh.cell_nodes), np.zeros(mesh.n_cells), np.ones(mesh.n_cells), 2.0,
+                              shape, stress, shape, stress, False, True, *hourglass, velocity, combos, work)
+    expected_work = sum((stress * shoelace_gradient[i][d] + expected[i][d]) * u[i][d]
+                        for i in range(4) for d in range(2))
+    np.testing.assert_allclose(-work, expected_work, atol=1e-13)
     rate = sum(shoelace_gradient[i][d] * u[i][d] for i in range(4) for d in range(2))
-    np.testing.assert_allclose(gradient.dot(QuadCorners.gathered(u)), rate, atol=1e-14)
+    np.testing.assert_allclose(jump * np.sqrt(area), rate, atol=1e-13)
     medians = [np.hypot(x[2][0] + x[3][0] - x[0][0] - x[1][0], x[2][1] + x[3][1] - x[0][1] - x[1][1]),
                np.hypot(x[3][0] + x[0][0] - x[1][0] - x[2][0], x[3][1] + x[0][1] - x[1][1] - x[2][1])]
-    np.testing.assert_allclose(mesh.cell_type.length_scale(area, x, gradient),
-                               area / (0.5 * np.maximum(*medians)), rtol=1e-14)
+    np.testing.assert_allclose(length, area / (0.5 * np.maximum(*medians)), rtol=1e-14)
 
 
 def test_a_rectangle_numbered_as_a_grid_reads_its_corners_from_views_and_maps_back_to_dolfinx(tmp_path):
@@ -142,9 +176,19 @@ def test_a_rectangle_numbered_as_a_grid_reads_its_corners_from_views_and_maps_ba
         for name in QuadCorners.__slots__:
             np.testing.assert_array_equal(getattr(from_views, name), getattr(gathered, name))
     rows = rng.normal(size=(4, mesh.n_cells))
-    np.testing.assert_allclose(mesh.corners.scatter_rows(rows, np.empty(mesh.n_nodes)),
-                               indexed.scatter_rows(rows, np.empty(mesh.n_nodes)), atol=1e-15)
     np.testing.assert_allclose(mesh.corners.scatter(list(rows)), indexed.scatter(list(rows)), atol=1e-15)
+    # the step's compiled scatter: corner by corner along the grid's rows (each corner's
+    # nodes distinct), or one running sum through the index array
+    from ale_xfem.lagrange import kernels
+    from ale_xfem.model.cell_kernels import QUADRILATERAL, corner_runs
+
+    by_runs, flat = np.empty((1, mesh.n_nodes)), np.empty((1, mesh.n_nodes))
+    for mode, out in ((kernels.RUNS, by_runs), (kernels.FLAT, flat)):
+        kernels.scatter_corners(QUADRILATERAL, np.zeros(mesh.n_cells), rows[None], mesh.cell_nodes,
+                                corner_runs(mesh.cell_nodes), mode, np.zeros(4, dtype=bool), np.empty(mesh.n_nodes),
+                                out)
+    np.testing.assert_allclose(by_runs[0], mesh.corners.scatter(list(rows)), atol=1e-15)
+    np.testing.assert_allclose(flat[0], mesh.corners.scatter(list(rows)), atol=1e-15)
     x = mesh.dolfinx_mesh.geometry.x
     np.testing.assert_array_equal(x[mesh.dolfinx_node, :2].T, mesh.node_position)
     dolfinx_cells = np.asarray(mesh.dolfinx_mesh.geometry.dofmaps[0])[mesh.dolfinx_cell]

@@ -16,9 +16,12 @@ reference (ρ0, c0, s, Γ0; Γρ = Γ0ρ0 constant), linear (dp = c0² dρ, i.e.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
+
+from ale_xfem.eos.kernels import LINEAR, MIE_GRUNEISEN, PARAMETERS, STIFFENED_GAS
 
 
 @dataclass(frozen=True)
@@ -27,6 +30,11 @@ class StiffenedGas:
 
     gamma: float
     p_inf: float = 0.0
+
+    KIND = STIFFENED_GAS  # its branch in ale_xfem.eos.kernels.pressure_sound_speed
+
+    def kernel_parameters(self):
+        return (self.gamma, self.p_inf)
 
     def pressure(self, rho, e):
         if self.p_inf == 0.0:
@@ -81,6 +89,11 @@ class MieGruneisen:
     c0: float
     s: float
     gamma0: float
+
+    KIND = MIE_GRUNEISEN
+
+    def kernel_parameters(self):
+        return (self.rho0, self.c0, self.s, self.gamma0)
 
     def _hugoniot(self, rho):
         eta = 1.0 - self.rho0 / rho
@@ -140,6 +153,11 @@ class Linear:
     c0: float
     p0: float = 0.0
 
+    KIND = LINEAR
+
+    def kernel_parameters(self):
+        return (self.rho0, self.c0, self.p0)
+
     def pressure(self, rho, e):
         return self.p0 + self.c0**2 * (rho - self.rho0) + 0.0 * e
 
@@ -191,6 +209,18 @@ def parameter_ranges(eos_name: str) -> dict[str, tuple[str, callable]]:
         "linear": {"rho0": positive, "c0": positive, "p0": ("any real", lambda v: True)},
     }
     return ranges[eos_name]
+
+
+@functools.lru_cache(maxsize=64)
+def kernel_tables(models: tuple):
+    """The codes (n,) and parameter rows (n, PARAMETERS) of a tuple of models, as the
+    compiled kernels take them (ale_xfem.eos.kernels)."""
+    kinds = np.array([model.KIND for model in models], dtype=np.int64)
+    parameters = np.zeros((len(models), PARAMETERS))
+    for row, model in zip(parameters, models):
+        values = model.kernel_parameters()
+        row[:len(values)] = values
+    return kinds, parameters
 
 
 def make_eos(eos_name: str, parameters: dict):

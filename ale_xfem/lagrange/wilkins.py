@@ -24,12 +24,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ale_xfem.lagrange import kernels
 from ale_xfem.lagrange.breakdown import Breakdown
+from ale_xfem.eos import kernel_tables
+from ale_xfem.model.cell_kernels import CELL_TYPE_CODES, cell_geometry, quad_combinations
 from ale_xfem.model.diagnostics import place
 from ale_xfem.lagrange.closure import MixedCellClosure, MixedView
-from ale_xfem.model.boundaries import Boundary
-from ale_xfem.model.mesh import (MeshArrays, QuadGradient, QuadHourglass, constant_gradient, corner_dot,
-                                 corner_jacobians)
+from ale_xfem.model.boundaries import Boundary, held_arrays
+from ale_xfem.model.mesh import MeshArrays, corner_jacobians
 from ale_xfem.model.mixed_cells import MixedCells
 from ale_xfem.model.state import MaterialLayout, State, TwoSlotArrays, thermodynamics
 
@@ -39,19 +41,20 @@ class ForceEvaluation:
     """Everything the step needs from one state (shapes: (n_cells,) unless noted)."""
 
     volume: np.ndarray
-    volume_gradient: list  # [corner][component]: ∂V_K/∂x_i (arrays, or scalars ±1 in 1D)
+    shape: np.ndarray  # (3, 2, n_cells): the cells' shape (ale_xfem.model.cell_kernels; 1D: empty)
     density: np.ndarray  # (S, n_cells)
     pressure: np.ndarray  # (S, n_cells)
     sound_speed: np.ndarray  # (S, n_cells)
     viscosity: np.ndarray  # artificial viscosity q
     velocity_jump: np.ndarray  # Δu = L ∇·u (negative in compression)
     stress: np.ndarray  # P = p + q, the pressure of the corner forces F_Ki = P ∂V/∂x_i
+    corner_force: np.ndarray  # (dim, k, n_cells): F_Ki (+ hourglass forces), component first
     nodal_force: np.ndarray  # (dim, n_nodes)
     mixed_sound_speed: np.ndarray | None  # c of each mixed cell (the larger of its two)
     mixed_viscosity: np.ndarray | None = None  # q of the mixed cells (n_mixed,)
     length: np.ndarray | None = None  # CFL length of each cell (1D: its volume)
-    hourglass_force: QuadHourglass | None = None  # quadrilaterals; iterated: [corner][component]
-    corner_velocity: object = None  # what the corner work needs of the velocities (corner_velocities)
+    hourglass_force: tuple | None = None  # quadrilaterals: (s_0, s_1, Q (2, n_cells)) (kernels.hourglass_forces)
+    corner_velocity: np.ndarray | None = None  # quadrilaterals: the velocity's corner combinations (3, dim, n_cells)
     least_corner: np.ndarray | None = None  # quadrilaterals: each cell's least corner det J (> 0: untangled)
 
 
@@ -95,6 +98,21 @@ class ExplicitWilkins:
         self.relax_end_state = True
         # the (2, n_cells) arrays of the states the step makes (slot 1: the mixed cells')
         self.two_slots = TwoSlotArrays(mesh.n_cells)
+        # what the compiled kernels take (ale_xfem.lagrange.kernels)
+        self.cell_code = CELL_TYPE_CODES[mesh.cell_type.name]
+        self.cell_nodes = mesh.compiled_cell_nodes
+        self.runs = mesh.corner_runs  # cells whose corners run on: no index array read
+        corners = mesh.corners
+        # the order numpy summed corner values in (kernels.scatter_corners)
+        self.scatter_mode = (kernels.RUNS if corners.grid is not None or corners.all_slices
+                             else kernels.FLAT if self.quadrilaterals else kernels.PER_CORNER)
+        self.corner_is_run = np.array([isinstance(i, slice) for i in corners.index])
+        self.scratch = np.empty(mesh.n_nodes)
+        self.held = held_arrays(self.constraints, mesh.dimension)
+        self.no_shape = np.empty((3, 2, 0))
+        self.no_cells, self.no_values = np.zeros(0, dtype=np.int64), np.zeros(0)
+        self.no_hourglass = (self.no_values, self.no_values, np.empty((2, 0)))
+        self.viscosity_law = (float(numerics.q_quadratic), float(numerics.q_linear), bool(artificial_viscosity))
 
     @property
     def mixed(self) -> MixedCells | None:
@@ -112,16 +130,18 @@ class ExplicitWilkins:
     # -- forces -------------------------------------------------------------------------
 
     def corner_velocities(self, node_velocity):
-        """What the corner work needs of a nodal velocity field: for quadrilaterals its
-        QuadCorners (linear: those of u^n + u are the sum of theirs), otherwise its values
-        gathered to the corners."""
-        if self.quadrilaterals:
-            return self.corners.quad_corners(node_velocity)
-        return self.corners.gather(node_velocity)
+        """What the corner work needs of a nodal velocity field beyond the field itself: for
+        quadrilaterals its corner combinations (3, components, n_cells) (linear: those of
+        u^n + u are the sum of theirs); otherwise None."""
+        if not self.quadrilaterals:
+            return None
+        combos = np.empty((3, node_velocity.shape[0], self.mesh.n_cells))
+        quad_combinations(node_velocity, self.cell_nodes, self.runs, True, combos)
+        return combos
 
     def evaluate(self, node_position, node_velocity, material_mass, material_energy,
                  mixed_view: MixedView | None = None, slots: int = 1, known=None,
-                 with_length: bool = True, hourglass=None, corner_positions=None,
+                 with_length: bool = True, hourglass=None, tangle_check: bool = True,
                  corner_velocity=None) -> ForceEvaluation:
         """Forces of a state.  Density, pressure and sound speed come out as (slots,
         n_cells) arrays with slot 0 filled (slots = 2: the caller fills slot 1 of the
@@ -129,84 +149,85 @@ class ExplicitWilkins:
         them as they are instead of copying rows.  ``known``: the (density, pressure, sound
         speed) of a state at these positions, taken instead of evaluated again.
         ``with_length``: also the cells' CFL lengths (not needed of the predicted state);
-        ``hourglass``: hourglass corner forces to use instead of evaluating them;
-        ``corner_positions`` (quadrilaterals: the positions' QuadCorners) and
-        ``corner_velocity`` (corner_velocities of node_velocity): already known, not
-        gathered again."""
-        cell_type, corners = self.mesh.cell_type, self.corners
-        if self.quadrilaterals:
-            if corner_positions is None:
-                corner_positions = corners.quad_corners(node_position)
-            gradient = QuadGradient(corner_positions)
-            volume, positions = gradient.area, None
-            least_corner = gradient.least_corner_jacobian()  # None for the predicted state
-        else:
-            positions = corners.gather(node_position)
-            volume, gradient = cell_type.volume_and_gradient(positions)
-            least_corner = None  # a triangle's corners all have det J = 2A: the volume says it
+        ``hourglass``: hourglass forces to use instead of evaluating them;
+        ``tangle_check``: quadrilaterals: form the positions' hourglass shape and each
+        cell's least corner det J (not needed of the predicted state);
+        ``corner_velocity`` (corner_velocities of node_velocity): already known.
+
+        Without mixed cells and with the thermodynamics to evaluate, one compiled loop does
+        it all (kernels.evaluate_pure); otherwise the same functions run in stages, between
+        which the mixed cells' closure sets their entries."""
+        n, code, nodes, runs = self.mesh.n_cells, self.cell_code, self.cell_nodes, self.runs
+        dim, k = self.mesh.cell_type.dimension, self.mesh.cell_type.nodes_per_cell
+        numerics = self.numerics
+        volume = np.empty(n)
+        shape = self.no_shape if dim == 1 else np.empty((3, 2, n))
+        # a triangle's corners all have det J = 2A: the volume says it
+        least_corner = np.empty(n) if self.quadrilaterals and tangle_check else None
+        length = np.empty(n) if dim > 1 and with_length else None
+        if self.quadrilaterals and corner_velocity is None:
+            corner_velocity = self.corner_velocities(node_velocity)
+        combos = self.no_shape if corner_velocity is None else corner_velocity
+        compute_hourglass = self.quadrilaterals and self.hourglass > 0.0 and hourglass is None
+        if compute_hourglass:
+            hourglass = (np.empty(n), np.empty(n), np.empty((2, n)))
+        hourglass_arrays = self.no_hourglass if hourglass is None else hourglass
+        corner_force = np.empty((dim, k, n)) if dim > 1 else None
+        rows = self.no_shape if corner_force is None else corner_force
+        jump, viscosity, stress = np.empty(n), np.empty(n), np.empty(n)
         mass0, energy0 = material_mass[:1], material_energy[:1]
-        if mixed_view is not None:
-            cells = self.mixed.cells
-        if known is not None:
-            density, pressure, sound_speed = known
+        mixed_viscosity = mixed_sound_speed = None
+        if mixed_view is None and known is None:
+            density, pressure, sound_speed = (
+                np.empty((1, n)) if slots == 1 else self.two_slots.take(self.mixed.cells) for _ in range(3))
+            out = (volume, shape, self.no_values if least_corner is None else least_corner,
+                   self.no_values if length is None else length, density[0], pressure[0], sound_speed[0], jump,
+                   viscosity, stress)
+            kernels.evaluate_pure(code, node_position, node_velocity, combos, nodes, runs, tangle_check,
+                                  length is not None, kernel_tables(tuple(m.eos for m in self.materials)),
+                                  self.pure_layout.cell_material[0], mass0[0], energy0[0], self.viscosity_law,
+                                  (hourglass is not None, compute_hourglass, self.hourglass, *hourglass_arrays),
+                                  out, rows)
         else:
-            density = self.two_slots.take(self.mixed.cells) if slots == 2 else np.empty((1, volume.size))
-            np.divide(mass0, volume, out=density[:1])
-            if mixed_view is not None:  # slot 0 of a mixed cell is its α part
-                density[0, cells] = mass0[0, cells] / mixed_view.volume_left
-            if slots == 2:  # into slot 0 of two-slot arrays
-                pressure, sound_speed = (self.two_slots.take(self.mixed.cells) for _ in range(2))
+            cells = self.mixed.cells if mixed_view is not None else self.no_cells
+            if known is not None:
+                density, pressure, sound_speed = known
+            else:
+                density = self.two_slots.take(self.mixed.cells) if slots == 2 else np.empty((1, n))
+            kernels.geometry_and_rates(code, node_position, node_velocity, combos, nodes, runs, tangle_check,
+                                       length is not None, known is None, mass0[0], volume, shape,
+                                       self.no_values if least_corner is None else least_corner,
+                                       self.no_values if length is None else length, density[0], jump)
+            if known is None:
+                if mixed_view is not None:  # slot 0 of a mixed cell is its α part
+                    density[0, cells] = mass0[0, cells] / mixed_view.volume_left
+                if slots == 2:  # into slot 0 of two-slot arrays
+                    pressure, sound_speed = (self.two_slots.take(self.mixed.cells) for _ in range(2))
+                else:
+                    pressure, sound_speed = np.empty((1, n)), np.empty((1, n))
                 thermodynamics(self.materials, self.pure_layout, density[:1], energy0,
                                out=(pressure[:1], sound_speed[:1]))
-            else:  # the arrays the equation of state returns, not copies of them
-                pressure, sound_speed = thermodynamics(self.materials, self.pure_layout, density, energy0)
-        if corner_velocity is None:
-            corner_velocity = self.corner_velocities(node_velocity)
-        volume_rate = corner_dot(gradient, corner_velocity)  # dV/dt = Σ ∂V/∂x_i·u_i
-        velocity_jump = cell_type.velocity_jump(volume_rate, volume)
-        mixed_viscosity = mixed_sound_speed = None
-        if mixed_view is not None:
-            # the density and sound speed a mixed cell's viscosity sees: its closure's
-            mixed_density, mixed_sound_speed = self.closure.viscosity_medium(mixed_view, volume, density,
-                                                                             sound_speed, self.node_mass)
-        if self.artificial_viscosity:
-            # Quadratic (von Neumann–Richtmyer) + linear (Landshoff) viscosity in compression:
-            # q = ρ (c2 Δu² + c1 c |Δu|) for Δu < 0.
-            compression = np.minimum(velocity_jump, 0.0)
-            viscosity = self.numerics.q_quadratic * compression
-            viscosity -= self.numerics.q_linear * sound_speed[0]
-            viscosity *= compression
-            viscosity *= density[0]
+            mixed_density, interface_pressure = self.no_values, self.no_values
             if mixed_view is not None:
-                squeeze = compression[cells]
-                viscosity[cells] = mixed_density * squeeze * (self.numerics.q_quadratic * squeeze
-                                                              - self.numerics.q_linear * mixed_sound_speed)
-            stress = pressure[0] + viscosity
-        else:
-            viscosity = np.zeros_like(volume)
-            stress = pressure[0].copy() if mixed_view is not None else pressure[0]
-        if mixed_view is not None:
-            mixed_viscosity = viscosity[cells]
-            stress[cells] = mixed_view.interface_pressure + mixed_viscosity
-        nodal_force = np.empty((cell_type.dimension, corners.n_nodes))
-        if self.quadrilaterals:
-            if self.hourglass > 0.0 and hourglass is None:
-                hourglass = QuadHourglass(gradient, corner_velocity, volume, density[0], sound_speed[0],
-                                          self.hourglass)
-            rows = np.empty((4, volume.size))
-            for d in range(2):  # F_Ki = P ∂A/∂x_i + f_Ki, one scatter
-                corners.scatter_rows(gradient.corner_forces(stress, hourglass, d, rows), nodal_force[d])
-        else:
-            for d in range(cell_type.dimension):
-                corners.scatter_scaled([g_corner[d] for g_corner in gradient], stress, out=nodal_force[d])
-        length = None  # the CFL length, from the evaluations that start a step
-        if cell_type.dimension == 1:
-            length = volume
-        elif with_length:
-            length = cell_type.length_scale(volume, positions, gradient)
-        return ForceEvaluation(volume, gradient, density, pressure, sound_speed, viscosity,
-                               velocity_jump, stress, nodal_force, mixed_sound_speed, mixed_viscosity,
-                               length, hourglass, corner_velocity, least_corner)
+                # the density and sound speed a mixed cell's viscosity sees: its closure's
+                mixed_density, mixed_sound_speed = self.closure.viscosity_medium(mixed_view, volume, density,
+                                                                                 sound_speed, self.node_mass)
+                interface_pressure = mixed_view.interface_pressure
+            kernels.stress_and_corner_forces(
+                code, volume, shape, combos, jump, density[0], sound_speed[0], pressure[0], numerics.q_quadratic,
+                numerics.q_linear, self.artificial_viscosity, cells, mixed_density,
+                self.no_values if mixed_sound_speed is None else mixed_sound_speed, interface_pressure,
+                hourglass is not None, compute_hourglass, self.hourglass, *hourglass_arrays, viscosity, stress, rows)
+            if mixed_view is not None:
+                mixed_viscosity = viscosity[cells]
+        nodal_force = np.empty((dim, self.mesh.n_nodes))
+        kernels.scatter_corners(code, stress, rows, nodes, runs, self.scatter_mode, self.corner_is_run, self.scratch,
+                                nodal_force)
+        if dim == 1:
+            length = volume  # the CFL length of an interval
+        return ForceEvaluation(volume, shape, density, pressure, sound_speed, viscosity, jump, stress,
+                               corner_force, nodal_force, mixed_sound_speed, mixed_viscosity, length, hourglass,
+                               corner_velocity, least_corner)
 
     def evaluate_state(self, state: State, thermodynamics_known: bool = False) -> ForceEvaluation:
         """Forces of a state; ``thermodynamics_known``: its densities, pressures and sound
@@ -235,10 +256,8 @@ class ExplicitWilkins:
         cell; with it, 80 × 80 runs to t = 0.6 (L1(ρ) 0.117).  On cells that keep their
         shape L_q/L = 1 (squares, the crossed triangles of a square); compressed cells take
         smaller steps (Saltzman and Sedov: about twice as many, L1(ρ) within 0.2 %)."""
-        # (the minima of the two limits taken apart: the same step as the least of the
-        # cells' limits, without a square root and a comparison over every cell)
-        acceleration_limit = float(np.sqrt(0.5 * np.min(self._length_over_acceleration(evaluation))))
-        return self.numerics.cfl * min(float(np.min(self._sound_time_limits(evaluation))), acceleration_limit)
+        least_sound, least_ratio = self._time_limits(evaluation)
+        return self.numerics.cfl * min(least_sound, float(np.sqrt(0.5 * least_ratio)))
 
     def limiting_cell(self, evaluation: ForceEvaluation, position) -> str:
         """The cell whose CFL limit sets the time step, described for a diagnostic: its
@@ -252,128 +271,69 @@ class ExplicitWilkins:
         if self.viscous_time_step:
             length_q = float(self.mesh.cell_type.viscosity_length(evaluation.volume[cell]))
             viscous = f", viscosity length √A {length_q:.3g}"
-        return (f"{place(cell, self.mesh.cell_centroids(position)[cell])} sets it: length {evaluation.length[cell]:.3g}{viscous}, "
+        where = place(cell, self.mesh.cell_centroids(position)[cell])
+        return (f"{where} sets it: length {evaluation.length[cell]:.3g}{viscous}, "
                 f"sound speed {sound_speed:.3g}, velocity jump {evaluation.velocity_jump[cell]:.3g}")
 
     def _cell_time_limits(self, evaluation: ForceEvaluation):
-        """Each cell's time step limit before the CFL number: its signal speed's
-        (:meth:`_sound_time_limits`) or its nodes' acceleration's
-        (:meth:`_length_over_acceleration`), the smaller."""
-        times = self._sound_time_limits(evaluation)
-        np.minimum(times, np.sqrt(0.5 * self._length_over_acceleration(evaluation)), out=times)
+        """Each cell's time step limit before the CFL number: its signal speed's or its
+        nodes' acceleration's (:meth:`_time_limits`), the smaller."""
+        times, ratio = self._time_limits(evaluation, arrays=True)
+        np.minimum(times, np.sqrt(0.5 * ratio), out=times)
         return times
 
-    def _sound_time_limits(self, evaluation: ForceEvaluation):
-        """Each cell's limit from its signal speed; a mixed cell's from the larger sound
-        speed of its materials (the smaller limit of the two)."""
-        stiffness = None  # L_q/L (1D: 1)
-        if self.viscous_time_step:
-            stiffness = self.mesh.cell_type.viscosity_length(evaluation.volume)
-            stiffness /= evaluation.length
-        times = self._cfl_times(evaluation.sound_speed[0], evaluation.velocity_jump, evaluation.length,
-                                stiffness)
-        if evaluation.mixed_sound_speed is not None:
-            cells = self.mixed.cells
-            times[cells] = np.minimum(times[cells], self._cfl_times(
-                evaluation.mixed_sound_speed, evaluation.velocity_jump[cells], evaluation.length[cells],
-                None if stiffness is None else stiffness[cells]))
-        return times
-
-    def _length_over_acceleration(self, evaluation: ForceEvaluation):
-        """Each cell's L / a, a the largest acceleration F_i / M_i of its nodes (held
-        directions removed).  Its time step limit is √(L / 2a): a node starting from rest
-        moves by at most a sixteenth
-        of the cell's length in the step (with the CFL number ½).  The sound speeds of a
-        state do not see the pressure jumps it is about to release: air at 1e5 Pa struck by
-        water at 1e9 Pa is shocked at 3e4 m/s, and the first step, taken at the sound
-        speeds, turned the air cell beside the interface inside out (a quarter of a cell
-        still let 24 of 80 such cases break down; a sixteenth, 6).  Where pressures vary
-        smoothly a ≈ Δp/(ρL) is small and the limit does not bind: no pure-cell run of the
-        regression captures changed."""
+    def _time_limits(self, evaluation: ForceEvaluation, arrays: bool = False):
+        """The least over the cells of (their time limit from the signal speed, L / a), or
+        (``arrays``) each cell's.  A mixed cell's sound limit counts the larger sound speed
+        of its materials.  a is the largest acceleration F_i / M_i of the cell's nodes (held
+        directions removed), and its time step limit √(L / 2a): a node starting from rest
+        moves by at most a sixteenth of the cell's length in the step (with the CFL number
+        ½).  The sound speeds of a state do not see the pressure jumps it is about to
+        release: air at 1e5 Pa struck by water at 1e9 Pa is shocked at 3e4 m/s, and the
+        first step, taken at the sound speeds, turned the air cell beside the interface
+        inside out (a quarter of a cell still let 24 of 80 such cases break down; a
+        sixteenth, 6).  Where pressures vary smoothly a ≈ Δp/(ρL) is small and the limit
+        does not bind: no pure-cell run of the regression captures changed."""
         acceleration = evaluation.nodal_force * self.inverse_node_mass
-        for boundary in self.constraints:
-            if boundary.kind == "wall":
-                boundary.apply(acceleration)  # the normal part is the wall's reaction
-            else:  # a piston's nodes move with it
-                acceleration[:, boundary.nodes] = 0.0
-        if acceleration.shape[0] == 1:
-            magnitude = np.abs(acceleration[0])
-        else:  # |a|² (np.hypot costs twenty element-wise passes), its root taken per cell
-            magnitude = acceleration[0] * acceleration[0]
-            magnitude += acceleration[1] * acceleration[1]
-        corners = self.corners.gather(magnitude[None, :])
-        largest = np.maximum(corners[0][0], corners[1][0])
-        for corner in corners[2:]:
-            np.maximum(largest, corner[0], out=largest)
-        if acceleration.shape[0] > 1:
-            np.sqrt(largest, out=largest)
-        with np.errstate(divide="ignore"):
-            return np.divide(evaluation.length, largest, out=largest)
-
-    def _cfl_times(self, c, velocity_jump, length, stiffness=None):
-        """Each cell's time step limit L / signal speed (before the CFL number);
-        ``stiffness``: L_q/L, the factor of the viscous signal speed (None: 1)."""
-        if self.artificial_viscosity:
-            q_speed = np.minimum(velocity_jump, 0.0)
-            q_speed *= -2.0 * self.numerics.q_quadratic
-            q_speed += self.numerics.q_linear * c
-            if stiffness is not None:
-                q_speed *= stiffness
-            signal = q_speed * q_speed
-            signal += c * c
-            np.sqrt(signal, out=signal)
-            signal += q_speed
-        else:
-            signal = c
-        # No cell may change its length by more than its own size in a step (cold gas
-        # pushed by a piston has c ≈ 0: the velocity jump is then the only signal).
-        signal = np.maximum(signal, np.abs(velocity_jump))
-        with np.errstate(divide="ignore"):
-            return length / signal
+        # walls take the normal part (their reaction); a piston's nodes move with it
+        kernels.hold(acceleration, *self.held, True)
+        mixed = evaluation.mixed_sound_speed is not None
+        sound_times, ratio = np.empty(evaluation.volume.size), np.empty(evaluation.volume.size)
+        numerics = self.numerics
+        least = kernels.time_limits(evaluation.volume, evaluation.length, evaluation.sound_speed[0],
+                                    evaluation.velocity_jump, self.viscous_time_step, numerics.q_quadratic,
+                                    numerics.q_linear, self.artificial_viscosity,
+                                    self.mixed.cells if mixed else self.no_cells,
+                                    evaluation.mixed_sound_speed if mixed else self.no_values,
+                                    acceleration, self.cell_nodes, self.runs, sound_times, ratio)
+        return (sound_times, ratio) if arrays else least
 
     # -- the step -----------------------------------------------------------------------
 
-    def _advance_velocity(self, velocity, force, dt_over_node_mass):
-        if velocity.shape[0] == force.shape[0]:
-            new_velocity = force * dt_over_node_mass
-            new_velocity += velocity
-        else:  # transverse components play no part in the dynamics (paper §3.1)
-            new_velocity = velocity.copy()
-            new_velocity[: force.shape[0]] += force * dt_over_node_mass
-        for boundary in self.constraints:
-            boundary.apply(new_velocity)
+    def _advance_velocity(self, velocity, force, dt):
+        """u = u^n + dt F/M on the free directions, the boundaries held."""
+        new_velocity = np.empty_like(velocity)
+        kernels.advance_velocity(velocity, force, dt, self.inverse_node_mass, new_velocity)
+        kernels.hold(new_velocity, *self.held, False)
         return new_velocity
 
-    def _corner_work(self, evaluations, velocity_sum, scale, corner_sum=None):
-        """scale · Σ_i F_Ki·(u^n + u)_i per cell, with F_Ki the sum over ``evaluations`` of
-        their corner forces P_K ∂V_K/∂x_i (+ hourglass forces).  ``corner_sum``: the
-        corner_velocities of u^n + u when known (quadrilaterals: the sum of those of u^n and
-        u, no new gather).  When ∂V/∂x_i is constant (intervals) the stresses are summed
-        first and the corner velocities are gathered once."""
-        gradients = [e.volume_gradient for e in evaluations]
-        if corner_sum is None:
-            corner_sum = self.corner_velocities(velocity_sum)
-        if len(evaluations) > 1 and all(constant_gradient(g) for g in gradients) \
-                and all(g == gradients[0] for g in gradients):
-            stress = evaluations[0].stress + evaluations[1].stress
-            for extra in evaluations[2:]:
-                stress += extra.stress
-            work = corner_dot(gradients[0], corner_sum)
-            work *= stress
-        else:
-            work, hourglass_work = None, {}
-            for evaluation in evaluations:
-                term = corner_dot(evaluation.volume_gradient, corner_sum)
-                term *= evaluation.stress
-                forces = evaluation.hourglass_force
-                if forces is not None:  # their work heats the cell too
-                    # the predicted state reuses the start's hourglass forces
-                    if id(forces) not in hourglass_work:
-                        hourglass_work[id(forces)] = forces.dot(corner_sum)
-                    term += hourglass_work[id(forces)]
-                work = term if work is None else np.add(work, term, out=work)
-        work *= scale
-        return work
+    def _moved(self, u0, u, x0, dt):
+        """(u^n + u, x^n + dt (u^n + u)/2)."""
+        velocity_sum, x = np.empty_like(u0), np.empty_like(x0)
+        kernels.velocity_sum_and_position(u0, u, x0, dt, velocity_sum, x)
+        return velocity_sum, x
+
+    def _energy(self, energy, mass, dt, evaluations, velocity_sum, corner_sum, out):
+        """The compatible energy update (kernels.compatible_energy) into slot 0 of ``out``:
+        with the forces of ``evaluations[0]`` (the predictor) or the mean of the two (the
+        corrector)."""
+        a, b = evaluations[0], evaluations[-1]
+        hourglass = a.hourglass_force
+        kernels.compatible_energy(self.cell_code, self.cell_nodes, self.runs, energy, mass, dt,
+                                  a.shape, a.stress, b.shape, b.stress, len(evaluations) == 2,
+                                  hourglass is not None, *(self.no_hourglass if hourglass is None else hourglass),
+                                  velocity_sum, self.no_shape if corner_sum is None else corner_sum, out[0])
+        return out
 
     def step(self, state: State, dt: float, start: ForceEvaluation | None = None,
              remapped_next: bool = False):
@@ -393,32 +353,26 @@ class ExplicitWilkins:
         first = start if start is not None else self.evaluate_state(state)
         mass, energy = state.material_mass, state.material_energy
         u0, x0 = state.node_velocity, state.node_position
-        dt_over_node_mass = dt * self.inverse_node_mass
         # The velocity sums u^n + u are carried instead of means: the ½ of ū is folded into
-        # the scalars below.
-        half_dt_over_mass = (0.5 * dt) / mass[0]
+        # the scalars of the energy update.
 
         # Predictor.
-        u_pred = self._advance_velocity(u0, first.nodal_force, dt_over_node_mass)
-        velocity_sum = u0 + u_pred
-        x_pred = velocity_sum[: x0.shape[0]] * (0.5 * dt)
-        x_pred += x0
-        corner_velocity = corner_positions = corner_sum = None
+        u_pred = self._advance_velocity(u0, first.nodal_force, dt)
+        velocity_sum, x_pred = self._moved(u0, u_pred, x0, dt)
+        corner_velocity = corner_sum = None
         if self.quadrilaterals:  # the corners of u^n + u* by a sum, not a gather
             corner_velocity = self.corner_velocities(u_pred)
-            corner_sum = first.corner_velocity.plus(corner_velocity)
-            # x* gathered, not summed: the cells around a node then see the same coordinates
-            # and their forces balance to round-off (a state at rest stays at rest); its
-            # hourglass shape is not needed (the start's hourglass forces serve)
-            corner_positions = self.corners.quad_corners(x_pred, hourglass=False)
-        e_pred = energy[:1] - self._corner_work([first], velocity_sum, half_dt_over_mass, corner_sum)
+            corner_sum = np.add(first.corner_velocity, corner_velocity)
+        e_pred = self._energy(energy[0], mass[0], dt, [first], velocity_sum, corner_sum,
+                              np.empty((1, energy.shape[1])))
         view = None
         if self.closure is not None:  # the mixed cells at x*, for their viscosity q*
             view = self.closure.predicted_view(state, first, x_pred, e_pred)
         # the hourglass forces of the start serve the predicted state too (a damping device,
-        # evaluated once a step; the same forces enter momentum and energy: still compatible)
+        # evaluated once a step; the same forces enter momentum and energy: still compatible);
+        # its hourglass shape is not needed
         predicted = self.evaluate(x_pred, u_pred, mass, e_pred, view, with_length=False,
-                                  hourglass=first.hourglass_force, corner_positions=corner_positions,
+                                  hourglass=first.hourglass_force, tangle_check=False,
                                   corner_velocity=corner_velocity)
         if not predicted.volume.min() > 0.0:
             self.check(predicted, x_pred, e_pred, "predicted ")
@@ -430,14 +384,11 @@ class ExplicitWilkins:
         if self.closure is not None and self.closure.implicit:  # the mixed cells' n+1 stress
             clock = time.perf_counter()
             solution = self.closure.implicit_solve(self, state, first, predicted, mean_force, dt,
-                                                   dt_over_node_mass)
+                                                   dt * self.inverse_node_mass)
             self.mixed_seconds += time.perf_counter() - clock
             self.mixed_calls += 1
-        u_new = self._advance_velocity(u0, mean_force, dt_over_node_mass)
-        velocity_sum = u0 + u_new
-        x_new = velocity_sum[: x0.shape[0]] * (0.5 * dt)
-        x_new += x0
-        half_dt_over_mass *= 0.5  # F̄ = ½ (F^n + F*)
+        u_new = self._advance_velocity(u0, mean_force, dt)
+        velocity_sum, x_new = self._moved(u0, u_new, x0, dt)
         # With mixed cells the new energies fill slot 0 of a two-slot array (slot 1: the
         # mixed cells' second materials, set by the interface solve).
         e_new = (np.empty((1, energy.shape[1])) if self.mixed is None
@@ -445,9 +396,8 @@ class ExplicitWilkins:
         corner_velocity = corner_sum = None
         if self.quadrilaterals:
             corner_velocity = self.corner_velocities(u_new)
-            corner_sum = first.corner_velocity.plus(corner_velocity)
-        np.subtract(energy[:1], self._corner_work([first, predicted], velocity_sum, half_dt_over_mass,
-                                                  corner_sum), out=e_new[:1])
+            corner_sum = np.add(first.corner_velocity, corner_velocity)
+        self._energy(energy[0], mass[0], dt, [first, predicted], velocity_sum, corner_sum, e_new)
 
         # Work and impulse of the boundary reactions R = M du/dt − F̄ on held nodes.
         dim = x0.shape[0]
@@ -487,14 +437,18 @@ class ExplicitWilkins:
         """The new state as the remap reads it (no force evaluation): volumes from the
         positions, the mixed cells' volumes and energies from the interface solve.  The
         remap's own evaluation then checks what it derives (density, EOS, stress)."""
-        volume = self.mesh.cell_volumes(x_new)
+        volume = np.empty(self.mesh.n_cells)
+        shape = self.no_shape if self.mesh.dimension == 1 else np.empty((3, 2, volume.size))
+        # the Lagrangian mesh the remap reads must not be tangled
+        least_corner = np.empty(volume.size) if self.quadrilaterals else self.no_values
+        cell_geometry(self.cell_code, x_new, self.cell_nodes, self.runs, True, volume, shape, least_corner)
         interface = {}
         if self.mixed is None:
             volumes = volume[None, :]
         else:
             volumes, interface = self.closure.state_for_remap(self, state, solution, x_new, u_new, volume, e_new, dt)
-        if self.quadrilaterals:  # the Lagrangian mesh the remap reads must not be tangled
-            self.check_corners(QuadGradient(self.corners.quad_corners(x_new)).least_corner_jacobian(), x_new)
+        if self.quadrilaterals:
+            self.check_corners(least_corner, x_new)
         occupied = volumes[:, self.mixed.cells] if self.mixed is not None else volume
         if not (volume.min() > 0.0 and occupied.min() > 0.0 and np.isfinite(e_new.sum())):
             for name, values, allowed, good in (("volume", volumes, "> 0", lambda v: v > 0.0),
@@ -508,14 +462,12 @@ class ExplicitWilkins:
                              material_energy=e_new, material_volume=volumes, material_density=None,
                              material_pressure=None, material_sound_speed=None, **interface)
 
-    @staticmethod
-    def _healthy(evaluation: ForceEvaluation, energy) -> bool:
-        """Cheap whole-array test: positive volumes, no corner turned inside out
-        (quadrilaterals; a triangle's corners all have det J = 2A), finite energies, sound
-        speeds, stresses."""
-        return bool(evaluation.volume.min() > 0.0 and np.isfinite(
-            evaluation.sound_speed[0].sum() + energy.sum() + evaluation.stress.sum())
-            and (evaluation.least_corner is None or evaluation.least_corner.min() > 0.0))
+    def _healthy(self, evaluation: ForceEvaluation, energy) -> bool:
+        """Positive volumes, no corner turned inside out (quadrilaterals; a triangle's
+        corners all have det J = 2A), finite energies, sound speeds, stresses."""
+        least_corner = self.no_values if evaluation.least_corner is None else evaluation.least_corner
+        return kernels.healthy(evaluation.volume, evaluation.sound_speed[0], energy[0], evaluation.stress,
+                               least_corner)
 
     def check(self, evaluation: ForceEvaluation, position, energy, prefix: str) -> None:
         """Raise :class:`Breakdown` naming the first offending cell and quantity, causes

@@ -132,13 +132,7 @@ class EnrichedClosure2D(SharedClosure):
         out = np.zeros((2, 2, mesh.n_nodes))
         rows = np.zeros((2, k, mesh.n_cells))
         for evaluation in (first, predicted):
-            gradient = evaluation.volume_gradient
-            for d in range(2):
-                if step.quadrilaterals:
-                    rows[d] += gradient.corner_forces(evaluation.stress, evaluation.hourglass_force, d,
-                                                      np.empty((4, mesh.n_cells)))
-                else:
-                    rows[d] += np.stack([g[d] * evaluation.stress for g in gradient])
+            rows += evaluation.corner_force
         rows *= 0.5
         for m in range(2):
             pure = cell_material == m

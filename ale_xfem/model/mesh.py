@@ -13,8 +13,9 @@ Read once from DOLFINx:
 
 Cell geometry is written once per cell type as the volume V_K(x) and its gradient
 ∂V_K/∂x_i: for a cell of constant pressure P the corner force −∫_K σ:∇ψ_i = P ∫_K ∇·ψ_i
-= P ∂V_K/∂x_i, so this gradient is all the Wilkins scheme needs.  Intervals, triangles and
-quadrilaterals share every loop that uses it.
+= P ∂V_K/∂x_i, so this gradient is all the Wilkins scheme needs.  The explicit step reads
+it through the compiled loops of ``cell_kernels`` (and :meth:`MeshArrays.cell_volumes`
+too); the arrays below serve the remap, the interface reconstruction and the outputs.
 
 Per-corner arrays: a field gathered to the corners of the cells is a list over corners of
 lists over components of (n_cells,) arrays, ``values[i][d]``.  A corner whose node indices
@@ -32,6 +33,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+
+from ale_xfem.model import cell_kernels
 
 
 class Corners:
@@ -167,25 +170,6 @@ class Corners:
                 out += np.bincount(index, weights=values, minlength=self.n_nodes)
         return out
 
-    def scatter_rows(self, rows: np.ndarray, out: np.ndarray) -> np.ndarray:
-        """Sum a (k, n_cells) block of corner values (row i: corner i) onto ``out``
-        (n_nodes,), overwritten."""
-        if self.grid is not None:
-            nx, ny = self.grid
-            views = self._views(out)
-            plane = out.reshape(ny + 1, nx + 1)
-            plane[-1].fill(0.0)  # the nodes corner 0 misses: the last row and column
-            plane[:, -1].fill(0.0)
-            np.copyto(views[0], rows[0].reshape(ny, nx))
-            for view, row in zip(views[1:], rows[1:]):
-                view += row.reshape(ny, nx)
-            return out
-        if self.flat_index is not None:
-            out[:] = np.bincount(self.flat_index, weights=rows.ravel(), minlength=self.n_nodes)
-            return out
-        return self.scatter_scaled(list(rows), None, out=out)
-
-
 def _scaled(coefficient, values, out):
     if values is None:
         np.copyto(out, coefficient)
@@ -306,34 +290,6 @@ def corner_jacobians(vertices):
     return after[..., 0] * before[..., 1] - after[..., 1] * before[..., 0]
 
 
-def constant_gradient(gradient) -> bool:
-    """True when ∂V/∂x_i does not depend on the positions (intervals)."""
-    return not isinstance(gradient, QuadGradient) and all(isinstance(g, float) for corner in gradient for g in corner)
-
-
-def corner_dot(gradient, corner_values):
-    """Σ_i ∂V/∂x_i · v_i per cell, for [corner][component] lists (gradient entries may be
-    scalars ±1); for quadrilaterals the values may also be given as their QuadCorners."""
-    if isinstance(gradient, QuadGradient):
-        if not isinstance(corner_values, QuadCorners):
-            corner_values = QuadCorners.gathered(corner_values)
-        return gradient.dot(corner_values)
-    if len(gradient) == 2 and gradient[0] == [-1.0] and gradient[1] == [1.0]:
-        return corner_values[1][0] - corner_values[0][0]  # interval: v_right − v_left
-    total = None
-    for g_corner, v_corner in zip(gradient, corner_values):
-        for g, v in zip(g_corner, v_corner):
-            if isinstance(g, float) and g in (1.0, -1.0):
-                if total is None:
-                    total = v.copy() if g > 0 else -v
-                else:
-                    (np.add if g > 0 else np.subtract)(total, v, out=total)
-            else:
-                term = g * v
-                total = term if total is None else np.add(total, term, out=total)
-    return total
-
-
 def _interval_geometry(x):
     """x[i][0], i = 0, 1 → V = x1 − x0, ∂V/∂x0 = −1, ∂V/∂x1 = +1 (scalars)."""
     return x[1][0] - x[0][0], [[-1.0], [1.0]]
@@ -378,14 +334,6 @@ class QuadCorners:
             sums.append(total)
         return cls(across02, across13, sums)
 
-    def plus(self, other: "QuadCorners") -> "QuadCorners":
-        """self + other (those of the sum of the two nodal fields)."""
-        def combine(mine, theirs):
-            return [np.add(a, b) for a, b in zip(mine, theirs)]
-        return QuadCorners(combine(self.across02, other.across02), combine(self.across13, other.across13),
-                           combine(self.hourglass, other.hourglass))
-
-
 class QuadGradient:
     """Area and ∂A/∂x_i of quadrilaterals (corners going round) from their diagonals, with
     p = x_0 − x_2 and r = x_1 − x_3 (a QuadCorners of the positions):
@@ -407,27 +355,6 @@ class QuadGradient:
     def __len__(self) -> int:
         return 4
 
-    def least_corner_jacobian(self):
-        """Per cell, the least over its four corners of det J = (x_{i+1} − x_i) × (x_{i−1} − x_i),
-        or None when the positions' hourglass sums h = x_0 − x_1 + x_2 − x_3 were not formed.
-        J_0 + J_2 = J_1 + J_3 = 2A and J_0 − J_2 = h × r, J_1 − J_3 = p × h, so the least is
-        A − ½ max(|h × r|, |h × p|): ≤ 0 when a corner has turned inside out, even while
-        the area A stays positive.  Six products: checked on every state a step ends with."""
-        if self.corners.hourglass is None:
-            return None
-        (px, py), (rx, ry) = self.corners.across02, self.corners.across13
-        hx, hy = self.corners.hourglass
-        across_r = hx * ry
-        across_r -= hy * rx
-        np.abs(across_r, out=across_r)
-        across_p = hx * py
-        across_p -= hy * px
-        np.abs(across_p, out=across_p)
-        np.maximum(across_r, across_p, out=across_r)
-        across_r *= -0.5
-        across_r += self.area
-        return across_r
-
     def __getitem__(self, corner: int):
         if not 0 <= corner < 4:
             raise IndexError(corner)
@@ -436,55 +363,6 @@ class QuadGradient:
 
     def __iter__(self):
         return (self[i] for i in range(4))
-
-    def dot(self, values: QuadCorners):
-        """Σ_i ∂A/∂x_i·v_i."""
-        (g0x, g0y), (g1x, g1y) = self.independent
-        (ax, ay), (bx, by) = values.across02, values.across13
-        total = g0x * ax
-        total += g0y * ay
-        total += g1x * bx
-        total += g1y * by
-        return total
-
-    def longest_median(self):
-        """The longer of the two lines joining the midpoints of opposite edges: they are
-        (p + r)/2 and (p − r)/2 (|a ± b|² = |a|² + |b|² ± 2 a·b)."""
-        (px, py), (rx, ry) = self.corners.across02, self.corners.across13
-        squares = px * px
-        squares += py * py
-        squares += rx * rx
-        squares += ry * ry
-        cross = px * rx
-        cross += py * ry
-        np.abs(cross, out=cross)
-        cross *= 2.0
-        squares += cross
-        np.sqrt(squares, out=squares)
-        squares *= 0.5
-        return squares
-
-    def corner_forces(self, stress, hourglass, component: int, out: np.ndarray) -> np.ndarray:
-        """Row i of ``out`` (4, n_cells): component ``component`` of the corner force
-        F_Ki = P ∂A/∂x_i + f_i (f: the hourglass forces γ_i Q, or none).  With
-        γ = (1 − s_0, −1 − s_1, 1 + s_0, −1 + s_1):  F_0 = a + Q, F_2 = Q − a with
-        a = P g_0 − s_0 Q;  F_1 = b − Q, F_3 = −b − Q with b = P g_1 − s_1 Q."""
-        g0, g1 = self.independent[0][component], self.independent[1][component]
-        np.multiply(stress, g0, out=out[0])
-        np.multiply(stress, g1, out=out[1])
-        if hourglass is None:
-            np.negative(out[0], out=out[2])
-            np.negative(out[1], out=out[3])
-            return out
-        q = hourglass.force[component]
-        out[0] -= hourglass.s0 * q
-        out[1] -= hourglass.s1 * q
-        np.subtract(q, out[0], out=out[2])
-        out[0] += q
-        np.negative(out[1], out=out[3])
-        out[3] -= q
-        out[1] -= q
-        return out
 
 
 @dataclass(frozen=True)
@@ -502,95 +380,11 @@ class CellType:
             return gradient.area, gradient
         return _polygon_geometry(corner_positions)
 
-    def velocity_jump(self, volume_rate, volume):
-        """Δu = L ∇·u = L (dV/dt)/V: the velocity jump across the cell that the artificial
-        viscosity sees (1D: u_right − u_left exactly; 2D: L = √A).
-
-        2D choice, measured (2026-11-22, quadrilaterals): a directional length — the cell's
-        width along the direction of greatest compression, the eigenvector of the least
-        eigenvalue of the symmetric velocity gradient — let the cells along Noh's symmetry
-        axes collapse (negative energy at t ≈ 0.45 on 100 × 100) and left Saltzman's plateau
-        between 3.86 and 4.30 in the mid-height cells; with L = √A Noh runs to t = 0.6 and
-        Saltzman's plateau stays within 3.99–4.03 (``demos/scenes/saltzman.toml``)."""
-        if self.dimension == 1:  # L = V: Δu = dV/dt
-            return volume_rate
-        return volume_rate / self.viscosity_length(volume)  # L/V = 1/√A
-
     def viscosity_length(self, volume):
         """The length L of the artificial viscosity's velocity jump Δu = L ∇·u (1D: the cell
-        length; 2D: √A, the choice explained in :meth:`velocity_jump`); the time step's
-        viscous signal speed is scaled by it over the CFL length."""
+        length; 2D: √A, the choice explained in ale_xfem.lagrange.kernels.velocity_jump);
+        the time step's viscous signal speed is scaled by it over the CFL length."""
         return volume if self.dimension == 1 else np.sqrt(volume)
-
-    def length_scale(self, volume, positions=None, gradient=None):
-        """The sound-crossing length of the CFL condition (1D: the cell length; triangles:
-        the least altitude 2A / longest edge; quadrilaterals: A over the longer of the two
-        lines joining the midpoints of opposite edges — the smaller side of a rectangle)."""
-        if self.dimension == 1:
-            return volume
-        if self.nodes_per_cell == 3:
-            longest = None
-            for i in range(3):
-                j = (i + 1) % 3
-                dx, dy = positions[j][0] - positions[i][0], positions[j][1] - positions[i][1]
-                square = dx * dx
-                square += dy * dy
-                longest = square if longest is None else np.maximum(longest, square, out=longest)
-            np.sqrt(longest, out=longest)
-            return 2.0 * volume / longest
-        if gradient is None:
-            gradient = self.volume_and_gradient(positions)[1]
-        return volume / gradient.longest_median()
-
-
-class QuadHourglass:
-    """Viscous hourglass control of quadrilaterals (Flanagan & Belytschko, IJNME 17, 1981):
-    with h = (1, −1, 1, −1) going round and γ_i = h_i − (Σ_j h_j x_j)·(∂A/∂x_i)/A, orthogonal
-    to every linear field, the hourglass velocity Σ_i γ_i u_i is resisted by the corner forces
-    f_i = γ_i Q,  Q = −(κ/4) ρ c √A Σ_j γ_j u_j.  Since ∂A/∂x_2 = −∂A/∂x_0 and
-    ∂A/∂x_3 = −∂A/∂x_1, γ = (1 − s_0, −1 − s_1, 1 + s_0, −1 + s_1) with
-    s_i = (Σ_j h_j x_j)·(∂A/∂x_i)/A.  The forces' work goes to the internal energy with the
-    pressure forces' (compatible energy).  Iterated: the corner forces [corner][component]."""
-
-    def __init__(self, gradient: QuadGradient, velocities: QuadCorners, volume, density, sound_speed,
-                 coefficient):
-        hx, hy = gradient.corners.hourglass
-        inverse_area = 1.0 / volume
-        (g0x, g0y), (g1x, g1y) = gradient.independent
-        self.s0 = hx * g0x
-        self.s0 += hy * g0y
-        self.s0 *= inverse_area
-        self.s1 = hx * g1x
-        self.s1 += hy * g1y
-        self.s1 *= inverse_area
-        scale = np.sqrt(volume)
-        scale *= density
-        scale *= sound_speed
-        scale *= -0.25 * coefficient
-        self.force = self.velocity(velocities)  # Q = scale Σ γ_j u_j
-        for q in self.force:
-            q *= scale
-
-    def velocity(self, values: QuadCorners):
-        """Σ_i γ_i v_i per component."""
-        out = []
-        for a, b, h in zip(values.across02, values.across13, values.hourglass):
-            total = h - self.s0 * a
-            total -= self.s1 * b
-            out.append(total)
-        return out
-
-    def dot(self, values: QuadCorners):
-        """Σ_i f_i·v_i = Q·Σ_i γ_i v_i."""
-        gamma_v = self.velocity(values)
-        total = self.force[0] * gamma_v[0]
-        total += self.force[1] * gamma_v[1]
-        return total
-
-    def __iter__(self):
-        gamma = (1.0 - self.s0, -1.0 - self.s1, 1.0 + self.s0, -1.0 + self.s1)
-        return ([g * q for q in self.force] for g in gamma)
-
 
 CELL_TYPES = {
     "interval": CellType("interval", 1, 2),
@@ -613,6 +407,9 @@ class MeshArrays:
 
     def __post_init__(self):
         self.corners = Corners(self.cell_nodes, self.node_position.shape[1], self.grid)
+        # what the compiled loops take (ale_xfem.model.cell_kernels)
+        self.compiled_cell_nodes = np.ascontiguousarray(self.cell_nodes, dtype=np.int64)
+        self.corner_runs = cell_kernels.corner_runs(self.compiled_cell_nodes)
 
     @property
     def n_nodes(self) -> int:
@@ -641,8 +438,14 @@ class MeshArrays:
         return self.cell_type.volume_and_gradient(self.corners.gather(x))
 
     def cell_volumes(self, node_position=None):
-        """Cell volumes (areas in 2D), as :meth:`cell_geometry` gives them."""
-        return self.cell_geometry(node_position)[0]
+        """Cell volumes (areas in 2D), from the compiled loop the explicit step uses."""
+        x = self.node_position if node_position is None else node_position
+        volume = np.empty(self.n_cells)
+        shape = np.empty((3, 2, self.n_cells if self.dimension > 1 else 0))
+        cell_kernels.cell_geometry(cell_kernels.CELL_TYPE_CODES[self.cell_type.name], np.ascontiguousarray(x,
+                                   dtype=float),
+                      self.compiled_cell_nodes, self.corner_runs, False, volume, shape, np.zeros(0))
+        return volume
 
     def cell_vertex_positions(self, node_position=None):
         """(n_cells, nodes_per_cell, dim), for output and set-up (not per step)."""

@@ -26,6 +26,9 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
+from ale_xfem.eos import kernel_tables
+from ale_xfem.eos.kernels import fill_pressure_sound_speed
+
 
 @dataclass(frozen=True)
 class Material:
@@ -35,36 +38,12 @@ class Material:
 
 
 class MaterialLayout:
-    """Which material sits in which slot of which cell, grouped for EOS evaluation.
-
-    ``groups`` holds (material, flat indices into an (S, n_cells) array) pairs, several per
-    material if need be: slot 0 as slices over the runs of cells of one material (sorted
-    meshes have a few long runs: no gather or scatter per evaluation), slot 1 as index
-    arrays (it is occupied only in the mixed cells)."""
+    """Which material sits in which slot of which cell: ``cell_material`` (S, n_cells), −1
+    for an empty slot."""
 
     def __init__(self, cell_material: np.ndarray, n_materials: int):
         self.cell_material = np.ascontiguousarray(cell_material)
         self.n_materials = n_materials
-        first = self.cell_material[0]
-        n = first.size
-        self.groups = []
-        starts = np.concatenate([[0], np.flatnonzero(first[1:] != first[:-1]) + 1])
-        if starts.size <= 64:  # a few runs: slices
-            ends = np.append(starts[1:], n)
-            self.groups += [(int(first[a]), slice(int(a), int(b))) for a, b in zip(starts, ends)
-                            if first[a] >= 0]
-        else:  # many runs: one index array per material
-            self.groups += [(m, np.flatnonzero(first == m)) for m in range(n_materials)
-                            if np.any(first == m)]
-        self.occupied_all = self.first_occupied = bool(np.all(first >= 0))
-        if self.cell_material.shape[0] > 1:
-            second = self.cell_material[1:].ravel()
-            filled = np.flatnonzero(second >= 0)
-            self.occupied_all = self.occupied_all and filled.size == second.size
-            for material in np.unique(second[filled]):
-                self.groups.append((int(material), n + filled[second[filled] == material]))
-        present = {m for m, _ in self.groups}
-        self.single = next(iter(present)) if len(present) == 1 and self.occupied_all else None
 
     @property
     def slots(self) -> int:
@@ -81,15 +60,7 @@ class MaterialLayout:
         """The layout of slot 0 alone (the explicit loop's view of a mixed layout)."""
         if self.slots == 1:
             return self
-        layout = object.__new__(MaterialLayout)
-        layout.cell_material = self.cell_material[:1]
-        layout.n_materials = self.n_materials
-        n = layout.cell_material.shape[1]
-        layout.groups = [(m, w) for m, w in self.groups if isinstance(w, slice) or w.size == 0 or w[0] < n]
-        layout.occupied_all = layout.first_occupied = self.first_occupied
-        present = {m for m, _ in layout.groups}
-        layout.single = next(iter(present)) if len(present) == 1 and layout.occupied_all else None
-        return layout
+        return MaterialLayout(self.cell_material[:1], self.n_materials)
 
 
 def ranked_materials(values, count: int = 2) -> np.ndarray:
@@ -218,31 +189,15 @@ def density_of(mass, volume):
 
 
 def thermodynamics(materials, layout: MaterialLayout, density, energy, out=None):
-    """Pressure and sound speed (S, n_cells) from density and specific energy, material by
-    material.  Empty slots get p = 0, c = 0.  ``out``: a (pressure, sound speed) pair of
-    arrays shaped like density to fill instead of new ones."""
-    if layout.single is not None:  # one material fills every slot: no gather or scatter
-        eos = materials[layout.single].eos
-        with np.errstate(invalid="ignore"):
-            pressure, sound_speed = eos.pressure(density, energy), np.sqrt(eos.sound_speed_squared(density, energy))
-        if out is None:
-            return pressure, sound_speed
-        out[0][...], out[1][...] = pressure, sound_speed
-        return out
+    """Pressure and sound speed (S, n_cells) from density and specific energy, each slot by
+    the equation of state of its material (one compiled pass, ale_xfem.eos.kernels).
+    Empty slots get p = 0, c = 0; c is NaN where c² < 0, outside the EOS's domain (e.g. a
+    stiffened gas below p = −p∞): the breakdown check reports it.  ``out``: a (pressure,
+    sound speed) pair of arrays shaped like density to fill instead of new ones."""
     pressure, sound_speed = (np.empty_like(density), np.empty_like(density)) if out is None else out
-    if not layout.occupied_all:  # zero the empty slots (all of slot 0 is written when it is full)
-        for array in (pressure, sound_speed):
-            (array[1:] if layout.first_occupied else array).fill(0.0)
-    rho_flat, e_flat = density.reshape(-1), energy.reshape(-1)
-    p_flat, c_flat = pressure.reshape(-1), sound_speed.reshape(-1)
-    for material, where in layout.groups:
-        eos = materials[material].eos
-        rho, e = rho_flat[where], e_flat[where]
-        p_flat[where] = eos.pressure(rho, e)
-        # c² < 0 only outside the EOS's domain (e.g. a stiffened gas below p = −p∞): the
-        # breakdown check reports it through the NaN it makes.
-        with np.errstate(invalid="ignore"):
-            c_flat[where] = np.sqrt(eos.sound_speed_squared(rho, e))
+    kinds, parameters = kernel_tables(tuple(material.eos for material in materials))
+    fill_pressure_sound_speed(kinds, parameters, layout.cell_material[:density.shape[0]], density, energy,
+                              pressure, sound_speed)
     return pressure, sound_speed
 
 

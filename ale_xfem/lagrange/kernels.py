@@ -1,0 +1,505 @@
+"""Compiled kernels of the explicit Wilkins step (ale_xfem.lagrange.wilkins drives them).
+
+The physics of a cell is written once, as a function of one cell (its volume rate, its
+artificial viscosity, its hourglass forces, its corner forces, its time step limit); the
+loops call them.  A state whose cells are all pure is evaluated in one loop with its
+equation of state (:func:`evaluate_pure`); with mixed cells the same functions run in
+stages (:func:`geometry_and_rates`, the equation of state, :func:`stress_and_corner_forces`),
+between which the mixed cells' closure sets their entries.
+
+Every formula keeps the order of operations of the numpy code it replaced: the results
+are the same to the bit, which tests/test_regression.py checks on every shipped scene.
+Cell types are told apart by the codes of ale_xfem.model.cell_kernels, whose shape
+convention and node access (``cell_nodes``, ``runs``) these kernels follow.
+
+Corner forces are summed onto the nodes corner by corner, in the order numpy's scatters
+summed them (:func:`scatter_corners`): a node's force does not depend on the order the
+cells are visited in, and a state at rest stays at rest to round-off.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from ale_xfem.eos.kernels import LOOP, pressure_sound_speed
+from ale_xfem.model.cell_kernels import (INTERVAL, QUADRILATERAL, TRIANGLE, cell_volume, cfl_length,
+                                         least_corner_jacobian, nan_max, nan_min, node, node_access)
+
+# how corner values are summed onto the nodes (ExplicitWilkins.scatter_mode)
+RUNS, PER_CORNER, FLAT = 0, 1, 2
+
+
+# -- one cell ---------------------------------------------------------------------------
+
+@numba.njit(cache=True, inline="always")
+def quad_gradient(shape, k):  # pragma: no cover (compiled)
+    """(g_0x, g_0y, g_1x, g_1y): ∂A/∂x_0 = ½ (r_y, −r_x) and ∂A/∂x_1 = ½ (−p_y, p_x)."""
+    return 0.5 * shape[1, 1, k], -0.5 * shape[1, 0, k], -0.5 * shape[0, 1, k], 0.5 * shape[0, 0, k]
+
+
+@numba.njit(cache=True, inline="always")
+def volume_rate(cell_type, shape, cell_nodes, at, k, u, combos):  # pragma: no cover (compiled)
+    """dV/dt = Σ_i ∂V/∂x_i·u_i of cell k (quadrilaterals read the velocity's corner
+    combinations ``combos`` instead of u)."""
+    if cell_type == INTERVAL:
+        return u[0, node(cell_nodes, at, k, 1)] - u[0, node(cell_nodes, at, k, 0)]
+    if cell_type == TRIANGLE:
+        a = node(cell_nodes, at, k, 0)
+        total = shape[0, 0, k] * u[0, a]
+        total += shape[0, 1, k] * u[1, a]
+        for i in range(1, 3):
+            a = node(cell_nodes, at, k, i)
+            total += shape[i, 0, k] * u[0, a]
+            total += shape[i, 1, k] * u[1, a]
+        return total
+    g0x, g0y, g1x, g1y = quad_gradient(shape, k)
+    total = g0x * combos[0, 0, k]
+    total += g0y * combos[0, 1, k]
+    total += g1x * combos[1, 0, k]
+    total += g1y * combos[1, 1, k]
+    return total
+
+
+@numba.njit(cache=True, inline="always")
+def velocity_jump(cell_type, volume, rate):  # pragma: no cover (compiled)
+    """Δu = L ∇·u = L (dV/dt)/V, the velocity jump across the cell that the artificial
+    viscosity sees: 1D u_right − u_left exactly (L = V); 2D L = √A.
+
+    2D choice, measured (2026-11-22, quadrilaterals): a directional length — the cell's
+    width along the direction of greatest compression, the eigenvector of the least
+    eigenvalue of the symmetric velocity gradient — let the cells along Noh's symmetry axes
+    collapse (negative energy at t ≈ 0.45 on 100 × 100) and left Saltzman's plateau between
+    3.86 and 4.30 in the mid-height cells; with L = √A Noh runs to t = 0.6 and Saltzman's
+    plateau stays within 3.99–4.03 (``demos/scenes/saltzman.toml``)."""
+    return rate if cell_type == INTERVAL else rate / np.sqrt(volume)
+
+
+@numba.njit(cache=True, inline="always")
+def artificial_viscosity(q_quadratic, q_linear, jump, density, sound_speed):  # pragma: no cover (compiled)
+    """q = ρ (c2 Δu² + c1 c |Δu|) in compression (von Neumann–Richtmyer and Landshoff),
+    0 in expansion."""
+    compression = nan_min(jump, 0.0)
+    return (q_quadratic * compression - q_linear * sound_speed) * compression * density
+
+
+@numba.njit(cache=True, inline="always")
+def hourglass_cell(volume, shape, combos, density, sound_speed, coefficient, k, s0, s1,
+                   force):  # pragma: no cover (compiled)
+    """Viscous hourglass control of quadrilateral k (Flanagan & Belytschko, IJNME 17, 1981):
+    γ_i = h_i − (Σ_j h_j x_j)·(∂A/∂x_i)/A is orthogonal to every linear field; the hourglass
+    velocity Σ_i γ_i u_i is resisted by f_i = γ_i Q, Q = −(κ/4) ρ c √A Σ_j γ_j u_j.  With
+    ∂A/∂x_2 = −∂A/∂x_0, ∂A/∂x_3 = −∂A/∂x_1: γ = (1 − s_0, −1 − s_1, 1 + s_0, −1 + s_1),
+    s_i = h·(∂A/∂x_i)/A.  Writes s_0, s_1 and Q (2,) of the cell."""
+    g0x, g0y, g1x, g1y = quad_gradient(shape, k)
+    hx, hy = shape[2, 0, k], shape[2, 1, k]
+    inverse_area = 1.0 / volume
+    a = (hx * g0x + hy * g0y) * inverse_area
+    b = (hx * g1x + hy * g1y) * inverse_area
+    s0[k], s1[k] = a, b
+    scale = np.sqrt(volume) * density * sound_speed * (-0.25 * coefficient)
+    for d in range(2):
+        force[d, k] = (combos[2, d, k] - a * combos[0, d, k] - b * combos[1, d, k]) * scale
+
+
+@numba.njit(cache=True, inline="always")
+def quad_corner_forces(stress, g0, g1, s0, s1, q, hourglass):  # pragma: no cover (compiled)
+    """One component of a quadrilateral's four corner forces F_i = P ∂A/∂x_i + γ_i Q:
+    with γ = (1 − s_0, −1 − s_1, 1 + s_0, −1 + s_1), F_0 = a + Q, F_2 = Q − a with
+    a = P g_0 − s_0 Q, and F_1 = b − Q, F_3 = −b − Q with b = P g_1 − s_1 Q (g_0, g_1: the
+    component of ∂A/∂x_0, ∂A/∂x_1; no hourglass control: F_2 = −F_0, F_3 = −F_1)."""
+    f0 = stress * g0
+    f1 = stress * g1
+    if not hourglass:
+        return f0, f1, -f0, -f1
+    f0 = f0 - s0 * q
+    f1 = f1 - s1 * q
+    f2 = q - f0
+    f0 = f0 + q
+    f3 = -f1
+    f3 = f3 - q
+    f1 = f1 - q
+    return f0, f1, f2, f3
+
+
+@numba.njit(cache=True, inline="always")
+def corner_forces_cell(cell_type, shape, stress, hourglass, s0, s1, q, k, rows):  # pragma: no cover (compiled)
+    """Cell k's corner forces F_Ki = P_K ∂V_K/∂x_i (+ the hourglass forces γ_i Q of
+    quadrilaterals) into rows[:, :, k] (2D; 1D scatters ∓P itself)."""
+    if cell_type == TRIANGLE:
+        for i in range(3):
+            for d in range(2):
+                rows[d, i, k] = shape[i, d, k] * stress
+    elif cell_type == QUADRILATERAL:
+        g0x, g0y, g1x, g1y = quad_gradient(shape, k)
+        a = s0[k] if hourglass else 0.0
+        b = s1[k] if hourglass else 0.0
+        for d in range(2):
+            f = q[d, k] if hourglass else 0.0
+            rows[d, 0, k], rows[d, 1, k], rows[d, 2, k], rows[d, 3, k] = quad_corner_forces(
+                stress, g0x if d == 0 else g0y, g1x if d == 0 else g1y, a, b, f, hourglass)
+
+
+@numba.njit(cache=True, inline="always")
+def hourglass_work(s0, s1, q, k, combos_sum):  # pragma: no cover (compiled)
+    """Σ_i f_i·(u^n + u)_i = Q·Σ_i γ_i (u^n + u)_i of quadrilateral k."""
+    gamma_x = combos_sum[2, 0, k] - s0[k] * combos_sum[0, 0, k] - s1[k] * combos_sum[1, 0, k]
+    gamma_y = combos_sum[2, 1, k] - s0[k] * combos_sum[0, 1, k] - s1[k] * combos_sum[1, 1, k]
+    total = q[0, k] * gamma_x
+    total += q[1, k] * gamma_y
+    return total
+
+
+@numba.njit(cache=True, inline="always")
+def cfl_time(c, jump, length, stiffness, q_quadratic, q_linear, artificial):  # pragma: no cover (compiled)
+    """A cell's L / signal speed: with the viscosity, Q + √(Q² + c²), Q = (c1 c + 2 c2 |Δu|)
+    L_q/L in compression (Benson, CMAME 99, 1992); never less than |Δu| (no cell changes its
+    length by more than its own size in a step)."""
+    if artificial:
+        q_speed = nan_min(jump, 0.0) * (-2.0 * q_quadratic) + q_linear * c
+        q_speed *= stiffness
+        signal = np.sqrt(q_speed * q_speed + c * c) + q_speed
+    else:
+        signal = c
+    signal = nan_max(signal, abs(jump))
+    return length / signal
+
+
+# -- evaluations of a state ----------------------------------------------------------------
+
+@numba.njit(cache=True, inline="always")
+def _geometry_and_rates(cell_type, x, u, combos, cell_nodes, runs, hourglass, with_length, with_density, mass, volume,
+                        shape, least_corner, length, density, jump):  # pragma: no cover (compiled)
+    at = node_access(runs)
+    for k in range(volume.size):
+        v = cell_volume(cell_type, x, cell_nodes, at, k, hourglass, shape)
+        volume[k] = v
+        if least_corner.size:
+            least_corner[k] = least_corner_jacobian(v, shape, k)
+        if with_length:
+            length[k] = cfl_length(cell_type, x, cell_nodes, at, k, v, shape)
+        if with_density:
+            density[k] = mass[k] / v
+        jump[k] = velocity_jump(cell_type, v, volume_rate(cell_type, shape, cell_nodes, at, k, u, combos))
+
+
+@numba.njit(**LOOP)
+def geometry_and_rates(cell_type, x, u, combos, cell_nodes, runs, hourglass, with_length, with_density, mass, volume,
+                       shape, least_corner, length, density, jump):  # pragma: no cover (compiled)
+    """Per cell: volume and shape (with ``hourglass`` the quadrilaterals' hourglass shape
+    and, ``least_corner`` not empty, their least corner det J), CFL length
+    (``with_length``), ρ = m/V (``with_density``), the velocity jump."""
+    if cell_type == INTERVAL:
+        _geometry_and_rates(INTERVAL, x, u, combos, cell_nodes, runs, hourglass, with_length, with_density, mass,
+                            volume, shape, least_corner, length, density, jump)
+    elif cell_type == TRIANGLE:
+        _geometry_and_rates(TRIANGLE, x, u, combos, cell_nodes, runs, hourglass, with_length, with_density, mass,
+                            volume, shape, least_corner, length, density, jump)
+    else:
+        _geometry_and_rates(QUADRILATERAL, x, u, combos, cell_nodes, runs, hourglass, with_length, with_density, mass,
+                            volume, shape, least_corner, length, density, jump)
+
+
+@numba.njit(cache=True, inline="always")
+def _stress_and_corner_forces(cell_type, volume, shape, combos, jump, density, sound_speed, pressure, q_quadratic,
+                              q_linear, artificial, mixed_cells, mixed_density, mixed_sound_speed, interface_pressure,
+                              hourglass, compute_hourglass, coefficient, s0, s1, q, viscosity, stress,
+                              rows):  # pragma: no cover (compiled)
+    for k in range(volume.size):
+        qk = artificial_viscosity(q_quadratic, q_linear, jump[k], density[k], sound_speed[k]) if artificial else 0.0
+        viscosity[k] = qk
+        stress[k] = pressure[k] + qk if artificial else pressure[k]
+    for j in range(mixed_cells.size):
+        k = mixed_cells[j]
+        if artificial:
+            squeeze = nan_min(jump[k], 0.0)
+            viscosity[k] = mixed_density[j] * squeeze * (q_quadratic * squeeze - q_linear * mixed_sound_speed[j])
+        stress[k] = interface_pressure[j] + viscosity[k]
+    if cell_type == INTERVAL:
+        return
+    for k in range(volume.size):
+        if compute_hourglass:
+            hourglass_cell(volume[k], shape, combos, density[k], sound_speed[k], coefficient, k, s0, s1, q)
+        corner_forces_cell(cell_type, shape, stress[k], hourglass, s0, s1, q, k, rows)
+
+
+@numba.njit(**LOOP)
+def stress_and_corner_forces(cell_type, volume, shape, combos, jump, density, sound_speed, pressure, q_quadratic,
+                             q_linear, artificial, mixed_cells, mixed_density, mixed_sound_speed, interface_pressure,
+                             hourglass, compute_hourglass, coefficient, s0, s1, q, viscosity, stress,
+                             rows):  # pragma: no cover (compiled)
+    """Per cell: the viscosity q and the corner forces' pressure P = p + q; a mixed cell's
+    q from the density and sound speed its closure gives, and its P = p_Γ + q.  Then
+    (``compute_hourglass``) the quadrilaterals' hourglass forces, and the corner forces
+    (2D; ``hourglass``: with hourglass forces)."""
+    if cell_type == INTERVAL:
+        _stress_and_corner_forces(INTERVAL, volume, shape, combos, jump, density, sound_speed, pressure, q_quadratic,
+                                  q_linear, artificial, mixed_cells, mixed_density, mixed_sound_speed,
+                                  interface_pressure, hourglass, compute_hourglass, coefficient, s0, s1, q, viscosity,
+                                  stress, rows)
+    elif cell_type == TRIANGLE:
+        _stress_and_corner_forces(TRIANGLE, volume, shape, combos, jump, density, sound_speed, pressure, q_quadratic,
+                                  q_linear, artificial, mixed_cells, mixed_density, mixed_sound_speed,
+                                  interface_pressure, hourglass, compute_hourglass, coefficient, s0, s1, q, viscosity,
+                                  stress, rows)
+    else:
+        _stress_and_corner_forces(QUADRILATERAL, volume, shape, combos, jump, density, sound_speed, pressure,
+                                  q_quadratic, q_linear, artificial, mixed_cells, mixed_density, mixed_sound_speed,
+                                  interface_pressure, hourglass, compute_hourglass, coefficient, s0, s1, q, viscosity,
+                                  stress, rows)
+
+
+@numba.njit(cache=True, inline="always")
+def _evaluate_pure(cell_type, x, u, combos, cell_nodes, runs, hourglass, with_length, eos, cell_material, mass,
+                   energy, viscosity_law, hourglass_control, out, rows):  # pragma: no cover (compiled)
+    kinds, parameters = eos
+    q_quadratic, q_linear, artificial = viscosity_law
+    hourglass_forces, compute_hourglass, coefficient, s0, s1, q = hourglass_control
+    volume, shape, least_corner, length, density, pressure, sound_speed, jump, viscosity, stress = out
+    at = node_access(runs)
+    for k in range(volume.size):
+        v = cell_volume(cell_type, x, cell_nodes, at, k, hourglass, shape)
+        volume[k] = v
+        if least_corner.size:
+            least_corner[k] = least_corner_jacobian(v, shape, k)
+        if with_length:
+            length[k] = cfl_length(cell_type, x, cell_nodes, at, k, v, shape)
+        rho = mass[k] / v
+        density[k] = rho
+        material = cell_material[k]
+        p, c = pressure_sound_speed(kinds[material], parameters, material, rho, energy[k])
+        pressure[k], sound_speed[k] = p, c
+        du = velocity_jump(cell_type, v, volume_rate(cell_type, shape, cell_nodes, at, k, u, combos))
+        jump[k] = du
+        qk = artificial_viscosity(q_quadratic, q_linear, du, rho, c) if artificial else 0.0
+        viscosity[k] = qk
+        pk = p + qk if artificial else p
+        stress[k] = pk
+        if compute_hourglass:
+            hourglass_cell(v, shape, combos, rho, c, coefficient, k, s0, s1, q)
+        corner_forces_cell(cell_type, shape, pk, hourglass_forces, s0, s1, q, k, rows)
+
+
+@numba.njit(**LOOP)
+def evaluate_pure(cell_type, x, u, combos, cell_nodes, runs, hourglass, with_length, eos, cell_material, mass,
+                  energy, viscosity_law, hourglass_control, out, rows):  # pragma: no cover (compiled)
+    """A state whose cells are all pure, in one loop: what :func:`geometry_and_rates`, the
+    equation of state and :func:`stress_and_corner_forces` give.  ``hourglass``: the
+    positions' hourglass shape; ``eos``: (kinds, parameters) of the materials;
+    ``viscosity_law``: (c2, c1, whether on); ``hourglass_control``: (whether the corner
+    forces have hourglass forces, whether to compute them, κ, s_0, s_1, Q); ``out``: (volume,
+    shape, least corner, length, density, pressure, sound speed, velocity jump, viscosity,
+    stress)."""
+    if cell_type == INTERVAL:
+        _evaluate_pure(INTERVAL, x, u, combos, cell_nodes, runs, hourglass, with_length, eos, cell_material,
+                       mass, energy, viscosity_law, hourglass_control, out, rows)
+    elif cell_type == TRIANGLE:
+        _evaluate_pure(TRIANGLE, x, u, combos, cell_nodes, runs, hourglass, with_length, eos, cell_material,
+                       mass, energy, viscosity_law, hourglass_control, out, rows)
+    else:
+        _evaluate_pure(QUADRILATERAL, x, u, combos, cell_nodes, runs, hourglass, with_length, eos, cell_material,
+                       mass, energy, viscosity_law, hourglass_control, out, rows)
+
+
+@numba.njit(cache=True, inline="always")
+def _scatter_corner(cell_type, stress, rows, cell_nodes, at, d, c, assign, target):  # pragma: no cover (compiled)
+    """Corner c's values of component d written (``assign``) or added to ``target``."""
+    sign = -1.0 if c == 0 else 1.0  # an interval's corner forces ∓P
+    n = cell_nodes.shape[0]
+    if cell_type == INTERVAL:
+        if assign:
+            for k in range(n):
+                target[node(cell_nodes, at, k, c)] = sign * stress[k]
+        else:
+            for k in range(n):
+                target[node(cell_nodes, at, k, c)] += sign * stress[k]
+    else:
+        if assign:
+            for k in range(n):
+                target[node(cell_nodes, at, k, c)] = rows[d, c, k]
+        else:
+            for k in range(n):
+                target[node(cell_nodes, at, k, c)] += rows[d, c, k]
+
+
+@numba.njit(cache=True, inline="always")
+def _scatter_corners(cell_type, stress, rows, cell_nodes, runs, mode, corner_is_run, scratch,
+                     out):  # pragma: no cover (compiled)
+    at = node_access(runs)
+    for d in range(out.shape[0]):
+        target = out[d]
+        target[:] = 0.0
+        for c in range(cell_nodes.shape[1]):
+            direct = mode == RUNS or (mode == PER_CORNER and corner_is_run[c])
+            if mode == FLAT or direct:
+                _scatter_corner(cell_type, stress, rows, cell_nodes, at, d, c, c == 0 and direct, target)
+            else:
+                scratch[:] = 0.0
+                _scatter_corner(cell_type, stress, rows, cell_nodes, at, d, c, False, scratch)
+                target += scratch
+
+
+@numba.njit(**LOOP)
+def scatter_corners(cell_type, stress, rows, cell_nodes, runs, mode, corner_is_run, scratch,
+                    out):  # pragma: no cover (compiled)
+    """Σ over corners of the corner forces onto the nodes, component by component, into
+    ``out`` (dim, n_nodes): rows (dim, k, n_cells), or for intervals ∓P from ``stress``.
+
+    - RUNS (each corner's nodes distinct: intervals, grids of quadrilaterals): corner 0
+      written, the others added, corner by corner;
+    - PER_CORNER: corner by corner, each corner's sums formed apart (``scratch``: a node
+      met several times as that corner) and added; a corner whose nodes run on (one each,
+      ``corner_is_run``) added directly;
+    - FLAT: one running sum over the corners in turn."""
+    if cell_type == INTERVAL:
+        _scatter_corners(INTERVAL, stress, rows, cell_nodes, runs, mode, corner_is_run, scratch, out)
+    elif cell_type == TRIANGLE:
+        _scatter_corners(TRIANGLE, stress, rows, cell_nodes, runs, mode, corner_is_run, scratch, out)
+    else:
+        _scatter_corners(QUADRILATERAL, stress, rows, cell_nodes, runs, mode, corner_is_run, scratch, out)
+
+
+# -- the step --------------------------------------------------------------------------------
+
+@numba.njit(**LOOP)
+def advance_velocity(u0, force, dt, inverse_node_mass, out):  # pragma: no cover (compiled)
+    """u = u0 + dt F/M for the components the forces have; transverse components (1D)
+    carried unchanged (paper §3.1)."""
+    for d in range(u0.shape[0]):
+        if d < force.shape[0]:
+            for i in range(u0.shape[1]):
+                out[d, i] = force[d, i] * (dt * inverse_node_mass[i]) + u0[d, i]
+        else:
+            for i in range(u0.shape[1]):
+                out[d, i] = u0[d, i]
+
+
+@numba.njit(**LOOP)
+def hold(values, kinds, offsets, nodes, normals, velocities, pistons_to_zero):  # pragma: no cover (compiled)
+    """Impose the boundaries, in their order, on a nodal field (components, n_nodes):
+    a wall (kind 0) removes the normal part u − n (n·u); a piston (kind 1) sets its velocity
+    (``pistons_to_zero``: sets 0, for an acceleration)."""
+    dim = normals.shape[1]
+    for b in range(kinds.size):
+        for j in range(offsets[b], offsets[b + 1]):
+            i = nodes[j]
+            if kinds[b] == 0:
+                normal_part = normals[b, 0] * values[0, i]
+                for d in range(1, dim):
+                    normal_part += normals[b, d] * values[d, i]
+                for d in range(dim):
+                    values[d, i] = values[d, i] - normals[b, d] * normal_part
+            else:
+                for d in range(dim):
+                    values[d, i] = 0.0 if pistons_to_zero else velocities[b, d]
+
+
+@numba.njit(**LOOP)
+def velocity_sum_and_position(u0, u, x0, dt, velocity_sum, x):  # pragma: no cover (compiled)
+    """u^n + u (the ½ of ū folded into the scalars that use it) and x = x^n + dt (u^n + u)/2."""
+    for d in range(u0.shape[0]):
+        if d < x0.shape[0]:
+            for i in range(u0.shape[1]):
+                total = u0[d, i] + u[d, i]
+                velocity_sum[d, i] = total
+                x[d, i] = total * (0.5 * dt) + x0[d, i]
+        else:
+            for i in range(u0.shape[1]):
+                velocity_sum[d, i] = u0[d, i] + u[d, i]
+
+
+@numba.njit(cache=True, inline="always")
+def _compatible_energy(cell_type, cell_nodes, runs, energy, mass, dt, shape_a, stress_a, shape_b, stress_b, two,
+                       hourglass, s0, s1, q, velocity_sum, combos_sum, out):  # pragma: no cover (compiled)
+    at = node_access(runs)
+    for k in range(energy.size):
+        rate = volume_rate(cell_type, shape_a, cell_nodes, at, k, velocity_sum, combos_sum)
+        if cell_type == INTERVAL:
+            work = rate * (stress_a[k] + stress_b[k]) if two else rate * stress_a[k]
+        else:
+            extra = hourglass_work(s0, s1, q, k, combos_sum) if hourglass else 0.0
+            work = rate * stress_a[k]
+            if hourglass:
+                work += extra
+            if two:
+                term = volume_rate(cell_type, shape_b, cell_nodes, at, k, velocity_sum, combos_sum) * stress_b[k]
+                if hourglass:
+                    term += extra
+                work += term
+        scale = 0.5 * dt / mass[k]
+        if two:
+            scale *= 0.5
+        out[k] = energy[k] - work * scale
+
+
+@numba.njit(**LOOP)
+def compatible_energy(cell_type, cell_nodes, runs, energy, mass, dt, shape_a, stress_a, shape_b, stress_b, two,
+                      hourglass, s0, s1, q, velocity_sum, combos_sum, out):  # pragma: no cover (compiled)
+    """The compatible energy update m_K e_K = m_K e_K^n − (dt/2) Σ_i F_Ki·(u^n + u)_i, the
+    corner forces F_Ki those of one evaluation (the predictor) or the mean of two (``two``:
+    the corrector, F̄ = (F^n + F*)/2), hourglass forces included (the predicted state
+    reuses the start's: their work counts once per evaluation).  Intervals (∂V/∂x_i = ±1)
+    sum the two stresses first."""
+    if cell_type == INTERVAL:
+        _compatible_energy(INTERVAL, cell_nodes, runs, energy, mass, dt, shape_a, stress_a, shape_b, stress_b, two,
+                           hourglass, s0, s1, q, velocity_sum, combos_sum, out)
+    elif cell_type == TRIANGLE:
+        _compatible_energy(TRIANGLE, cell_nodes, runs, energy, mass, dt, shape_a, stress_a, shape_b, stress_b, two,
+                           hourglass, s0, s1, q, velocity_sum, combos_sum, out)
+    else:
+        _compatible_energy(QUADRILATERAL, cell_nodes, runs, energy, mass, dt, shape_a, stress_a, shape_b, stress_b,
+                           two, hourglass, s0, s1, q, velocity_sum, combos_sum, out)
+
+
+@numba.njit(**LOOP)
+def time_limits(volume, length, sound_speed, jump, viscous, q_quadratic, q_linear, artificial, mixed_cells,
+                mixed_sound_speed, acceleration, cell_nodes, runs, sound_times,
+                acceleration_ratio):  # pragma: no cover (compiled)
+    """Each cell's time step limits before the CFL number: ``sound_times`` from its signal
+    speed (a mixed cell also from the larger sound speed of its materials) and
+    ``acceleration_ratio`` L / a, a the largest acceleration of its nodes (``acceleration``
+    (dim, n_nodes), held directions removed).  Returns the least of each (NaN if any is)."""
+    dim = acceleration.shape[0]
+    at = node_access(runs)
+    for k in range(volume.size):
+        stiffness = np.sqrt(volume[k]) / length[k] if viscous else 1.0
+        sound_times[k] = cfl_time(sound_speed[k], jump[k], length[k], stiffness, q_quadratic, q_linear, artificial)
+    for j in range(mixed_cells.size):
+        k = mixed_cells[j]
+        stiffness = np.sqrt(volume[k]) / length[k] if viscous else 1.0
+        sound_times[k] = nan_min(sound_times[k], cfl_time(mixed_sound_speed[j], jump[k], length[k], stiffness,
+                                                          q_quadratic, q_linear, artificial))
+    for k in range(volume.size):
+        largest = 0.0
+        for c in range(cell_nodes.shape[1]):
+            i = node(cell_nodes, at, k, c)
+            if dim == 1:
+                magnitude = abs(acceleration[0, i])
+            else:
+                magnitude = acceleration[0, i] * acceleration[0, i]
+                magnitude += acceleration[1, i] * acceleration[1, i]
+            largest = magnitude if c == 0 else nan_max(largest, magnitude)
+        if dim > 1:
+            largest = np.sqrt(largest)
+        acceleration_ratio[k] = length[k] / largest
+    least_sound, least_ratio = np.inf, np.inf
+    for k in range(volume.size):
+        least_sound = nan_min(least_sound, sound_times[k])
+    for k in range(volume.size):
+        least_ratio = nan_min(least_ratio, acceleration_ratio[k])
+    return least_sound, least_ratio
+
+
+@numba.njit(**LOOP)
+def healthy(volume, sound_speed, energy, stress, least_corner):  # pragma: no cover (compiled)
+    """Positive volumes, finite sound speeds, energies and stresses, and (``least_corner``
+    not empty) no quadrilateral corner turned inside out."""
+    ok = True
+    for k in range(volume.size):
+        ok &= volume[k] > 0.0
+        ok &= abs(sound_speed[k]) < np.inf
+        ok &= abs(energy[k]) < np.inf
+        ok &= abs(stress[k]) < np.inf
+    for k in range(least_corner.size):
+        ok &= least_corner[k] > 0.0
+    return ok
