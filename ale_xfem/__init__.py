@@ -1,3 +1,35 @@
 """ale_xfem: multi-material ALE with enriched mixed cells on FEniCSx (Folzan, Le Tallec & Perlat 2011)."""
 
+import hashlib
+import os
+from pathlib import Path
+
 __version__ = "0.1.0"
+
+# The compiled kernels (numba, cache=True) are cached in a folder named after the source of
+# every module that holds kernels.  numba checks a cached kernel against its own file only:
+# a kernel that inlines another file's (the fused loop inlines the equations of state) would
+# otherwise keep the old code after that file changed.  The folder is the user's cache
+# (XDG_CACHE_HOME, or ~/.cache), or NUMBA_CACHE_DIR if set, so a read-only install works.
+KERNEL_SOURCES = ("ale_xfem/eos/kernels.py", "ale_xfem/model/cell_kernels.py", "ale_xfem/lagrange/kernels.py",
+                  "ale_xfem/mixed/cut_cells_2d.py", "forms/cut_quadrature.py")
+
+
+def _kernel_cache_folder() -> Path:
+    root = Path(__file__).resolve().parent.parent
+    digest = hashlib.sha256(__version__.encode())
+    for name in KERNEL_SOURCES:
+        path = root / name
+        digest.update(path.read_bytes() if path.exists() else name.encode())
+    base = os.environ.get("NUMBA_CACHE_DIR") or os.path.join(
+        os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache"), "ale_xfem")
+    return Path(base) / f"kernels-{digest.hexdigest()[:16]}"
+
+
+def _use_kernel_cache() -> None:
+    import numba
+
+    numba.config.CACHE_DIR = str(_kernel_cache_folder())
+
+
+_use_kernel_cache()

@@ -93,3 +93,58 @@ def test_water_air_tube_stays_positive_and_converges():
         assert (result.state.material_pressure[0] + 6e8 * (problem.layout.cell_material[0] == 0)).min() > 0
         errors.append(result.errors["L1_density"])
     assert fitted_rate((100, 200, 400), errors) > 0.6, errors
+
+
+@pytest.mark.parametrize("scene, overrides", [
+    ("sod", ["mesh.cells=200"]),
+    ("sod-2d", ["mesh.cells=[12,12]"]),
+    ("noh", ["mesh.cells=[8,8]", "mesh.cell_type=triangle", "t_end=0.1"]),
+    ("saltzman", ["mesh.cells=[20,2]", "t_end=0.05"]),
+    ("sedov", ["mesh.cells=[10,10]", "mesh.motion=lagrangian", "t_end=0.08"]),
+], ids=["sod", "sod-2d", "noh-triangles", "saltzman", "sedov"])
+def test_the_compiled_steps_are_the_step_by_step_loop_to_the_bit(scene, overrides):
+    """A run of pure cells on a Lagrangian mesh takes its steps in compiled chunks
+    (ExplicitWilkins.pure_steps); watched step by step (an observer makes simulate() take
+    each step itself) it must give the same steps, states, time steps and conservation
+    sums, bit for bit."""
+    from ale_xfem.problem import build_problem
+    from ale_xfem.run import simulate
+    from ale_xfem.scene import load_scene, resolve_scene_path
+
+    runs = []
+    for observe in (None, lambda state, problem: None):
+        problem = build_problem(load_scene(resolve_scene_path(scene), overrides))
+        runs.append(simulate(problem, observe=observe))
+    chunked, stepwise = runs
+    assert chunked.status == stepwise.status == "ok" and chunked.steps == stepwise.steps > 5
+    for name in ("node_position", "node_velocity", "material_energy", "material_density"):
+        np.testing.assert_array_equal(getattr(chunked.state, name), getattr(stepwise.state, name))
+    assert (chunked.dt_min, chunked.dt_max) == (stepwise.dt_min, stepwise.dt_max)
+    assert chunked.conservation == stepwise.conservation
+
+
+@pytest.mark.parametrize("case", ["sound speed not real", "mesh tangles"])
+def test_the_compiled_steps_hand_a_failing_step_to_the_loop_that_names_it(case):
+    """A step the compiled steps cannot take stops them before it; the loop then takes it
+    and reports it as the step-by-step loop does, with the same last good state: a cell
+    whose sound speed is not real (the time step is not a number), and Sedov's blast on a
+    Lagrangian quadrilateral mesh, which tangles at its diagonal."""
+    from ale_xfem.problem import build_problem
+    from ale_xfem.run import simulate
+    from ale_xfem.scene import load_scene, resolve_scene_path
+
+    results = []
+    for observe in (None, lambda state, problem: None):
+        if case == "mesh tangles":
+            problem = build_problem(load_scene(resolve_scene_path("sedov"), [
+                "mesh.cells=[10,10]", "mesh.motion=lagrangian", "t_end=0.1"]))
+        else:
+            problem = build_problem(load_scene(resolve_scene_path("sod"), ["mesh.cells=50"]))
+            problem.state.material_energy[0, 20] = -1.0  # c² < 0
+        results.append(simulate(problem, observe=observe))
+    chunked, stepwise = results
+    assert chunked.status == stepwise.status == "failed"
+    assert chunked.diagnostic == stepwise.diagnostic
+    assert ("dt" if case == "sound speed not real" else "tangled") in chunked.diagnostic
+    assert chunked.steps == stepwise.steps
+    np.testing.assert_array_equal(chunked.state.node_position, stepwise.state.node_position)

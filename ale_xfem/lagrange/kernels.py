@@ -22,8 +22,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ale_xfem.eos.kernels import LOOP, pressure_sound_speed
-from ale_xfem.model.cell_kernels import (INTERVAL, QUADRILATERAL, TRIANGLE, cell_volume, cfl_length,
+from ale_xfem.eos.kernels import BODY, LOOP, pressure_sound_speed
+from ale_xfem.model.cell_kernels import (INTERVAL, QUADRILATERAL, TRIANGLE, cell_volume, cfl_length, quad_combinations,
                                          least_corner_jacobian, nan_max, nan_min, node, node_access)
 
 # how corner values are summed onto the nodes (ExplicitWilkins.scatter_mode)
@@ -32,13 +32,13 @@ RUNS, PER_CORNER, FLAT = 0, 1, 2
 
 # -- one cell ---------------------------------------------------------------------------
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(**LOOP)
 def quad_gradient(shape, k):  # pragma: no cover (compiled)
     """(g_0x, g_0y, g_1x, g_1y): ∂A/∂x_0 = ½ (r_y, −r_x) and ∂A/∂x_1 = ½ (−p_y, p_x)."""
     return 0.5 * shape[1, 1, k], -0.5 * shape[1, 0, k], -0.5 * shape[0, 1, k], 0.5 * shape[0, 0, k]
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(**LOOP)
 def volume_rate(cell_type, shape, cell_nodes, at, k, u, combos):  # pragma: no cover (compiled)
     """dV/dt = Σ_i ∂V/∂x_i·u_i of cell k (quadrilaterals read the velocity's corner
     combinations ``combos`` instead of u)."""
@@ -61,7 +61,7 @@ def volume_rate(cell_type, shape, cell_nodes, at, k, u, combos):  # pragma: no c
     return total
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(**LOOP)
 def velocity_jump(cell_type, volume, rate):  # pragma: no cover (compiled)
     """Δu = L ∇·u = L (dV/dt)/V, the velocity jump across the cell that the artificial
     viscosity sees: 1D u_right − u_left exactly (L = V); 2D L = √A.
@@ -75,7 +75,7 @@ def velocity_jump(cell_type, volume, rate):  # pragma: no cover (compiled)
     return rate if cell_type == INTERVAL else rate / np.sqrt(volume)
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(**LOOP)
 def artificial_viscosity(q_quadratic, q_linear, jump, density, sound_speed):  # pragma: no cover (compiled)
     """q = ρ (c2 Δu² + c1 c |Δu|) in compression (von Neumann–Richtmyer and Landshoff),
     0 in expansion."""
@@ -83,7 +83,7 @@ def artificial_viscosity(q_quadratic, q_linear, jump, density, sound_speed):  # 
     return (q_quadratic * compression - q_linear * sound_speed) * compression * density
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(**LOOP)
 def hourglass_cell(volume, shape, combos, density, sound_speed, coefficient, k, s0, s1,
                    force):  # pragma: no cover (compiled)
     """Viscous hourglass control of quadrilateral k (Flanagan & Belytschko, IJNME 17, 1981):
@@ -102,7 +102,7 @@ def hourglass_cell(volume, shape, combos, density, sound_speed, coefficient, k, 
         force[d, k] = (combos[2, d, k] - a * combos[0, d, k] - b * combos[1, d, k]) * scale
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(**LOOP)
 def quad_corner_forces(stress, g0, g1, s0, s1, q, hourglass):  # pragma: no cover (compiled)
     """One component of a quadrilateral's four corner forces F_i = P ∂A/∂x_i + γ_i Q:
     with γ = (1 − s_0, −1 − s_1, 1 + s_0, −1 + s_1), F_0 = a + Q, F_2 = Q − a with
@@ -122,7 +122,7 @@ def quad_corner_forces(stress, g0, g1, s0, s1, q, hourglass):  # pragma: no cove
     return f0, f1, f2, f3
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(**LOOP)
 def corner_forces_cell(cell_type, shape, stress, hourglass, s0, s1, q, k, rows):  # pragma: no cover (compiled)
     """Cell k's corner forces F_Ki = P_K ∂V_K/∂x_i (+ the hourglass forces γ_i Q of
     quadrilaterals) into rows[:, :, k] (2D; 1D scatters ∓P itself)."""
@@ -140,7 +140,7 @@ def corner_forces_cell(cell_type, shape, stress, hourglass, s0, s1, q, k, rows):
                 stress, g0x if d == 0 else g0y, g1x if d == 0 else g1y, a, b, f, hourglass)
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(**LOOP)
 def hourglass_work(s0, s1, q, k, combos_sum):  # pragma: no cover (compiled)
     """Σ_i f_i·(u^n + u)_i = Q·Σ_i γ_i (u^n + u)_i of quadrilateral k."""
     gamma_x = combos_sum[2, 0, k] - s0[k] * combos_sum[0, 0, k] - s1[k] * combos_sum[1, 0, k]
@@ -150,7 +150,7 @@ def hourglass_work(s0, s1, q, k, combos_sum):  # pragma: no cover (compiled)
     return total
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(**LOOP)
 def cfl_time(c, jump, length, stiffness, q_quadratic, q_linear, artificial):  # pragma: no cover (compiled)
     """A cell's L / signal speed: with the viscosity, Q + √(Q² + c²), Q = (c1 c + 2 c2 |Δu|)
     L_q/L in compression (Benson, CMAME 99, 1992); never less than |Δu| (no cell changes its
@@ -167,7 +167,7 @@ def cfl_time(c, jump, length, stiffness, q_quadratic, q_linear, artificial):  # 
 
 # -- evaluations of a state ----------------------------------------------------------------
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(**BODY)
 def _geometry_and_rates(cell_type, x, u, combos, cell_nodes, runs, hourglass, with_length, with_density, mass, volume,
                         shape, least_corner, length, density, jump):  # pragma: no cover (compiled)
     at = node_access(runs)
@@ -200,7 +200,7 @@ def geometry_and_rates(cell_type, x, u, combos, cell_nodes, runs, hourglass, wit
                             volume, shape, least_corner, length, density, jump)
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(**BODY)
 def _stress_and_corner_forces(cell_type, volume, shape, combos, jump, density, sound_speed, pressure, q_quadratic,
                               q_linear, artificial, mixed_cells, mixed_density, mixed_sound_speed, interface_pressure,
                               hourglass, compute_hourglass, coefficient, s0, s1, q, viscosity, stress,
@@ -249,7 +249,7 @@ def stress_and_corner_forces(cell_type, volume, shape, combos, jump, density, so
                                   stress, rows)
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(**BODY)
 def _evaluate_pure(cell_type, x, u, combos, cell_nodes, runs, hourglass, with_length, eos, cell_material, mass,
                    energy, viscosity_law, hourglass_control, out, rows):  # pragma: no cover (compiled)
     kinds, parameters = eos
@@ -301,7 +301,7 @@ def evaluate_pure(cell_type, x, u, combos, cell_nodes, runs, hourglass, with_len
                        mass, energy, viscosity_law, hourglass_control, out, rows)
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(**BODY)
 def _scatter_corner(cell_type, stress, rows, cell_nodes, at, d, c, assign, target):  # pragma: no cover (compiled)
     """Corner c's values of component d written (``assign``) or added to ``target``."""
     sign = -1.0 if c == 0 else 1.0  # an interval's corner forces ∓P
@@ -322,7 +322,7 @@ def _scatter_corner(cell_type, stress, rows, cell_nodes, at, d, c, assign, targe
                 target[node(cell_nodes, at, k, c)] += rows[d, c, k]
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(**BODY)
 def _scatter_corners(cell_type, stress, rows, cell_nodes, runs, mode, corner_is_run, scratch,
                      out):  # pragma: no cover (compiled)
     at = node_access(runs)
@@ -408,7 +408,7 @@ def velocity_sum_and_position(u0, u, x0, dt, velocity_sum, x):  # pragma: no cov
                 velocity_sum[d, i] = u0[d, i] + u[d, i]
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(**BODY)
 def _compatible_energy(cell_type, cell_nodes, runs, energy, mass, dt, shape_a, stress_a, shape_b, stress_b, two,
                        hourglass, s0, s1, q, velocity_sum, combos_sum, out):  # pragma: no cover (compiled)
     at = node_access(runs)
@@ -503,3 +503,237 @@ def healthy(volume, sound_speed, energy, stress, least_corner):  # pragma: no co
     for k in range(least_corner.size):
         ok &= least_corner[k] > 0.0
     return ok
+
+
+@numba.njit(**LOOP)
+def _stage(cell_type, mesh, boundaries, eos, cell_material, viscosity_law, hourglass_coefficient, dt,
+           inverse_node_mass, start, force, other, state, hourglass_state, corrector, evaluate):  # pragma: no cover
+    """One stage of :func:`pure_step`: the velocity from ``force``, the positions, the
+    energy (with the forces of the start, and of ``other``, the predicted state, in the
+    corrector) and, ``evaluate``, the forces of the new state."""
+    cell_nodes, runs, mode, corner_is_run, scratch = mesh
+    x0, u0, mass, energy, force0, stress0, shape0, combos0, s0, s1, q, hourglass = start
+    (u, velocity_sum, x, combos, combos_sum, e, volume, shape, least_corner, length, density, pressure,
+     sound_speed, jump, viscosity, stress, rows, nodal_force) = state
+    advance_velocity(u0, force, dt, inverse_node_mass, u)
+    hold(u, *boundaries, False)
+    velocity_sum_and_position(u0, u, x0, dt, velocity_sum, x)
+    if cell_type == QUADRILATERAL:
+        quad_combinations(u, cell_nodes, runs, True, combos)
+        for c in range(3):
+            for d in range(combos.shape[1]):
+                for k in range(combos.shape[2]):
+                    combos_sum[c, d, k] = combos0[c, d, k] + combos[c, d, k]
+    compatible_energy(cell_type, cell_nodes, runs, energy, mass, dt, shape0, stress0, other[7], other[15], corrector,
+                      hourglass, s0, s1, q, velocity_sum, combos_sum, e)
+    if not evaluate:
+        return
+    # the predicted state takes the start's hourglass forces, and needs no tangle check and
+    # no CFL length; the final state has its own hourglass forces
+    compute = corrector and cell_type == QUADRILATERAL and hourglass_coefficient > 0.0
+    hourglass_s0, hourglass_s1, hourglass_q = hourglass_state
+    evaluate_pure(cell_type, x, u, combos, cell_nodes, runs, corrector, corrector and cell_type != INTERVAL,
+                  eos, cell_material, mass, e, viscosity_law,
+                  (compute if corrector else hourglass, compute, hourglass_coefficient, hourglass_s0, hourglass_s1,
+                   hourglass_q),
+                  (volume, shape, least_corner, length, density, pressure, sound_speed, jump, viscosity, stress), rows)
+    scatter_corners(cell_type, stress, rows, cell_nodes, runs, mode, corner_is_run, scratch, nodal_force)
+
+
+@numba.njit(**LOOP)
+def pure_step(cell_type, mesh, boundaries, eos, cell_material, viscosity_law, hourglass_coefficient, dt,
+              inverse_node_mass, start, predicted, final, final_hourglass, mean_force,
+              evaluate_final):  # pragma: no cover (compiled)
+    """One whole step of a state whose cells are all pure (ExplicitWilkins.step), from the
+    start's forces to the new state and (``evaluate_final``) its forces, in one call:
+
+        u* = u^n + dt F^n/M (held),  x* = x^n + dt (u^n + u*)/2,  e* from F^n;  F* at x*;
+        F̄ = (F^n + F*)/2,  u = u^n + dt F̄/M (held),  x = x^n + dt (u^n + u)/2,  e from F̄.
+
+    ``mesh``: (cell_nodes, runs, scatter mode, corner_is_run, node scratch);
+    ``boundaries``: kernels.hold's arrays; ``start``: (x^n, u^n, m, e^n, F^n, P^n, shape,
+    velocity combinations, s_0, s_1, Q, whether hourglass forces act); ``predicted`` and
+    ``final``: the arrays each state's evaluation fills — (u, u^n + u, x, velocity
+    combinations, u^n + u combinations, e, volume, shape, least corner, length, density,
+    pressure, sound speed, velocity jump, viscosity, stress, corner forces, nodal forces);
+    ``final_hourglass``: (s_0, s_1, Q) of the final state; ``mean_force``: F̄ is written
+    there.  Returns 0, or 1 when a predicted volume is not positive, 2 when the final state
+    is not healthy (the caller names the cause)."""
+    force0 = start[4]
+    _stage(cell_type, mesh, boundaries, eos, cell_material, viscosity_law, hourglass_coefficient, dt,
+           inverse_node_mass, start, force0, predicted, predicted, (start[8], start[9], start[10]), False, True)
+    volume = predicted[6]
+    least = np.inf
+    for k in range(volume.size):
+        least = nan_min(least, volume[k])
+    if not least > 0.0:
+        return 1
+    predicted_force = predicted[17]
+    for d in range(mean_force.shape[0]):
+        for i in range(mean_force.shape[1]):
+            mean_force[d, i] = (force0[d, i] + predicted_force[d, i]) * 0.5
+    _stage(cell_type, mesh, boundaries, eos, cell_material, viscosity_law, hourglass_coefficient, dt,
+           inverse_node_mass, start, mean_force, predicted, final, final_hourglass, True, evaluate_final)
+    if evaluate_final and not healthy(final[6], final[12], final[5], final[15], final[8]):
+        return 2
+    return 0
+
+
+@numba.njit(**LOOP)
+def block_sum(values, start, count):  # pragma: no cover (compiled)
+    """numpy's sum of at most 128 values: one by one below 8, else eight running sums
+    combined pairwise, then the rest one by one."""
+    if count < 8:
+        total = 0.0
+        for i in range(start, start + count):
+            total += values[i]
+        return total
+    r0, r1, r2, r3 = values[start], values[start + 1], values[start + 2], values[start + 3]
+    r4, r5, r6, r7 = values[start + 4], values[start + 5], values[start + 6], values[start + 7]
+    whole = count - count % 8
+    for i in range(start + 8, start + whole, 8):
+        r0 += values[i]
+        r1 += values[i + 1]
+        r2 += values[i + 2]
+        r3 += values[i + 3]
+        r4 += values[i + 4]
+        r5 += values[i + 5]
+        r6 += values[i + 6]
+        r7 += values[i + 7]
+    total = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
+    for i in range(start + whole, start + count):
+        total += values[i]
+    return total
+
+
+@numba.njit(**LOOP)
+def pairwise_sum(values, start, count, stack, partial):  # pragma: no cover (compiled)
+    """Σ values[start:start + count] added in numpy's pairwise order (np.sum of a
+    contiguous array: the same bits): blocks of at most 128 (:func:`block_sum`), halves
+    (rounded down to a multiple of 8) summed apart and added.  Without recursion (cached
+    recursive kernels crashed when loaded): ``stack`` (3, 64) int and ``partial`` (64,)
+    float scratch, enough for 2⁶⁴ values."""
+    top, filled = 0, 0
+    stack[0, 0], stack[1, 0], stack[2, 0] = start, count, 0
+    while top >= 0:
+        first, n, phase = stack[0, top], stack[1, top], stack[2, top]
+        if n <= 128:
+            partial[filled] = block_sum(values, first, n)
+            filled += 1
+            top -= 1
+            continue
+        half = n // 2
+        half -= half % 8
+        if phase == 0:  # the first half
+            stack[2, top] = 1
+            top += 1
+            stack[0, top], stack[1, top], stack[2, top] = first, half, 0
+        elif phase == 1:  # the second half
+            stack[2, top] = 2
+            top += 1
+            stack[0, top], stack[1, top], stack[2, top] = first + half, n - half, 0
+        else:  # both done: their sum
+            partial[filled - 2] = partial[filled - 2] + partial[filled - 1]
+            filled -= 1
+            top -= 1
+    return partial[0]
+
+
+@numba.njit(**LOOP)
+def boundary_reaction(node_mass, held, u0, u, velocity_sum, mean_force, dt, scratch, stack, partial,
+                      impulse):  # pragma: no cover (compiled)
+    """Work of the boundary reactions R = M du/dt − F̄ on the held nodes over the step,
+    (dt/2) Σ R·(u^n + u), returned, and their impulse dt Σ R added to ``impulse``; each sum
+    in the order numpy sums ExplicitWilkins._boundary_reaction's arrays, which (dim, m)
+    indexing lays out column by column: the work pairwise over that order, the impulse of
+    each component one term after the other (in 1D, pairwise).  ``scratch``: 2 dim m
+    values; ``stack``, ``partial``: pairwise_sum's."""
+    dim, m = mean_force.shape[0], held.size
+    for j in range(m):
+        i = held[j]
+        for d in range(dim):
+            reaction = node_mass[i] * (u[d, i] - u0[d, i]) / dt - mean_force[d, i]
+            scratch[j * dim + d] = reaction
+            scratch[dim * m + j * dim + d] = reaction * velocity_sum[d, i]
+    for d in range(dim):
+        if dim == 1:
+            total = pairwise_sum(scratch, 0, m, stack, partial)
+        else:
+            total = scratch[d]
+            for j in range(1, m):
+                total += scratch[j * dim + d]
+        impulse[d] = impulse[d] + dt * total
+    return 0.5 * dt * pairwise_sum(scratch, dim * m, dim * m, stack, partial)
+
+
+@numba.njit(**LOOP)
+def pure_steps(cell_type, mesh, boundaries, eos, cell_material, viscosity_law, hourglass_coefficient,
+               inverse_node_mass, mass, time_step, held, clock, first, predicted, buffers,
+               impulse):  # pragma: no cover (compiled)
+    """Steps of a state whose cells are all pure, on a Lagrangian mesh, as simulate() takes
+    them one by one (ale_xfem.run): each step's dt = min(CFL limit, growth × the previous
+    dt, t_end − t), :func:`pure_step`, the boundary reactions' work and impulse.  It stops
+    before any step that is not plain: dt not positive and finite, a time step too small to
+    reach t_end within the steps allowed (the stall watch), a step that breaks down, or at
+    the end of ``clock``'s step budget — simulate() then takes that step itself and says what
+    happened.
+
+    ``time_step``: (node mass, CFL number, viscous time step, an acceleration array,
+    kernels.time_limits' two scratch arrays, no mixed cells and their empty values);
+    ``held``: (the constrained nodes, boundary_reaction's scratch arrays, an array for F̄);
+    ``clock``: (t, t_end, the previous dt, growth, the step budget, the steps left before
+    max_steps, whether the stall watch is on, the boundary work so far); ``first``: the current state and evaluation as (pure_step's final arrays, hourglass
+    forces, whether those act); ``buffers``: two more such sets to step into, in turn.
+    Returns (steps taken, t, the last dt, least dt, largest dt, the boundary work so far,
+    which of first (0) or buffers (1, 2) holds the state reached); ``impulse`` accumulates
+    (both sums as simulate() makes them, step by step)."""
+    node_mass, cfl, viscous, acceleration, sound_times, ratios, no_cells, no_values = time_step
+    held_nodes, held_scratch, stack, partial, mean_force = held
+    t, t_end, dt_previous, growth, budget, steps_left, watch_stall, work = clock
+    q_quadratic, q_linear, artificial = viscosity_law
+    cell_nodes, runs = mesh[0], mesh[1]
+    steps = 0
+    dt_min, dt_max = np.inf, 0.0
+    current = 0
+    while t < t_end * (1.0 - 1e-14) and steps < budget and steps < steps_left:
+        state = first if current == 0 else (buffers[0] if current == 1 else buffers[1])
+        target = 2 if current == 1 else 1
+        new_arrays, new_hourglass, _ = buffers[0] if target == 1 else buffers[1]
+        arrays, hourglass_state, hourglass = state
+        force = arrays[17]
+        # the CFL limit of the state (ExplicitWilkins.stable_time_step)
+        for d in range(force.shape[0]):
+            for i in range(force.shape[1]):
+                acceleration[d, i] = force[d, i] * inverse_node_mass[i]
+        hold(acceleration, *boundaries, True)
+        length = arrays[9] if arrays[9].size else arrays[6]
+        least_sound, least_ratio = time_limits(arrays[6], length, arrays[12], arrays[13], viscous, q_quadratic,
+                                               q_linear, artificial, no_cells, no_values, acceleration, cell_nodes,
+                                               runs, sound_times, ratios)
+        limit = np.sqrt(0.5 * least_ratio)
+        dt = cfl * (limit if limit < least_sound else least_sound)
+        if growth * dt_previous < dt:
+            dt = growth * dt_previous
+        if t_end - t < dt:
+            dt = t_end - t
+        if not (dt > 0.0 and abs(dt) < np.inf):
+            break
+        if watch_stall and t_end - t > dt * (steps_left - steps):
+            break
+        u0 = arrays[0]
+        start = (arrays[2], u0, mass, arrays[5], force, arrays[15], arrays[7], arrays[3], hourglass_state[0],
+                 hourglass_state[1], hourglass_state[2], hourglass)
+        status = pure_step(cell_type, mesh, boundaries, eos, cell_material, viscosity_law, hourglass_coefficient,
+                           dt, inverse_node_mass, start, predicted, new_arrays, new_hourglass, mean_force, True)
+        if status != 0:
+            break
+        if held_nodes.size:
+            work = work + boundary_reaction(node_mass, held_nodes, u0, new_arrays[0], new_arrays[1], mean_force,
+                                            dt, held_scratch, stack, partial, impulse)
+        t = t + dt
+        dt_previous = dt
+        dt_min = dt if dt < dt_min else dt_min
+        dt_max = dt if dt > dt_max else dt_max
+        steps += 1
+        current = target
+    return steps, t, dt_previous, dt_min, dt_max, work, current

@@ -351,6 +351,8 @@ class ExplicitWilkins:
             if relaxed:
                 start = None
         first = start if start is not None else self.evaluate_state(state)
+        if self.closure is None:  # every cell pure: the whole step in one compiled call
+            return self._pure_step(state, dt, first, remapped_next)
         mass, energy = state.material_mass, state.material_energy
         u0, x0 = state.node_velocity, state.node_position
         # The velocity sums u^n + u are carried instead of means: the ½ of ū is folded into
@@ -399,15 +401,7 @@ class ExplicitWilkins:
             corner_sum = np.add(first.corner_velocity, corner_velocity)
         self._energy(energy[0], mass[0], dt, [first, predicted], velocity_sum, corner_sum, e_new)
 
-        # Work and impulse of the boundary reactions R = M du/dt − F̄ on held nodes.
-        dim = x0.shape[0]
-        boundary_work, boundary_impulse = 0.0, np.zeros(u0.shape[0])
-        if self.constrained_nodes.size:
-            held = self.constrained_nodes
-            reaction = (self.node_mass[held] * (u_new[:dim, held] - u0[:dim, held]) / dt
-                        - mean_force[:, held])
-            boundary_work = float(0.5 * dt * np.sum(reaction * velocity_sum[:dim, held]))
-            boundary_impulse[:dim] = dt * reaction.sum(axis=1)
+        boundary_work, boundary_impulse = self._boundary_reaction(u0, u_new, velocity_sum, mean_force, dt)
 
         if self.mixed is None and remapped_next:
             return self._state_for_remap(state, None, x_new, u_new, e_new, dt), None, \
@@ -432,6 +426,147 @@ class ExplicitWilkins:
             self.check(predicted, x_pred, e_pred, "predicted ")
             self.check(final, x_new, new_state.material_energy[:1], "")
         return new_state, final, boundary_work, boundary_impulse
+
+    def _stage_arrays(self, u0, x0, final: bool):
+        """The arrays kernels.pure_step fills for one state (its order): new ones for the
+        final state (they become the new state and its evaluation), the stepper's own,
+        reused, for the predicted state."""
+        n, dim, k = self.mesh.n_cells, self.mesh.dimension, self.mesh.cell_type.nodes_per_cell
+        quadrilateral = self.quadrilaterals
+
+        def cells(rows=None):
+            return np.empty(n) if rows is None else np.empty((rows, n))
+        return [np.empty_like(u0), np.empty_like(u0), np.empty_like(x0),
+                np.empty((3, u0.shape[0], n)) if quadrilateral else self.no_shape,
+                np.empty((3, u0.shape[0], n)) if quadrilateral else self.no_shape,
+                cells(1), cells(), self.no_shape if dim == 1 else np.empty((3, 2, n)),
+                cells() if quadrilateral and final else self.no_values,
+                cells() if dim > 1 and final else self.no_values,
+                cells(1), cells(1), cells(1), cells(), cells(), cells(),
+                np.empty((dim, k, n)) if dim > 1 else self.no_shape, np.empty((dim, self.mesh.n_nodes))]
+
+    def _pure_step(self, state: State, dt: float, first: ForceEvaluation, remapped_next: bool):
+        """step() of a state whose cells are all pure: kernels.pure_step, then the boundary
+        reactions' work and impulse, the new state and its evaluation."""
+        u0, x0 = state.node_velocity, state.node_position
+        mass, energy = state.material_mass, state.material_energy
+        n = self.mesh.n_cells
+        if getattr(self, "_predicted", None) is None or self._predicted[0].shape != u0.shape:
+            self._predicted = self._stage_arrays(u0, x0, final=False)
+        predicted, final = self._predicted, self._stage_arrays(u0, x0, final=True)
+        compute_hourglass = self.quadrilaterals and self.hourglass > 0.0
+        final_hourglass = ((np.empty(n), np.empty(n), np.empty((2, n))) if compute_hourglass and not remapped_next
+                           else self.no_hourglass)
+        hourglass = first.hourglass_force
+        start = (x0, u0, mass[0], energy[0], first.nodal_force, first.stress, first.shape,
+                 self.no_shape if first.corner_velocity is None else first.corner_velocity,
+                 *(self.no_hourglass if hourglass is None else hourglass), hourglass is not None)
+        mean_force = np.empty_like(first.nodal_force)
+        # e, density, pressure, sound speed are (1, n_cells) arrays: the kernel fills row 0
+        as_rows = (5, 10, 11, 12)
+        status = kernels.pure_step(
+            self.cell_code, (self.cell_nodes, self.runs, self.scatter_mode, self.corner_is_run, self.scratch),
+            self.held, kernel_tables(tuple(m.eos for m in self.materials)), self.pure_layout.cell_material[0],
+            self.viscosity_law, float(self.hourglass), dt, self.inverse_node_mass, start,
+            tuple(a[0] if i in as_rows else a for i, a in enumerate(predicted)),
+            tuple(a[0] if i in as_rows else a for i, a in enumerate(final)),
+            final_hourglass, mean_force, not remapped_next)
+        u_new, velocity_sum, x_new = final[0], final[1], final[2]
+        e_new = final[5]
+        if status == 1:
+            self.check(self._stage_evaluation(predicted, first.hourglass_force), predicted[2], predicted[5],
+                       "predicted ")
+        work, impulse = self._boundary_reaction(u0, u_new, velocity_sum, mean_force, dt)
+        if remapped_next:
+            return self._state_for_remap(state, None, x_new, u_new, e_new, dt), None, work, impulse
+        evaluation = self._stage_evaluation(final, None if final_hourglass is self.no_hourglass else final_hourglass)
+        if status == 2:
+            self.check(self._stage_evaluation(predicted, first.hourglass_force), predicted[2], predicted[5],
+                       "predicted ")  # report the first cause
+            self.check(evaluation, x_new, e_new, "")
+        new_state = state.evolved(
+            time=state.time + dt, node_position=x_new, node_velocity=u_new, material_energy=e_new,
+            material_volume=evaluation.volume[None, :], material_density=evaluation.density,
+            material_pressure=evaluation.pressure, material_sound_speed=evaluation.sound_speed)
+        return new_state, evaluation, work, impulse
+
+    def pure_steps(self, state: State, evaluation: ForceEvaluation, clock: dict, boundary_impulse):
+        """Steps of a state whose cells are all pure on a Lagrangian mesh, in one compiled
+        call (kernels.pure_steps): the steps simulate() would take one by one, stopping
+        before one that is not plain (see there).  ``clock``: t_end, dt_previous, growth,
+        budget, steps_left, watch_stall, boundary_work.  Returns (steps taken, state,
+        evaluation, last dt, least dt, largest dt, boundary work, boundary impulse)."""
+        u0, x0 = np.ascontiguousarray(state.node_velocity), np.ascontiguousarray(state.node_position)
+        n, n_nodes = self.mesh.n_cells, self.mesh.n_nodes
+        if getattr(self, "_predicted", None) is None or self._predicted[0].shape != u0.shape:
+            self._predicted = self._stage_arrays(u0, x0, final=False)
+        as_rows = (5, 10, 11, 12)
+        evaluation_arrays = [u0, np.empty_like(u0), x0,
+                             self.no_shape if evaluation.corner_velocity is None else evaluation.corner_velocity,
+                             np.empty_like(evaluation.corner_velocity) if self.quadrilaterals else self.no_shape,
+                             state.material_energy[:1], evaluation.volume, evaluation.shape,
+                             self.no_values if evaluation.least_corner is None else evaluation.least_corner,
+                             evaluation.length if self.mesh.dimension > 1 else self.no_values,
+                             evaluation.density[:1], evaluation.pressure[:1], evaluation.sound_speed[:1],
+                             evaluation.velocity_jump, evaluation.viscosity, evaluation.stress,
+                             self.no_shape if evaluation.corner_force is None else evaluation.corner_force,
+                             evaluation.nodal_force]
+        compute_hourglass = self.quadrilaterals and self.hourglass > 0.0
+        sets = [evaluation_arrays] + [self._stage_arrays(u0, x0, final=True) for _ in range(2)]
+        hourglass_sets = [evaluation.hourglass_force or self.no_hourglass] + [
+            (np.empty(n), np.empty(n), np.empty((2, n))) if compute_hourglass else self.no_hourglass for _ in range(2)]
+
+        def kernel_set(arrays, hourglass):
+            return (tuple(np.ascontiguousarray(a[0]) if i in as_rows else a for i, a in enumerate(arrays)),
+                    hourglass, hourglass is not self.no_hourglass)
+        first, one, two = (kernel_set(a, h) for a, h in zip(sets, hourglass_sets))
+        dim = self.mesh.dimension
+        held = self.constrained_nodes.astype(np.int64)
+        impulse = np.array(boundary_impulse, dtype=float)
+        steps, t, dt_previous, dt_min, dt_max, work, current = kernels.pure_steps(
+            self.cell_code, (self.cell_nodes, self.runs, self.scatter_mode, self.corner_is_run, self.scratch),
+            self.held, kernel_tables(tuple(m.eos for m in self.materials)), self.pure_layout.cell_material[0],
+            self.viscosity_law, float(self.hourglass), self.inverse_node_mass, state.material_mass[0],
+            (self.node_mass, float(self.numerics.cfl), self.viscous_time_step, np.empty((dim, n_nodes)), np.empty(n),
+             np.empty(n), self.no_cells, self.no_values),
+            (held, np.empty(2 * dim * held.size), np.empty((3, 64), dtype=np.int64), np.empty(64),
+             np.empty((dim, n_nodes))),
+            (float(state.time), float(clock["t_end"]), float(clock["dt_previous"]), float(clock["growth"]),
+             int(clock["budget"]), int(clock["steps_left"]), bool(clock["watch_stall"]),
+             float(clock["boundary_work"])),
+            first, kernel_set(self._predicted, self.no_hourglass)[0], (one, two), impulse)
+        if steps == 0:
+            return 0, state, evaluation, dt_previous, dt_min, dt_max, work, impulse
+        arrays, hourglass = sets[current], hourglass_sets[current]
+        new_evaluation = self._stage_evaluation(arrays, None if hourglass is self.no_hourglass else hourglass)
+        new_state = state.evolved(
+            time=t, node_position=arrays[2], node_velocity=arrays[0], material_energy=arrays[5],
+            material_volume=new_evaluation.volume[None, :], material_density=new_evaluation.density,
+            material_pressure=new_evaluation.pressure, material_sound_speed=new_evaluation.sound_speed)
+        return steps, new_state, new_evaluation, dt_previous, dt_min, dt_max, work, impulse
+
+    def _stage_evaluation(self, arrays, hourglass) -> ForceEvaluation:
+        """The ForceEvaluation of a state kernels.pure_step evaluated (its arrays)."""
+        (_, _, _, combos, _, _, volume, shape, least_corner, length, density, pressure, sound_speed, jump,
+         viscosity, stress, rows, nodal_force) = arrays
+        dim = self.mesh.dimension
+        return ForceEvaluation(volume, shape, density, pressure, sound_speed, viscosity, jump, stress,
+                               rows if dim > 1 else None, nodal_force, None, None,
+                               volume if dim == 1 else (length if length.size else None), hourglass,
+                               combos if self.quadrilaterals else None,
+                               least_corner if least_corner.size else None)
+
+    def _boundary_reaction(self, u0, u_new, velocity_sum, mean_force, dt):
+        """Work and impulse of the boundary reactions R = M du/dt − F̄ on held nodes."""
+        dim = mean_force.shape[0]
+        boundary_work, boundary_impulse = 0.0, np.zeros(u0.shape[0])
+        if self.constrained_nodes.size:
+            held = self.constrained_nodes
+            reaction = (self.node_mass[held] * (u_new[:dim, held] - u0[:dim, held]) / dt
+                        - mean_force[:, held])
+            boundary_work = float(0.5 * dt * np.sum(reaction * velocity_sum[:dim, held]))
+            boundary_impulse[:dim] = dt * reaction.sum(axis=1)
+        return boundary_work, boundary_impulse
 
     def _state_for_remap(self, state, solution, x_new, u_new, e_new, dt):
         """The new state as the remap reads it (no force evaluation): volumes from the

@@ -31,32 +31,32 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ale_xfem.eos.kernels import LOOP
+from ale_xfem.eos.kernels import BODY, LOOP
 
 INTERVAL, TRIANGLE, QUADRILATERAL = 0, 1, 2
 CELL_TYPE_CODES = {"interval": INTERVAL, "triangle": TRIANGLE, "quadrilateral": QUADRILATERAL}
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(**LOOP)
 def nan_max(a, b):  # pragma: no cover (compiled)
     """np.maximum of two numbers: NaN if either is (one select, which vectorises)."""
     return a if (a >= b or a != a) else b
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(**LOOP)
 def nan_min(a, b):  # pragma: no cover (compiled)
     """np.minimum of two numbers: NaN if either is (one select, which vectorises)."""
     return a if (a <= b or a != a) else b
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(**LOOP)
 def node_access(runs):  # pragma: no cover (compiled)
     """What :func:`node` reads beside ``cell_nodes``: (whether the corners run on, their
     offsets), scalars a loop keeps in registers."""
     return runs[4] == 1, (runs[0], runs[1], runs[2], runs[3])
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(**LOOP)
 def node(cell_nodes, at, k, c):  # pragma: no cover (compiled)
     """Corner c of cell k."""
     running, offsets = at
@@ -75,7 +75,7 @@ def corner_runs(cell_nodes) -> np.ndarray:
     return runs
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(**LOOP)
 def quad_corner_values(values, cell_nodes, at, k, d, out, hourglass):  # pragma: no cover (compiled)
     """Component d of the corner combinations of cell k into out[:, d, k]."""
     v0, v1 = values[d, node(cell_nodes, at, k, 0)], values[d, node(cell_nodes, at, k, 1)]
@@ -97,7 +97,7 @@ def quad_combinations(values, cell_nodes, runs, hourglass, out):  # pragma: no c
             quad_corner_values(values, cell_nodes, at, k, d, out, hourglass)
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(**LOOP)
 def cell_volume(cell_type, x, cell_nodes, at, k, hourglass, shape):  # pragma: no cover (compiled)
     """The volume of cell k; its shape written to shape[:, :, k] (2D)."""
     if cell_type == INTERVAL:
@@ -116,7 +116,7 @@ def cell_volume(cell_type, x, cell_nodes, at, k, hourglass, shape):  # pragma: n
     return (shape[0, 0, k] * shape[1, 1, k] - shape[0, 1, k] * shape[1, 0, k]) * 0.5
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(**LOOP)
 def cfl_length(cell_type, x, cell_nodes, at, k, volume, shape):  # pragma: no cover (compiled)
     """The sound-crossing length of cell k: an interval's length; a triangle's least
     altitude 2A / longest edge; a quadrilateral's A over the longer of the two lines joining
@@ -138,7 +138,7 @@ def cfl_length(cell_type, x, cell_nodes, at, k, volume, shape):  # pragma: no co
     return volume / (np.sqrt(squares) * 0.5)
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(**LOOP)
 def least_corner_jacobian(volume, shape, k):  # pragma: no cover (compiled)
     """The least over quadrilateral k's four corners of det J = (x_{i+1} − x_i) ×
     (x_{i−1} − x_i): J_0 + J_2 = J_1 + J_3 = 2A and J_0 − J_2 = h × r, J_1 − J_3 = p × h, so
@@ -151,7 +151,7 @@ def least_corner_jacobian(volume, shape, k):  # pragma: no cover (compiled)
     return nan_max(across_r, across_p) * -0.5 + volume
 
 
-@numba.njit(cache=True, inline="always")
+@numba.njit(**BODY)
 def _cell_geometry(cell_type, x, cell_nodes, runs, hourglass, volume, shape, least_corner):  # pragma: no cover
     at = node_access(runs)
     for k in range(volume.size):
