@@ -682,8 +682,9 @@ def pure_steps(cell_type, mesh, boundaries, eos, cell_material, viscosity_law, h
     kernels.time_limits' two scratch arrays, no mixed cells and their empty values);
     ``held``: (the constrained nodes, boundary_reaction's scratch arrays, an array for F̄);
     ``clock``: (t, t_end, the previous dt, growth, the step budget, the steps left before
-    max_steps, whether the stall watch is on, the boundary work so far); ``first``: the current state and evaluation as (pure_step's final arrays, hourglass
-    forces, whether those act); ``buffers``: two more such sets to step into, in turn.
+    max_steps, whether the stall watch is on, the boundary work so far); ``first``: the
+    current state and evaluation as (pure_step's final arrays, hourglass forces, whether
+    those act); ``buffers``: two more such sets to step into, in turn.
     Returns (steps taken, t, the last dt, least dt, largest dt, the boundary work so far,
     which of first (0) or buffers (1, 2) holds the state reached); ``impulse`` accumulates
     (both sums as simulate() makes them, step by step)."""

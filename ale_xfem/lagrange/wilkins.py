@@ -1,4 +1,4 @@
-"""The explicit Wilkins scheme for pure cells, vectorised over cells and nodes.
+"""The explicit Wilkins scheme for pure cells, driving its compiled kernels (kernels.py).
 
 Staggered grid: velocities at nodes, thermodynamic state constant per cell.  Lumped nodal
 masses M_i = Σ_K m_K / (nodes per cell).  Corner forces F_Ki = (p_K + q_K) ∂V_K/∂x_i (the
