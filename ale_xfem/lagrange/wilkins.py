@@ -113,6 +113,10 @@ class ExplicitWilkins:
         self.no_cells, self.no_values = np.zeros(0, dtype=np.int64), np.zeros(0)
         self.no_hourglass = (self.no_values, self.no_values, np.empty((2, 0)))
         self.viscosity_law = (float(numerics.q_quadratic), float(numerics.q_linear), bool(artificial_viscosity))
+        self.held_nodes = self.constrained_nodes.astype(np.int64)
+        self.eos_tables = kernel_tables(tuple(m.eos for m in materials))  # (kinds, parameters)
+        self.predicted_arrays = None  # kernels.pure_step's arrays of the predicted state, reused
+        self.sum_stack, self.sum_partial = np.empty((3, 64), dtype=np.int64), np.empty(64)  # kernels.pairwise_sum's
 
     @property
     def mixed(self) -> MixedCells | None:
@@ -184,7 +188,7 @@ class ExplicitWilkins:
                    self.no_values if length is None else length, density[0], pressure[0], sound_speed[0], jump,
                    viscosity, stress)
             kernels.evaluate_pure(code, node_position, node_velocity, combos, nodes, runs, tangle_check,
-                                  length is not None, kernel_tables(tuple(m.eos for m in self.materials)),
+                                  length is not None, self.eos_tables,
                                   self.pure_layout.cell_material[0], mass0[0], energy0[0], self.viscosity_law,
                                   (hourglass is not None, compute_hourglass, self.hourglass, *hourglass_arrays),
                                   out, rows)
@@ -445,15 +449,21 @@ class ExplicitWilkins:
                 cells(1), cells(1), cells(1), cells(), cells(), cells(),
                 np.empty((dim, k, n)) if dim > 1 else self.no_shape, np.empty((dim, self.mesh.n_nodes))]
 
+    def _predicted_arrays(self, u0, x0):
+        """(the predicted state's arrays, the tuple kernels.pure_step takes of them): made
+        once, reused by every step."""
+        if self.predicted_arrays is None or self.predicted_arrays[0][0].shape != u0.shape:
+            arrays = self._stage_arrays(u0, x0, final=False)
+            self.predicted_arrays = (arrays, tuple(a[0] if i in (5, 10, 11, 12) else a for i, a in enumerate(arrays)))
+        return self.predicted_arrays
+
     def _pure_step(self, state: State, dt: float, first: ForceEvaluation, remapped_next: bool):
         """step() of a state whose cells are all pure: kernels.pure_step, then the boundary
         reactions' work and impulse, the new state and its evaluation."""
         u0, x0 = state.node_velocity, state.node_position
         mass, energy = state.material_mass, state.material_energy
         n = self.mesh.n_cells
-        if getattr(self, "_predicted", None) is None or self._predicted[0].shape != u0.shape:
-            self._predicted = self._stage_arrays(u0, x0, final=False)
-        predicted, final = self._predicted, self._stage_arrays(u0, x0, final=True)
+        predicted, final = self._predicted_arrays(u0, x0), self._stage_arrays(u0, x0, final=True)
         compute_hourglass = self.quadrilaterals and self.hourglass > 0.0
         final_hourglass = ((np.empty(n), np.empty(n), np.empty((2, n))) if compute_hourglass and not remapped_next
                            else self.no_hourglass)
@@ -466,23 +476,23 @@ class ExplicitWilkins:
         as_rows = (5, 10, 11, 12)
         status = kernels.pure_step(
             self.cell_code, (self.cell_nodes, self.runs, self.scatter_mode, self.corner_is_run, self.scratch),
-            self.held, kernel_tables(tuple(m.eos for m in self.materials)), self.pure_layout.cell_material[0],
+            self.held, self.eos_tables, self.pure_layout.cell_material[0],
             self.viscosity_law, float(self.hourglass), dt, self.inverse_node_mass, start,
-            tuple(a[0] if i in as_rows else a for i, a in enumerate(predicted)),
+            predicted[1],
             tuple(a[0] if i in as_rows else a for i, a in enumerate(final)),
             final_hourglass, mean_force, not remapped_next)
         u_new, velocity_sum, x_new = final[0], final[1], final[2]
         e_new = final[5]
         if status == 1:
-            self.check(self._stage_evaluation(predicted, first.hourglass_force), predicted[2], predicted[5],
+            self.check(self._stage_evaluation(predicted[0], first.hourglass_force), predicted[0][2], predicted[0][5],
                        "predicted ")
         work, impulse = self._boundary_reaction(u0, u_new, velocity_sum, mean_force, dt)
         if remapped_next:
             return self._state_for_remap(state, None, x_new, u_new, e_new, dt), None, work, impulse
         evaluation = self._stage_evaluation(final, None if final_hourglass is self.no_hourglass else final_hourglass)
         if status == 2:
-            self.check(self._stage_evaluation(predicted, first.hourglass_force), predicted[2], predicted[5],
-                       "predicted ")  # report the first cause
+            self.check(self._stage_evaluation(predicted[0], first.hourglass_force), predicted[0][2],
+                       predicted[0][5], "predicted ")  # report the first cause
             self.check(evaluation, x_new, e_new, "")
         new_state = state.evolved(
             time=state.time + dt, node_position=x_new, node_velocity=u_new, material_energy=e_new,
@@ -498,8 +508,6 @@ class ExplicitWilkins:
         evaluation, last dt, least dt, largest dt, boundary work, boundary impulse)."""
         u0, x0 = np.ascontiguousarray(state.node_velocity), np.ascontiguousarray(state.node_position)
         n, n_nodes = self.mesh.n_cells, self.mesh.n_nodes
-        if getattr(self, "_predicted", None) is None or self._predicted[0].shape != u0.shape:
-            self._predicted = self._stage_arrays(u0, x0, final=False)
         as_rows = (5, 10, 11, 12)
         evaluation_arrays = [u0, np.empty_like(u0), x0,
                              self.no_shape if evaluation.corner_velocity is None else evaluation.corner_velocity,
@@ -521,20 +529,19 @@ class ExplicitWilkins:
                     hourglass, hourglass is not self.no_hourglass)
         first, one, two = (kernel_set(a, h) for a, h in zip(sets, hourglass_sets))
         dim = self.mesh.dimension
-        held = self.constrained_nodes.astype(np.int64)
+        held = self.held_nodes
         impulse = np.array(boundary_impulse, dtype=float)
         steps, t, dt_previous, dt_min, dt_max, work, current = kernels.pure_steps(
             self.cell_code, (self.cell_nodes, self.runs, self.scatter_mode, self.corner_is_run, self.scratch),
-            self.held, kernel_tables(tuple(m.eos for m in self.materials)), self.pure_layout.cell_material[0],
+            self.held, self.eos_tables, self.pure_layout.cell_material[0],
             self.viscosity_law, float(self.hourglass), self.inverse_node_mass, state.material_mass[0],
             (self.node_mass, float(self.numerics.cfl), self.viscous_time_step, np.empty((dim, n_nodes)), np.empty(n),
              np.empty(n), self.no_cells, self.no_values),
-            (held, np.empty(2 * dim * held.size), np.empty((3, 64), dtype=np.int64), np.empty(64),
-             np.empty((dim, n_nodes))),
+            (held, np.empty(2 * dim * held.size), self.sum_stack, self.sum_partial, np.empty((dim, n_nodes))),
             (float(state.time), float(clock["t_end"]), float(clock["dt_previous"]), float(clock["growth"]),
              int(clock["budget"]), int(clock["steps_left"]), bool(clock["watch_stall"]),
              float(clock["boundary_work"])),
-            first, kernel_set(self._predicted, self.no_hourglass)[0], (one, two), impulse)
+            first, self._predicted_arrays(u0, x0)[1], (one, two), impulse)
         if steps == 0:
             return 0, state, evaluation, dt_previous, dt_min, dt_max, work, impulse
         arrays, hourglass = sets[current], hourglass_sets[current]
@@ -557,16 +564,17 @@ class ExplicitWilkins:
                                least_corner if least_corner.size else None)
 
     def _boundary_reaction(self, u0, u_new, velocity_sum, mean_force, dt):
-        """Work and impulse of the boundary reactions R = M du/dt − F̄ on held nodes."""
+        """Work and impulse of the boundary reactions R = M du/dt − F̄ on held nodes
+        (kernels.boundary_reaction: the sums in numpy's order)."""
         dim = mean_force.shape[0]
-        boundary_work, boundary_impulse = 0.0, np.zeros(u0.shape[0])
-        if self.constrained_nodes.size:
-            held = self.constrained_nodes
-            reaction = (self.node_mass[held] * (u_new[:dim, held] - u0[:dim, held]) / dt
-                        - mean_force[:, held])
-            boundary_work = float(0.5 * dt * np.sum(reaction * velocity_sum[:dim, held]))
-            boundary_impulse[:dim] = dt * reaction.sum(axis=1)
-        return boundary_work, boundary_impulse
+        boundary_impulse = np.zeros(u0.shape[0])
+        held = self.constrained_nodes
+        if not held.size:
+            return 0.0, boundary_impulse
+        boundary_work = kernels.boundary_reaction(
+            self.node_mass, self.held_nodes, u0, u_new, velocity_sum, mean_force, dt, np.empty(2 * dim * held.size),
+            self.sum_stack, self.sum_partial, boundary_impulse)
+        return float(boundary_work), boundary_impulse
 
     def _state_for_remap(self, state, solution, x_new, u_new, e_new, dt):
         """The new state as the remap reads it (no force evaluation): volumes from the
