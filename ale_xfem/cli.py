@@ -300,7 +300,10 @@ def _run(args) -> int:
 
         series = VTKSeries(problem, out, args.frames)
     observe = history.observe if history else series.observe if series else None
-    result = simulate(problem, progress, observe=observe)
+    # the VTK series wants the states at its frame times only: the steps between them may
+    # run in compiled chunks (the x–t history wants every state)
+    observe_from = series.observe_from if series and not history else None
+    result = simulate(problem, progress, observe=observe, observe_from=observe_from)
     if series is not None:
         if series.written == 0 or series.times[min(series.next, series.times.size - 1)] > result.state.time:
             series.write(result.state, problem)  # the last state (a failed run's last good one)

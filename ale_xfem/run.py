@@ -105,10 +105,13 @@ MIXED_CELL_RETRIES = 12
 
 
 def simulate(problem: Problem, progress: Progress | None = None, t_end: float | None = None,
-             stop_after_steps: int | None = None, observe=None) -> RunResult:
+             stop_after_steps: int | None = None, observe=None, observe_from=None) -> RunResult:
     """Run to t_end (the scene's by default).  ``stop_after_steps`` ends the run early as a
     normal stop (benchmarks); numerics.max_steps reached first is a failure.  ``observe``:
-    called with each new state (and the initial one), e.g. to track extremes.  With a
+    called with each new state (and the initial one), e.g. to track extremes;
+    ``observe_from``: if given, a function saying from which time ``observe`` needs a state
+    again — it is then called only with the states from that time on (and the last one of
+    each compiled chunk of steps), which lets the steps before it run compiled.  With a
     remapped mesh, problem.layout, problem.mixed and problem.node_mass follow the run (they
     describe the returned state)."""
     t_end = problem.scene.t_end if t_end is None else t_end
@@ -141,7 +144,7 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
     # Every cell pure on a Lagrangian mesh, nothing to watch between steps: the steps run in
     # compiled chunks (ExplicitWilkins.pure_steps), each stopping before a step that is not
     # plain, which the loop below then takes itself; the same steps, to the bit.
-    compiled_steps = remapper is None and observe is None and stepper.closure is None
+    compiled_steps = remapper is None and (observe is None or observe_from is not None) and stepper.closure is None
     chunk = max(1, min(1000, 2_000_000 // problem.mesh.n_cells))  # about 0.1 s between progress updates
     clock = time.perf_counter()
     if problem.setup_failure:
@@ -161,11 +164,14 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
             taken, state, evaluation, dt_previous, least, largest, boundary_work, boundary_impulse = \
                 stepper.pure_steps(state, evaluation, {"t_end": t_end, "dt_previous": dt_previous, "growth": growth,
                                                        "budget": budget, "steps_left": max_steps - steps,
-                                                       "watch_stall": watch_stall, "boundary_work": boundary_work},
+                                                       "watch_stall": watch_stall, "boundary_work": boundary_work,
+                                                       "t_stop": np.inf if observe is None else observe_from()},
                                    boundary_impulse)
             if taken:
                 steps += taken
                 dt_min, dt_max = min(dt_min, least), max(dt_max, largest)
+                if observe is not None:
+                    observe(state, problem)
                 if progress is not None:
                     progress.update(state.time, steps)
                 continue

@@ -148,3 +148,25 @@ def test_the_compiled_steps_hand_a_failing_step_to_the_loop_that_names_it(case):
     assert ("dt" if case == "sound speed not real" else "tangled") in chunked.diagnostic
     assert chunked.steps == stepwise.steps
     np.testing.assert_array_equal(chunked.state.node_position, stepwise.state.node_position)
+
+
+def test_frames_written_between_compiled_chunks_are_those_of_the_step_by_step_loop(tmp_path):
+    """The VTK series says from which time it wants a state again (observe_from): the steps
+    before it run in compiled chunks, each stopping at the first state from that time; the
+    frames written (their times) and the run are those of the step-by-step loop."""
+    from ale_xfem.output.cells_2d import VTKSeries
+    from ale_xfem.problem import build_problem
+    from ale_xfem.run import simulate
+    from ale_xfem.scene import load_scene, resolve_scene_path
+
+    entries, states = [], []
+    for chunked in (True, False):
+        problem = build_problem(load_scene(resolve_scene_path("sod-2d"), ["mesh.cells=[12,12]"]))
+        series = VTKSeries(problem, tmp_path / str(chunked), frames=7)
+        result = simulate(problem, observe=series.observe, observe_from=series.observe_from if chunked else None)
+        series.close()
+        assert result.status == "ok"
+        entries.append([time for time, _ in series.entries])
+        states.append(result.state)
+    assert entries[0] == entries[1] and len(entries[0]) == 8
+    np.testing.assert_array_equal(states[0].node_velocity, states[1].node_velocity)

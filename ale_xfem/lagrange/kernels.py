@@ -682,7 +682,8 @@ def pure_steps(cell_type, mesh, boundaries, eos, cell_material, viscosity_law, h
     kernels.time_limits' two scratch arrays, no mixed cells and their empty values);
     ``held``: (the constrained nodes, boundary_reaction's scratch arrays, an array for F̄);
     ``clock``: (t, t_end, the previous dt, growth, the step budget, the steps left before
-    max_steps, whether the stall watch is on, the boundary work so far); ``first``: the
+    max_steps, whether the stall watch is on, the boundary work so far, a time to stop at
+    once reached: an observer's next); ``first``: the
     current state and evaluation as (pure_step's final arrays, hourglass forces, whether
     those act); ``buffers``: two more such sets to step into, in turn.
     Returns (steps taken, t, the last dt, least dt, largest dt, the boundary work so far,
@@ -690,13 +691,13 @@ def pure_steps(cell_type, mesh, boundaries, eos, cell_material, viscosity_law, h
     (both sums as simulate() makes them, step by step)."""
     node_mass, cfl, viscous, acceleration, sound_times, ratios, no_cells, no_values = time_step
     held_nodes, held_scratch, stack, partial, mean_force = held
-    t, t_end, dt_previous, growth, budget, steps_left, watch_stall, work = clock
+    t, t_end, dt_previous, growth, budget, steps_left, watch_stall, work, t_stop = clock
     q_quadratic, q_linear, artificial = viscosity_law
     cell_nodes, runs = mesh[0], mesh[1]
     steps = 0
     dt_min, dt_max = np.inf, 0.0
     current = 0
-    while t < t_end * (1.0 - 1e-14) and steps < budget and steps < steps_left:
+    while t < t_end * (1.0 - 1e-14) and steps < budget and steps < steps_left and t < t_stop:
         state = first if current == 0 else (buffers[0] if current == 1 else buffers[1])
         target = 2 if current == 1 else 1
         new_arrays, new_hourglass, _ = buffers[0] if target == 1 else buffers[1]

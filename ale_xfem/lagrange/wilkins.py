@@ -504,7 +504,8 @@ class ExplicitWilkins:
         """Steps of a state whose cells are all pure on a Lagrangian mesh, in one compiled
         call (kernels.pure_steps): the steps simulate() would take one by one, stopping
         before one that is not plain (see there).  ``clock``: t_end, dt_previous, growth,
-        budget, steps_left, watch_stall, boundary_work.  Returns (steps taken, state,
+        budget, steps_left, watch_stall, boundary_work, and t_stop (optional: stop once the
+        time reaches it).  Returns (steps taken, state,
         evaluation, last dt, least dt, largest dt, boundary work, boundary impulse)."""
         u0, x0 = np.ascontiguousarray(state.node_velocity), np.ascontiguousarray(state.node_position)
         n, n_nodes = self.mesh.n_cells, self.mesh.n_nodes
@@ -540,7 +541,7 @@ class ExplicitWilkins:
             (held, np.empty(2 * dim * held.size), self.sum_stack, self.sum_partial, np.empty((dim, n_nodes))),
             (float(state.time), float(clock["t_end"]), float(clock["dt_previous"]), float(clock["growth"]),
              int(clock["budget"]), int(clock["steps_left"]), bool(clock["watch_stall"]),
-             float(clock["boundary_work"])),
+             float(clock["boundary_work"]), float(clock.get("t_stop", np.inf))),
             first, self._predicted_arrays(u0, x0)[1], (one, two), impulse)
         if steps == 0:
             return 0, state, evaluation, dt_previous, dt_min, dt_max, work, impulse

@@ -118,7 +118,9 @@ class VTKSeries:
     (module docstring), the mesh moving with the nodes; the collection is rewritten with
     each frame, so a run that breaks down leaves a readable series.  ``observe(state,
     problem)`` fits :func:`ale_xfem.run.simulate`'s observer: it writes the first state at
-    or after each of ``frames`` + 1 evenly spaced times from 0 to t_end."""
+    or after each of ``frames`` + 1 evenly spaced times from 0 to t_end; ``observe_from()``
+    says from which time it wants a state again (so that the steps before may run without
+    it)."""
 
     def __init__(self, problem, folder: Path, frames: int = 20):
         self.folder = Path(folder)
@@ -130,6 +132,10 @@ class VTKSeries:
         self.next = 0
         self.written = 0
         self.entries = []  # (time, file name)
+
+    def observe_from(self) -> float:
+        """The time from which :meth:`observe` writes a state again (inf: never)."""
+        return self.times[self.next] * (1 - 1e-12) if self.next < self.times.size else np.inf
 
     def observe(self, state, problem) -> None:
         if self.next < self.times.size and state.time >= self.times[self.next] * (1 - 1e-12):
