@@ -491,6 +491,27 @@ def time_limits(volume, length, sound_speed, jump, viscous, q_quadratic, q_linea
 
 
 @numba.njit(**LOOP)
+def stable_time_step(force, inverse_node_mass, boundaries, volume, length, sound_speed, jump, viscous, viscosity_law,
+                     mixed_cells, mixed_sound_speed, cell_nodes, runs, cfl, acceleration, sound_times,
+                     ratios):  # pragma: no cover (compiled)
+    """The CFL time step of a state (ExplicitWilkins.stable_time_step): cfl × the smaller
+    of the least signal-speed limit and √(L / 2a) at the least L / a, a the nodes'
+    accelerations F/M with the held directions removed (written to ``acceleration``);
+    each cell's limits are left in ``sound_times`` and ``ratios``."""
+    for d in range(force.shape[0]):
+        for i in range(force.shape[1]):
+            acceleration[d, i] = force[d, i] * inverse_node_mass[i]
+    # walls take the normal part (their reaction); a piston's nodes move with it
+    hold(acceleration, *boundaries, True)
+    q_quadratic, q_linear, artificial = viscosity_law
+    least_sound, least_ratio = time_limits(volume, length, sound_speed, jump, viscous, q_quadratic, q_linear,
+                                           artificial, mixed_cells, mixed_sound_speed, acceleration, cell_nodes,
+                                           runs, sound_times, ratios)
+    limit = np.sqrt(0.5 * least_ratio)
+    return cfl * (limit if limit < least_sound else least_sound)
+
+
+@numba.njit(**LOOP)
 def healthy(volume, sound_speed, energy, stress, least_corner):  # pragma: no cover (compiled)
     """Positive volumes, finite sound speeds, energies and stresses, and (``least_corner``
     not empty) no quadrilateral corner turned inside out."""
@@ -692,7 +713,6 @@ def pure_steps(cell_type, mesh, boundaries, eos, cell_material, viscosity_law, h
     node_mass, cfl, viscous, acceleration, sound_times, ratios, no_cells, no_values = time_step
     held_nodes, held_scratch, stack, partial, mean_force = held
     t, t_end, dt_previous, growth, budget, steps_left, watch_stall, work, t_stop = clock
-    q_quadratic, q_linear, artificial = viscosity_law
     cell_nodes, runs = mesh[0], mesh[1]
     steps = 0
     dt_min, dt_max = np.inf, 0.0
@@ -703,17 +723,10 @@ def pure_steps(cell_type, mesh, boundaries, eos, cell_material, viscosity_law, h
         new_arrays, new_hourglass, _ = buffers[0] if target == 1 else buffers[1]
         arrays, hourglass_state, hourglass = state
         force = arrays[17]
-        # the CFL limit of the state (ExplicitWilkins.stable_time_step)
-        for d in range(force.shape[0]):
-            for i in range(force.shape[1]):
-                acceleration[d, i] = force[d, i] * inverse_node_mass[i]
-        hold(acceleration, *boundaries, True)
         length = arrays[9] if arrays[9].size else arrays[6]
-        least_sound, least_ratio = time_limits(arrays[6], length, arrays[12], arrays[13], viscous, q_quadratic,
-                                               q_linear, artificial, no_cells, no_values, acceleration, cell_nodes,
-                                               runs, sound_times, ratios)
-        limit = np.sqrt(0.5 * least_ratio)
-        dt = cfl * (limit if limit < least_sound else least_sound)
+        dt = stable_time_step(force, inverse_node_mass, boundaries, arrays[6], length, arrays[12], arrays[13],
+                              viscous, viscosity_law, no_cells, no_values, cell_nodes, runs, cfl, acceleration,
+                              sound_times, ratios)
         if growth * dt_previous < dt:
             dt = growth * dt_previous
         if t_end - t < dt:

@@ -260,8 +260,7 @@ class ExplicitWilkins:
         cell; with it, 80 × 80 runs to t = 0.6 (L1(ρ) 0.117).  On cells that keep their
         shape L_q/L = 1 (squares, the crossed triangles of a square); compressed cells take
         smaller steps (Saltzman and Sedov: about twice as many, L1(ρ) within 0.2 %)."""
-        least_sound, least_ratio = self._time_limits(evaluation)
-        return self.numerics.cfl * min(least_sound, float(np.sqrt(0.5 * least_ratio)))
+        return self._time_limits(evaluation)[0]
 
     def limiting_cell(self, evaluation: ForceEvaluation, position) -> str:
         """The cell whose CFL limit sets the time step, described for a diagnostic: its
@@ -282,13 +281,13 @@ class ExplicitWilkins:
     def _cell_time_limits(self, evaluation: ForceEvaluation):
         """Each cell's time step limit before the CFL number: its signal speed's or its
         nodes' acceleration's (:meth:`_time_limits`), the smaller."""
-        times, ratio = self._time_limits(evaluation, arrays=True)
+        _, times, ratio = self._time_limits(evaluation)
         np.minimum(times, np.sqrt(0.5 * ratio), out=times)
         return times
 
-    def _time_limits(self, evaluation: ForceEvaluation, arrays: bool = False):
-        """The least over the cells of (their time limit from the signal speed, L / a), or
-        (``arrays``) each cell's.  A mixed cell's sound limit counts the larger sound speed
+    def _time_limits(self, evaluation: ForceEvaluation):
+        """(the CFL time step (kernels.stable_time_step), each cell's time limit from its
+        signal speed, each cell's L / a).  A mixed cell's sound limit counts the larger sound speed
         of its materials.  a is the largest acceleration F_i / M_i of the cell's nodes (held
         directions removed), and its time step limit √(L / 2a): a node starting from rest
         moves by at most a sixteenth of the cell's length in the step (with the CFL number
@@ -298,19 +297,16 @@ class ExplicitWilkins:
         inside out (a quarter of a cell still let 24 of 80 such cases break down; a
         sixteenth, 6).  Where pressures vary smoothly a ≈ Δp/(ρL) is small and the limit
         does not bind: no pure-cell run of the regression captures changed."""
-        acceleration = evaluation.nodal_force * self.inverse_node_mass
-        # walls take the normal part (their reaction); a piston's nodes move with it
-        kernels.hold(acceleration, *self.held, True)
         mixed = evaluation.mixed_sound_speed is not None
         sound_times, ratio = np.empty(evaluation.volume.size), np.empty(evaluation.volume.size)
-        numerics = self.numerics
-        least = kernels.time_limits(evaluation.volume, evaluation.length, evaluation.sound_speed[0],
-                                    evaluation.velocity_jump, self.viscous_time_step, numerics.q_quadratic,
-                                    numerics.q_linear, self.artificial_viscosity,
-                                    self.mixed.cells if mixed else self.no_cells,
-                                    evaluation.mixed_sound_speed if mixed else self.no_values,
-                                    acceleration, self.cell_nodes, self.runs, sound_times, ratio)
-        return (sound_times, ratio) if arrays else least
+        dt = kernels.stable_time_step(evaluation.nodal_force, self.inverse_node_mass, self.held, evaluation.volume,
+                                      evaluation.length, evaluation.sound_speed[0], evaluation.velocity_jump,
+                                      self.viscous_time_step, self.viscosity_law,
+                                      self.mixed.cells if mixed else self.no_cells,
+                                      evaluation.mixed_sound_speed if mixed else self.no_values, self.cell_nodes,
+                                      self.runs, float(self.numerics.cfl), np.empty_like(evaluation.nodal_force),
+                                      sound_times, ratio)
+        return float(dt), sound_times, ratio
 
     # -- the step -----------------------------------------------------------------------
 
