@@ -10,6 +10,10 @@ pressure p and gives what an explicit step and an implicit solve need:
 - ``state(rho, e)``: (p, ∂p/∂ρ, ∂p/∂e, c²) at once, for implicit solves
 - ``admissible(rho, p)``: which initial states the model allows, with the reason
 
+``pressure`` and ``sound_speed_squared`` are the compiled formulas the per-step loops use
+(``ale_xfem.eos.kernels``); ``state`` writes p and c² again in numpy beside the
+derivatives the implicit solves need, and tests/test_eos.py holds the two equal to 10⁻¹³.
+
 Models: ideal gas, stiffened gas (γ, p∞), Mie–Grüneisen with a linear Us–up Hugoniot
 reference (ρ0, c0, s, Γ0; Γρ = Γ0ρ0 constant), linear (dp = c0² dρ, i.e. dp = ρc² dρ/ρ).
 """
@@ -21,37 +25,51 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ale_xfem.eos.kernels import LINEAR, MIE_GRUNEISEN, PARAMETERS, STIFFENED_GAS
+from ale_xfem.eos.kernels import (LINEAR, MIE_GRUNEISEN, PARAMETERS, STIFFENED_GAS,
+                                  fill_pressure_sound_speed_squared)
+
+
+class CompiledModel:
+    """p(ρ, e) and c²(ρ, e) of a model, from its compiled formulas
+    (ale_xfem.eos.kernels.pressure_sound_speed_squared: the one place they are written),
+    for numbers or arrays of any shape."""
+
+    def pressure_and_sound_speed_squared(self, rho, e):
+        rho, e = (np.array(a, dtype=float) for a in np.broadcast_arrays(np.asarray(rho, dtype=float),
+                                                                          np.asarray(e, dtype=float)))
+        pressure, sound_speed_squared = np.empty(rho.shape), np.empty(rho.shape)
+        row = np.zeros((1, PARAMETERS))
+        values = self.kernel_parameters()
+        row[0, :len(values)] = values
+        fill_pressure_sound_speed_squared(self.KIND, row, rho.reshape(-1), e.reshape(-1), pressure.reshape(-1),
+                                          sound_speed_squared.reshape(-1))
+        return pressure[()], sound_speed_squared[()]
+
+    def pressure(self, rho, e):
+        return self.pressure_and_sound_speed_squared(rho, e)[0]
+
+    def sound_speed_squared(self, rho, e):
+        """c² = ∂p/∂ρ|_e + (p/ρ²) ∂p/∂e|_ρ (isentropic)."""
+        return self.pressure_and_sound_speed_squared(rho, e)[1]
 
 
 @dataclass(frozen=True)
-class StiffenedGas:
+class StiffenedGas(CompiledModel):
     """p = (γ − 1) ρ e − γ p∞.  p∞ = 0 is the ideal gas."""
 
     gamma: float
     p_inf: float = 0.0
 
-    KIND = STIFFENED_GAS  # its branch in ale_xfem.eos.kernels.pressure_sound_speed
+    KIND = STIFFENED_GAS  # its branch in ale_xfem.eos.kernels.pressure_sound_speed_squared
 
     def kernel_parameters(self):
         return (self.gamma, self.p_inf)
-
-    def pressure(self, rho, e):
-        if self.p_inf == 0.0:
-            return (self.gamma - 1.0) * rho * e
-        return (self.gamma - 1.0) * rho * e - self.gamma * self.p_inf
 
     def dp_drho(self, rho, e):
         return (self.gamma - 1.0) * e
 
     def dp_de(self, rho, e):
         return (self.gamma - 1.0) * rho
-
-    def sound_speed_squared(self, rho, e):
-        # c² = γ (p + p∞) / ρ = γ (γ − 1) (e − p∞/ρ)
-        if self.p_inf == 0.0:
-            return self.gamma * (self.gamma - 1.0) * e
-        return self.gamma * (self.gamma - 1.0) * (e - self.p_inf / rho)
 
     def energy(self, rho, p):
         return (p + self.gamma * self.p_inf) / ((self.gamma - 1.0) * rho)
@@ -77,7 +95,7 @@ def IdealGas(gamma: float) -> StiffenedGas:
 
 
 @dataclass(frozen=True)
-class MieGruneisen:
+class MieGruneisen(CompiledModel):
     """Mie–Grüneisen about the linear Us = c0 + s·up Hugoniot of the state (ρ0, e = 0).
 
     With η = 1 − ρ0/ρ:  p_H = ρ0 c0² η / (1 − sη)²,  e_H = p_H η / (2ρ0)  (Rankine–Hugoniot
@@ -104,10 +122,6 @@ class MieGruneisen:
         de_h_deta = (p_h + eta * dp_h_deta) / (2.0 * self.rho0)
         return eta, p_h, dp_h_deta, e_h, de_h_deta
 
-    def pressure(self, rho, e):
-        _, p_h, _, e_h, _ = self._hugoniot(rho)
-        return p_h + self.gamma0 * self.rho0 * (e - e_h)
-
     def dp_drho(self, rho, e):
         _, _, dp_h_deta, _, de_h_deta = self._hugoniot(rho)
         deta_drho = self.rho0 / rho**2
@@ -115,10 +129,6 @@ class MieGruneisen:
 
     def dp_de(self, rho, e):
         return self.gamma0 * self.rho0 * np.ones_like(np.asarray(rho, dtype=float))
-
-    def sound_speed_squared(self, rho, e):
-        p = self.pressure(rho, e)
-        return self.dp_drho(rho, e) + p / rho**2 * self.gamma0 * self.rho0
 
     def energy(self, rho, p):
         _, p_h, _, e_h, _ = self._hugoniot(rho)
@@ -146,7 +156,7 @@ class MieGruneisen:
 
 
 @dataclass(frozen=True)
-class Linear:
+class Linear(CompiledModel):
     """Barotropic linear law p = p0 + c0² (ρ − ρ0): dp = ρc² dρ/ρ with constant c = c0."""
 
     rho0: float
@@ -158,17 +168,11 @@ class Linear:
     def kernel_parameters(self):
         return (self.rho0, self.c0, self.p0)
 
-    def pressure(self, rho, e):
-        return self.p0 + self.c0**2 * (rho - self.rho0) + 0.0 * e
-
     def dp_drho(self, rho, e):
         return self.c0**2 * np.ones_like(np.asarray(rho, dtype=float))
 
     def dp_de(self, rho, e):
         return np.zeros_like(np.asarray(rho, dtype=float))
-
-    def sound_speed_squared(self, rho, e):
-        return self.c0**2 * np.ones_like(np.asarray(rho, dtype=float))
 
     def energy(self, rho, p):
         # e plays no part in the pressure; it still carries the work of compression.

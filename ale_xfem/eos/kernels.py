@@ -30,9 +30,11 @@ PARAMETERS = 4  # the longest row of parameters
 
 
 @numba.njit(**LOOP)
-def pressure_sound_speed(kind, parameters, material, rho, e):  # pragma: no cover (compiled)
-    """(p, c) of one state of the material of row ``material`` of ``parameters``; c is NaN
-    where c² < 0 (outside the model's domain: the breakdown checks report it)."""
+def pressure_sound_speed_squared(kind, parameters, material, rho, e):  # pragma: no cover (compiled)
+    """(p, c²) of one state of the material of row ``material`` of ``parameters``: every
+    model's formulas, which the models' ``pressure`` and ``sound_speed_squared`` and the
+    compiled loops all use (``state`` of each model writes them again beside its
+    derivatives, for the implicit solves)."""
     if kind == STIFFENED_GAS:  # p = (γ − 1) ρ e − γ p∞,  c² = γ (γ − 1) (e − p∞/ρ)
         gamma, p_inf = parameters[material, 0], parameters[material, 1]
         if p_inf == 0.0:
@@ -59,7 +61,23 @@ def pressure_sound_speed(kind, parameters, material, rho, e):  # pragma: no cove
         rho0, c0, p0 = parameters[material, 0], parameters[material, 1], parameters[material, 2]
         p = p0 + c0 ** 2.0 * (rho - rho0) + 0.0 * e
         c2 = c0 ** 2.0
+    return p, c2
+
+
+@numba.njit(**LOOP)
+def pressure_sound_speed(kind, parameters, material, rho, e):  # pragma: no cover (compiled)
+    """(p, c) of one state (:func:`pressure_sound_speed_squared`); c is NaN where c² < 0
+    (outside the model's domain: the breakdown checks report it)."""
+    p, c2 = pressure_sound_speed_squared(kind, parameters, material, rho, e)
     return p, math.sqrt(c2) if c2 >= 0.0 else np.nan
+
+
+@numba.njit(**LOOP)
+def fill_pressure_sound_speed_squared(kind, parameters, rho, e, pressure,
+                                      sound_speed_squared):  # pragma: no cover (compiled)
+    """p and c² of one model (row 0 of ``parameters``) at every entry of flat arrays."""
+    for i in range(rho.size):
+        pressure[i], sound_speed_squared[i] = pressure_sound_speed_squared(kind, parameters, 0, rho[i], e[i])
 
 
 @numba.njit(**LOOP)
