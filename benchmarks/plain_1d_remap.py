@@ -178,18 +178,12 @@ def loop_kernels():
 KERNELS = {"numpy": numpy_kernels, "loops": loop_kernels}
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--kernel", choices=sorted(KERNELS), default="numpy")
-    parser.add_argument("--cells", type=int, default=100000)
-    parser.add_argument("--steps", type=int, default=50)
-    args = parser.parse_args()
-    try:
-        forces, remap = KERNELS[args.kernel]()
-    except ImportError as missing:
-        parser.error(f"--kernel {args.kernel} needs {missing.name}, which ale_xfem does not depend on: "
-                     f"pip install {missing.name} into a throw-away virtualenv")
-    dt = 0.1 / args.cells
+def cycle_seconds(kernel: str = "numpy", cells: int = 100000, steps: int = 50, repeats: int = 3) -> dict:
+    """Seconds a step of the pure Lagrangian loop ("pure") and of the Eulerian cycle
+    ("eulerian"), each the best of ``repeats`` timings of ``steps`` steps after a warm-up
+    (``ale-xfem bench`` calls it for the numpy reference)."""
+    forces, remap = KERNELS[kernel]()
+    dt = 0.1 / cells
 
     def lagrange(x, u, mass, e, node_mass, start, evaluate_end: bool):
         force, stress = start
@@ -204,16 +198,16 @@ def main() -> None:
         x_new = x + 0.5 * dt * us
         return x_new, u_new, e_new, (forces(x_new, u_new, mass, e_new) if evaluate_end else None)
 
-    def pure(steps):
-        x, u, mass, e, node_mass = sod_tube(args.cells)
+    def pure(count):
+        x, u, mass, e, node_mass = sod_tube(cells)
         start = forces(x, u, mass, e)
-        for _ in range(steps):
+        for _ in range(count):
             x, u, e, start = lagrange(x, u, mass, e, node_mass, start, True)
 
-    def eulerian(steps):
-        x0, u, mass, e, node_mass = sod_tube(args.cells)
+    def eulerian(count):
+        x0, u, mass, e, node_mass = sod_tube(cells)
         start = forces(x0, u, mass, e)
-        for _ in range(steps):
+        for _ in range(count):
             x, u, e, _ = lagrange(x0, u, mass, e, node_mass, start, False)
             mass, e, node_mass, u, _ = remap(x, x0, u, mass, e, node_mass)
             start = forces(x0, u, mass, e)
@@ -222,11 +216,25 @@ def main() -> None:
     for name, run in (("pure", pure), ("eulerian", eulerian)):
         run(3)  # warm-up (and numba's compilation)
         best = np.inf
-        for _ in range(3):
+        for _ in range(repeats):
             clock = time.perf_counter()
-            run(args.steps)
-            best = min(best, (time.perf_counter() - clock) / args.steps)
+            run(steps)
+            best = min(best, (time.perf_counter() - clock) / steps)
         seconds[name] = best
+    return seconds
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--kernel", choices=sorted(KERNELS), default="numpy")
+    parser.add_argument("--cells", type=int, default=100000)
+    parser.add_argument("--steps", type=int, default=50)
+    args = parser.parse_args()
+    try:
+        seconds = cycle_seconds(args.kernel, args.cells, args.steps)
+    except ImportError as missing:
+        parser.error(f"--kernel {args.kernel} needs {missing.name}, which ale_xfem does not depend on: "
+                     f"pip install {missing.name} into a throw-away virtualenv")
     pure_step, cycle = seconds["pure"], seconds["eulerian"]
     print(f"{args.kernel}: {args.cells} cells, pure Lagrangian step {pure_step * 1e3:.3f} ms, Eulerian cycle "
           f"{cycle * 1e3:.3f} ms: the remap adds {(cycle - pure_step) / pure_step:.2f}× the pure step")

@@ -22,9 +22,10 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ale_xfem.eos.kernels import BODY, LOOP, pressure_sound_speed
-from ale_xfem.model.cell_kernels import (INTERVAL, QUADRILATERAL, TRIANGLE, cell_volume, cfl_length, quad_combinations,
-                                         least_corner_jacobian, nan_max, nan_min, node, node_access)
+from ale_xfem.eos.kernels import BODY, LOOP, STIFFENED_GAS, pressure_sound_speed
+from ale_xfem.model.cell_kernels import (INTERVAL, QUADRILATERAL, TRIANGLE, cell_shape, cfl_length, least_corner_jacobian,
+                                         load_shape, nan_max, nan_min, node, node_access, quad_combinations,
+                                         store_shape)
 
 # how corner values are summed onto the nodes (ExplicitWilkins.scatter_mode)
 RUNS, PER_CORNER, FLAT = 0, 1, 2
@@ -33,27 +34,30 @@ RUNS, PER_CORNER, FLAT = 0, 1, 2
 # -- one cell ---------------------------------------------------------------------------
 
 @numba.njit(**LOOP)
-def quad_gradient(shape, k):  # pragma: no cover (compiled)
-    """(g_0x, g_0y, g_1x, g_1y): ∂A/∂x_0 = ½ (r_y, −r_x) and ∂A/∂x_1 = ½ (−p_y, p_x)."""
-    return 0.5 * shape[1, 1, k], -0.5 * shape[1, 0, k], -0.5 * shape[0, 1, k], 0.5 * shape[0, 0, k]
+def quad_gradient(s):  # pragma: no cover (compiled)
+    """(g_0x, g_0y, g_1x, g_1y) of a quadrilateral's shape ``s``: ∂A/∂x_0 = ½ (r_y, −r_x)
+    and ∂A/∂x_1 = ½ (−p_y, p_x)."""
+    return 0.5 * s[3], -0.5 * s[2], -0.5 * s[1], 0.5 * s[0]
 
 
 @numba.njit(**LOOP)
-def volume_rate(cell_type, shape, cell_nodes, at, k, u, combos):  # pragma: no cover (compiled)
-    """dV/dt = Σ_i ∂V/∂x_i·u_i of cell k (quadrilaterals read the velocity's corner
-    combinations ``combos`` instead of u)."""
+def volume_rate(cell_type, s, cell_nodes, at, k, u, combos):  # pragma: no cover (compiled)
+    """dV/dt = Σ_i ∂V/∂x_i·u_i of cell k, shape ``s`` (quadrilaterals read the velocity's
+    corner combinations ``combos`` instead of u)."""
     if cell_type == INTERVAL:
         return u[0, node(cell_nodes, at, k, 1)] - u[0, node(cell_nodes, at, k, 0)]
     if cell_type == TRIANGLE:
         a = node(cell_nodes, at, k, 0)
-        total = shape[0, 0, k] * u[0, a]
-        total += shape[0, 1, k] * u[1, a]
-        for i in range(1, 3):
-            a = node(cell_nodes, at, k, i)
-            total += shape[i, 0, k] * u[0, a]
-            total += shape[i, 1, k] * u[1, a]
+        total = s[0] * u[0, a]
+        total += s[1] * u[1, a]
+        a = node(cell_nodes, at, k, 1)
+        total += s[2] * u[0, a]
+        total += s[3] * u[1, a]
+        a = node(cell_nodes, at, k, 2)
+        total += s[4] * u[0, a]
+        total += s[5] * u[1, a]
         return total
-    g0x, g0y, g1x, g1y = quad_gradient(shape, k)
+    g0x, g0y, g1x, g1y = quad_gradient(s)
     total = g0x * combos[0, 0, k]
     total += g0y * combos[0, 1, k]
     total += g1x * combos[1, 0, k]
@@ -84,22 +88,21 @@ def artificial_viscosity(q_quadratic, q_linear, jump, density, sound_speed):  # 
 
 
 @numba.njit(**LOOP)
-def hourglass_cell(volume, shape, combos, density, sound_speed, coefficient, k, s0, s1,
-                   force):  # pragma: no cover (compiled)
+def hourglass_cell(volume, s, combos, density, sound_speed, coefficient, k):  # pragma: no cover (compiled)
     """Viscous hourglass control of quadrilateral k (Flanagan & Belytschko, IJNME 17, 1981):
     γ_i = h_i − (Σ_j h_j x_j)·(∂A/∂x_i)/A is orthogonal to every linear field; the hourglass
     velocity Σ_i γ_i u_i is resisted by f_i = γ_i Q, Q = −(κ/4) ρ c √A Σ_j γ_j u_j.  With
     ∂A/∂x_2 = −∂A/∂x_0, ∂A/∂x_3 = −∂A/∂x_1: γ = (1 − s_0, −1 − s_1, 1 + s_0, −1 + s_1),
-    s_i = h·(∂A/∂x_i)/A.  Writes s_0, s_1 and Q (2,) of the cell."""
-    g0x, g0y, g1x, g1y = quad_gradient(shape, k)
-    hx, hy = shape[2, 0, k], shape[2, 1, k]
+    s_i = h·(∂A/∂x_i)/A (shape ``s``).  Returns (s_0, s_1, Q_x, Q_y)."""
+    g0x, g0y, g1x, g1y = quad_gradient(s)
+    hx, hy = s[4], s[5]
     inverse_area = 1.0 / volume
     a = (hx * g0x + hy * g0y) * inverse_area
     b = (hx * g1x + hy * g1y) * inverse_area
-    s0[k], s1[k] = a, b
     scale = np.sqrt(volume) * density * sound_speed * (-0.25 * coefficient)
-    for d in range(2):
-        force[d, k] = (combos[2, d, k] - a * combos[0, d, k] - b * combos[1, d, k]) * scale
+    qx = (combos[2, 0, k] - a * combos[0, 0, k] - b * combos[1, 0, k]) * scale
+    qy = (combos[2, 1, k] - a * combos[0, 1, k] - b * combos[1, 1, k]) * scale
+    return a, b, qx, qy
 
 
 @numba.njit(**LOOP)
@@ -123,21 +126,22 @@ def quad_corner_forces(stress, g0, g1, s0, s1, q, hourglass):  # pragma: no cove
 
 
 @numba.njit(**LOOP)
-def corner_forces_cell(cell_type, shape, stress, hourglass, s0, s1, q, k, rows):  # pragma: no cover (compiled)
-    """Cell k's corner forces F_Ki = P_K ∂V_K/∂x_i (+ the hourglass forces γ_i Q of
-    quadrilaterals) into rows[:, :, k] (2D; 1D scatters ∓P itself)."""
+def corner_forces_cell(cell_type, s, stress, hourglass, s0, s1, qx, qy, k, rows):  # pragma: no cover (compiled)
+    """Cell k's corner forces F_Ki = P_K ∂V_K/∂x_i (shape ``s``; + the hourglass forces
+    γ_i Q of quadrilaterals, (s_0, s_1, Q_x, Q_y) of :func:`hourglass_cell`) into
+    rows[:, :, k] (2D; 1D scatters ∓P itself)."""
     if cell_type == TRIANGLE:
         for i in range(3):
-            for d in range(2):
-                rows[d, i, k] = shape[i, d, k] * stress
+            rows[0, i, k] = s[2 * i] * stress
+            rows[1, i, k] = s[2 * i + 1] * stress
     elif cell_type == QUADRILATERAL:
-        g0x, g0y, g1x, g1y = quad_gradient(shape, k)
-        a = s0[k] if hourglass else 0.0
-        b = s1[k] if hourglass else 0.0
-        for d in range(2):
-            f = q[d, k] if hourglass else 0.0
-            rows[d, 0, k], rows[d, 1, k], rows[d, 2, k], rows[d, 3, k] = quad_corner_forces(
-                stress, g0x if d == 0 else g0y, g1x if d == 0 else g1y, a, b, f, hourglass)
+        g0x, g0y, g1x, g1y = quad_gradient(s)
+        a = s0 if hourglass else 0.0
+        b = s1 if hourglass else 0.0
+        rows[0, 0, k], rows[0, 1, k], rows[0, 2, k], rows[0, 3, k] = quad_corner_forces(
+            stress, g0x, g1x, a, b, qx if hourglass else 0.0, hourglass)
+        rows[1, 0, k], rows[1, 1, k], rows[1, 2, k], rows[1, 3, k] = quad_corner_forces(
+            stress, g0y, g1y, a, b, qy if hourglass else 0.0, hourglass)
 
 
 @numba.njit(**LOOP)
@@ -166,21 +170,27 @@ def cfl_time(c, jump, length, stiffness, q_quadratic, q_linear, artificial):  # 
 
 
 # -- evaluations of a state ----------------------------------------------------------------
+#
+# Each loop is written once (``_name``) for a cell type and a way of reading nodes given as
+# arguments, and entered through ``name``, which passes both as constants: intervals whose
+# corners run on read node k + offset (every interval mesh DOLFINx makes in serial), other
+# meshes through ``cell_nodes`` (ale_xfem.model.cell_kernels).
 
 @numba.njit(**BODY)
-def _geometry_and_rates(cell_type, x, u, combos, cell_nodes, runs, hourglass, with_length, with_density, mass, volume,
-                        shape, least_corner, length, density, jump):  # pragma: no cover (compiled)
-    at = node_access(runs)
+def _geometry_and_rates(cell_type, running, x, u, combos, cell_nodes, runs, hourglass, with_length, with_density,
+                        mass, volume, shape, least_corner, length, density, jump):  # pragma: no cover (compiled)
+    at = node_access(runs, running)
     for k in range(volume.size):
-        v = cell_volume(cell_type, x, cell_nodes, at, k, hourglass, shape)
+        v, s = cell_shape(cell_type, x, cell_nodes, at, k, hourglass)
         volume[k] = v
-        if least_corner.size:
-            least_corner[k] = least_corner_jacobian(v, shape, k)
-        if with_length:
-            length[k] = cfl_length(cell_type, x, cell_nodes, at, k, v, shape)
+        if cell_type == QUADRILATERAL and least_corner.size:
+            least_corner[k] = least_corner_jacobian(v, s)
+        if cell_type != INTERVAL and with_length:  # an interval's is its length, the volume
+            length[k] = cfl_length(cell_type, x, cell_nodes, at, k, v, s)
         if with_density:
             density[k] = mass[k] / v
-        jump[k] = velocity_jump(cell_type, v, volume_rate(cell_type, shape, cell_nodes, at, k, u, combos))
+        jump[k] = velocity_jump(cell_type, v, volume_rate(cell_type, s, cell_nodes, at, k, u, combos))
+        store_shape(cell_type, s, hourglass, shape, k)
 
 
 @numba.njit(**LOOP)
@@ -190,14 +200,35 @@ def geometry_and_rates(cell_type, x, u, combos, cell_nodes, runs, hourglass, wit
     and, ``least_corner`` not empty, their least corner det J), CFL length
     (``with_length``), ρ = m/V (``with_density``), the velocity jump."""
     if cell_type == INTERVAL:
-        _geometry_and_rates(INTERVAL, x, u, combos, cell_nodes, runs, hourglass, with_length, with_density, mass,
-                            volume, shape, least_corner, length, density, jump)
+        if runs[4] == 1:
+            _geometry_and_rates(INTERVAL, True, x, u, combos, cell_nodes, runs, hourglass, with_length, with_density,
+                                mass, volume, shape, least_corner, length, density, jump)
+        else:
+            _geometry_and_rates(INTERVAL, False, x, u, combos, cell_nodes, runs, hourglass, with_length,
+                                with_density, mass, volume, shape, least_corner, length, density, jump)
     elif cell_type == TRIANGLE:
-        _geometry_and_rates(TRIANGLE, x, u, combos, cell_nodes, runs, hourglass, with_length, with_density, mass,
-                            volume, shape, least_corner, length, density, jump)
+        _geometry_and_rates(TRIANGLE, False, x, u, combos, cell_nodes, runs, hourglass, with_length, with_density,
+                            mass, volume, shape, least_corner, length, density, jump)
     else:
-        _geometry_and_rates(QUADRILATERAL, x, u, combos, cell_nodes, runs, hourglass, with_length, with_density, mass,
-                            volume, shape, least_corner, length, density, jump)
+        _geometry_and_rates(QUADRILATERAL, False, x, u, combos, cell_nodes, runs, hourglass, with_length,
+                            with_density, mass, volume, shape, least_corner, length, density, jump)
+
+
+@numba.njit(**LOOP)
+def cell_hourglass(cell_type, compute, hourglass, v, s, combos, rho, c, coefficient, k, s0, s1,
+                   q):  # pragma: no cover (compiled)
+    """Quadrilateral k's hourglass control (s_0, s_1, Q_x, Q_y): computed (``compute``,
+    :func:`hourglass_cell`) and written to s0, s1, q; or read from them (``hourglass``: the
+    forces of an earlier evaluation act); or none."""
+    if cell_type != QUADRILATERAL:
+        return 0.0, 0.0, 0.0, 0.0
+    if compute:
+        a, b, qx, qy = hourglass_cell(v, s, combos, rho, c, coefficient, k)
+        s0[k], s1[k], q[0, k], q[1, k] = a, b, qx, qy
+        return a, b, qx, qy
+    if hourglass:
+        return s0[k], s1[k], q[0, k], q[1, k]
+    return 0.0, 0.0, 0.0, 0.0
 
 
 @numba.njit(**BODY)
@@ -218,9 +249,10 @@ def _stress_and_corner_forces(cell_type, volume, shape, combos, jump, density, s
     if cell_type == INTERVAL:
         return
     for k in range(volume.size):
-        if compute_hourglass:
-            hourglass_cell(volume[k], shape, combos, density[k], sound_speed[k], coefficient, k, s0, s1, q)
-        corner_forces_cell(cell_type, shape, stress[k], hourglass, s0, s1, q, k, rows)
+        s = load_shape(cell_type, shape, k)
+        a, b, qx, qy = cell_hourglass(cell_type, compute_hourglass, hourglass, volume[k], s, combos, density[k],
+                                      sound_speed[k], coefficient, k, s0, s1, q)
+        corner_forces_cell(cell_type, s, stress[k], hourglass, a, b, qx, qy, k, rows)
 
 
 @numba.njit(**LOOP)
@@ -250,34 +282,36 @@ def stress_and_corner_forces(cell_type, volume, shape, combos, jump, density, so
 
 
 @numba.njit(**BODY)
-def _evaluate_pure(cell_type, x, u, combos, cell_nodes, runs, hourglass, with_length, eos, cell_material, mass,
-                   energy, viscosity_law, hourglass_control, out, rows):  # pragma: no cover (compiled)
+def _evaluate_pure(cell_type, running, kind, x, u, combos, cell_nodes, runs, hourglass, with_length, eos,
+                   cell_material, mass, energy, viscosity_law, hourglass_control, out,
+                   rows):  # pragma: no cover (compiled)
     kinds, parameters = eos
     q_quadratic, q_linear, artificial = viscosity_law
     hourglass_forces, compute_hourglass, coefficient, s0, s1, q = hourglass_control
     volume, shape, least_corner, length, density, pressure, sound_speed, jump, viscosity, stress = out
-    at = node_access(runs)
+    at = node_access(runs, running)
     for k in range(volume.size):
-        v = cell_volume(cell_type, x, cell_nodes, at, k, hourglass, shape)
+        v, s = cell_shape(cell_type, x, cell_nodes, at, k, hourglass)
         volume[k] = v
-        if least_corner.size:
-            least_corner[k] = least_corner_jacobian(v, shape, k)
-        if with_length:
-            length[k] = cfl_length(cell_type, x, cell_nodes, at, k, v, shape)
+        if cell_type == QUADRILATERAL and least_corner.size:
+            least_corner[k] = least_corner_jacobian(v, s)
+        if cell_type != INTERVAL and with_length:  # an interval's is its length, the volume
+            length[k] = cfl_length(cell_type, x, cell_nodes, at, k, v, s)
         rho = mass[k] / v
         density[k] = rho
-        material = cell_material[k]
-        p, c = pressure_sound_speed(kinds[material], parameters, material, rho, energy[k])
+        material = 0 if kind >= 0 else cell_material[k]
+        p, c = pressure_sound_speed(kind if kind >= 0 else kinds[material], parameters, material, rho, energy[k])
         pressure[k], sound_speed[k] = p, c
-        du = velocity_jump(cell_type, v, volume_rate(cell_type, shape, cell_nodes, at, k, u, combos))
+        du = velocity_jump(cell_type, v, volume_rate(cell_type, s, cell_nodes, at, k, u, combos))
         jump[k] = du
         qk = artificial_viscosity(q_quadratic, q_linear, du, rho, c) if artificial else 0.0
         viscosity[k] = qk
         pk = p + qk if artificial else p
         stress[k] = pk
-        if compute_hourglass:
-            hourglass_cell(v, shape, combos, rho, c, coefficient, k, s0, s1, q)
-        corner_forces_cell(cell_type, shape, pk, hourglass_forces, s0, s1, q, k, rows)
+        a, b, qx, qy = cell_hourglass(cell_type, compute_hourglass, hourglass_forces, v, s, combos, rho, c,
+                                      coefficient, k, s0, s1, q)
+        corner_forces_cell(cell_type, s, pk, hourglass_forces, a, b, qx, qy, k, rows)
+        store_shape(cell_type, s, hourglass, shape, k)
 
 
 @numba.njit(**LOOP)
@@ -289,16 +323,33 @@ def evaluate_pure(cell_type, x, u, combos, cell_nodes, runs, hourglass, with_len
     ``viscosity_law``: (c2, c1, whether on); ``hourglass_control``: (whether the corner
     forces have hourglass forces, whether to compute them, κ, s_0, s_1, Q); ``out``: (volume,
     shape, least corner, length, density, pressure, sound speed, velocity jump, viscosity,
-    stress)."""
+    stress).
+
+    A state of one material, a stiffened (or ideal) gas, is evaluated by a loop entered with
+    that model as a constant: its formulas then sit in the loop, which the compiler
+    vectorises; otherwise each cell's model is chosen in the loop (ale_xfem.eos.kernels)."""
+    gas = eos[0].size == 1 and eos[0][0] == STIFFENED_GAS
     if cell_type == INTERVAL:
-        _evaluate_pure(INTERVAL, x, u, combos, cell_nodes, runs, hourglass, with_length, eos, cell_material,
-                       mass, energy, viscosity_law, hourglass_control, out, rows)
+        if runs[4] == 1 and gas:
+            _evaluate_pure(INTERVAL, True, STIFFENED_GAS, x, u, combos, cell_nodes, runs, hourglass, with_length, eos,
+                           cell_material, mass, energy, viscosity_law, hourglass_control, out, rows)
+        else:
+            _evaluate_pure(INTERVAL, False, -1, x, u, combos, cell_nodes, runs, hourglass, with_length, eos,
+                           cell_material, mass, energy, viscosity_law, hourglass_control, out, rows)
     elif cell_type == TRIANGLE:
-        _evaluate_pure(TRIANGLE, x, u, combos, cell_nodes, runs, hourglass, with_length, eos, cell_material,
-                       mass, energy, viscosity_law, hourglass_control, out, rows)
+        if gas:
+            _evaluate_pure(TRIANGLE, False, STIFFENED_GAS, x, u, combos, cell_nodes, runs, hourglass, with_length,
+                           eos, cell_material, mass, energy, viscosity_law, hourglass_control, out, rows)
+        else:
+            _evaluate_pure(TRIANGLE, False, -1, x, u, combos, cell_nodes, runs, hourglass, with_length, eos,
+                           cell_material, mass, energy, viscosity_law, hourglass_control, out, rows)
     else:
-        _evaluate_pure(QUADRILATERAL, x, u, combos, cell_nodes, runs, hourglass, with_length, eos, cell_material,
-                       mass, energy, viscosity_law, hourglass_control, out, rows)
+        if gas:
+            _evaluate_pure(QUADRILATERAL, False, STIFFENED_GAS, x, u, combos, cell_nodes, runs, hourglass,
+                           with_length, eos, cell_material, mass, energy, viscosity_law, hourglass_control, out, rows)
+        else:
+            _evaluate_pure(QUADRILATERAL, False, -1, x, u, combos, cell_nodes, runs, hourglass, with_length, eos,
+                           cell_material, mass, energy, viscosity_law, hourglass_control, out, rows)
 
 
 @numba.njit(**BODY)
@@ -323,9 +374,19 @@ def _scatter_corner(cell_type, stress, rows, cell_nodes, at, d, c, assign, targe
 
 
 @numba.njit(**BODY)
-def _scatter_corners(cell_type, stress, rows, cell_nodes, runs, mode, corner_is_run, scratch,
+def _scatter_corners(cell_type, running, stress, rows, cell_nodes, runs, mode, corner_is_run, scratch,
                      out):  # pragma: no cover (compiled)
-    at = node_access(runs)
+    at = node_access(runs, running)
+    n = cell_nodes.shape[0]
+    if (cell_type == INTERVAL and running and mode == RUNS and runs[0] == 0 and runs[1] == 1 and n > 0
+            and out.shape[1] == n + 1):
+        # cells numbered along the tube: node i gets −P_i + P_{i−1}, one pass (the same sums)
+        target = out[0]
+        target[0] = -stress[0]
+        for i in range(1, n):
+            target[i] = -stress[i] + stress[i - 1]
+        target[n] = 0.0 + stress[n - 1]
+        return
     for d in range(out.shape[0]):
         target = out[d]
         target[:] = 0.0
@@ -352,11 +413,14 @@ def scatter_corners(cell_type, stress, rows, cell_nodes, runs, mode, corner_is_r
       ``corner_is_run``) added directly;
     - FLAT: one running sum over the corners in turn."""
     if cell_type == INTERVAL:
-        _scatter_corners(INTERVAL, stress, rows, cell_nodes, runs, mode, corner_is_run, scratch, out)
+        if runs[4] == 1:
+            _scatter_corners(INTERVAL, True, stress, rows, cell_nodes, runs, mode, corner_is_run, scratch, out)
+        else:
+            _scatter_corners(INTERVAL, False, stress, rows, cell_nodes, runs, mode, corner_is_run, scratch, out)
     elif cell_type == TRIANGLE:
-        _scatter_corners(TRIANGLE, stress, rows, cell_nodes, runs, mode, corner_is_run, scratch, out)
+        _scatter_corners(TRIANGLE, False, stress, rows, cell_nodes, runs, mode, corner_is_run, scratch, out)
     else:
-        _scatter_corners(QUADRILATERAL, stress, rows, cell_nodes, runs, mode, corner_is_run, scratch, out)
+        _scatter_corners(QUADRILATERAL, False, stress, rows, cell_nodes, runs, mode, corner_is_run, scratch, out)
 
 
 # -- the step --------------------------------------------------------------------------------
@@ -409,11 +473,23 @@ def velocity_sum_and_position(u0, u, x0, dt, velocity_sum, x):  # pragma: no cov
 
 
 @numba.njit(**BODY)
-def _compatible_energy(cell_type, cell_nodes, runs, energy, mass, dt, shape_a, stress_a, shape_b, stress_b, two,
-                       hourglass, s0, s1, q, velocity_sum, combos_sum, out):  # pragma: no cover (compiled)
-    at = node_access(runs)
+def _compatible_energy(cell_type, running, cell_nodes, runs, energy, mass, dt, shape_a, stress_a, shape_b, stress_b,
+                       two, hourglass, s0, s1, q, velocity_sum, combos_sum, out):  # pragma: no cover (compiled)
+    # the loop is entered with ``two`` a constant: it reads stress_b only when it exists
+    if two:
+        _energy_loop(cell_type, running, cell_nodes, runs, energy, mass, dt, shape_a, stress_a, shape_b, stress_b,
+                     True, hourglass, s0, s1, q, velocity_sum, combos_sum, out)
+    else:
+        _energy_loop(cell_type, running, cell_nodes, runs, energy, mass, dt, shape_a, stress_a, shape_b, stress_b,
+                     False, hourglass, s0, s1, q, velocity_sum, combos_sum, out)
+
+
+@numba.njit(**BODY)
+def _energy_loop(cell_type, running, cell_nodes, runs, energy, mass, dt, shape_a, stress_a, shape_b, stress_b,
+                 two, hourglass, s0, s1, q, velocity_sum, combos_sum, out):  # pragma: no cover (compiled)
+    at = node_access(runs, running)
     for k in range(energy.size):
-        rate = volume_rate(cell_type, shape_a, cell_nodes, at, k, velocity_sum, combos_sum)
+        rate = volume_rate(cell_type, load_shape(cell_type, shape_a, k), cell_nodes, at, k, velocity_sum, combos_sum)
         if cell_type == INTERVAL:
             work = rate * (stress_a[k] + stress_b[k]) if two else rate * stress_a[k]
         else:
@@ -422,7 +498,8 @@ def _compatible_energy(cell_type, cell_nodes, runs, energy, mass, dt, shape_a, s
             if hourglass:
                 work += extra
             if two:
-                term = volume_rate(cell_type, shape_b, cell_nodes, at, k, velocity_sum, combos_sum) * stress_b[k]
+                term = volume_rate(cell_type, load_shape(cell_type, shape_b, k), cell_nodes, at, k, velocity_sum,
+                                   combos_sum) * stress_b[k]
                 if hourglass:
                     term += extra
                 work += term
@@ -441,26 +518,44 @@ def compatible_energy(cell_type, cell_nodes, runs, energy, mass, dt, shape_a, st
     reuses the start's: their work counts once per evaluation).  Intervals (∂V/∂x_i = ±1)
     sum the two stresses first."""
     if cell_type == INTERVAL:
-        _compatible_energy(INTERVAL, cell_nodes, runs, energy, mass, dt, shape_a, stress_a, shape_b, stress_b, two,
-                           hourglass, s0, s1, q, velocity_sum, combos_sum, out)
+        if runs[4] == 1:
+            _compatible_energy(INTERVAL, True, cell_nodes, runs, energy, mass, dt, shape_a, stress_a, shape_b,
+                               stress_b, two, hourglass, s0, s1, q, velocity_sum, combos_sum, out)
+        else:
+            _compatible_energy(INTERVAL, False, cell_nodes, runs, energy, mass, dt, shape_a, stress_a, shape_b,
+                               stress_b, two, hourglass, s0, s1, q, velocity_sum, combos_sum, out)
     elif cell_type == TRIANGLE:
-        _compatible_energy(TRIANGLE, cell_nodes, runs, energy, mass, dt, shape_a, stress_a, shape_b, stress_b, two,
-                           hourglass, s0, s1, q, velocity_sum, combos_sum, out)
-    else:
-        _compatible_energy(QUADRILATERAL, cell_nodes, runs, energy, mass, dt, shape_a, stress_a, shape_b, stress_b,
+        _compatible_energy(TRIANGLE, False, cell_nodes, runs, energy, mass, dt, shape_a, stress_a, shape_b, stress_b,
                            two, hourglass, s0, s1, q, velocity_sum, combos_sum, out)
+    else:
+        _compatible_energy(QUADRILATERAL, False, cell_nodes, runs, energy, mass, dt, shape_a, stress_a, shape_b,
+                           stress_b, two, hourglass, s0, s1, q, velocity_sum, combos_sum, out)
 
 
 @numba.njit(**LOOP)
-def time_limits(volume, length, sound_speed, jump, viscous, q_quadratic, q_linear, artificial, mixed_cells,
+def least(values):  # pragma: no cover (compiled)
+    """The least of ``values`` (NaN if any is; +∞ if empty), in four interleaved running
+    minima so that the comparisons do not wait on each other (the minimum of a set does not
+    depend on the order it is taken in)."""
+    m0 = m1 = m2 = m3 = np.inf
+    n = values.size
+    body = n - n % 4
+    for k in range(0, body, 4):
+        m0 = nan_min(m0, values[k])
+        m1 = nan_min(m1, values[k + 1])
+        m2 = nan_min(m2, values[k + 2])
+        m3 = nan_min(m3, values[k + 3])
+    for k in range(body, n):
+        m0 = nan_min(m0, values[k])
+    return nan_min(nan_min(m0, m1), nan_min(m2, m3))
+
+
+@numba.njit(**BODY)
+def _time_limits(running, volume, length, sound_speed, jump, viscous, q_quadratic, q_linear, artificial, mixed_cells,
                 mixed_sound_speed, acceleration, cell_nodes, runs, sound_times,
                 acceleration_ratio):  # pragma: no cover (compiled)
-    """Each cell's time step limits before the CFL number: ``sound_times`` from its signal
-    speed (a mixed cell also from the larger sound speed of its materials) and
-    ``acceleration_ratio`` L / a, a the largest acceleration of its nodes (``acceleration``
-    (dim, n_nodes), held directions removed).  Returns the least of each (NaN if any is)."""
     dim = acceleration.shape[0]
-    at = node_access(runs)
+    at = node_access(runs, running)
     for k in range(volume.size):
         stiffness = np.sqrt(volume[k]) / length[k] if viscous else 1.0
         sound_times[k] = cfl_time(sound_speed[k], jump[k], length[k], stiffness, q_quadratic, q_linear, artificial)
@@ -469,6 +564,12 @@ def time_limits(volume, length, sound_speed, jump, viscous, q_quadratic, q_linea
         stiffness = np.sqrt(volume[k]) / length[k] if viscous else 1.0
         sound_times[k] = nan_min(sound_times[k], cfl_time(mixed_sound_speed[j], jump[k], length[k], stiffness,
                                                           q_quadratic, q_linear, artificial))
+    if running:  # intervals: two nodes, k + offsets
+        _, offsets = at
+        for k in range(volume.size):
+            largest = nan_max(abs(acceleration[0, k + offsets[0]]), abs(acceleration[0, k + offsets[1]]))
+            acceleration_ratio[k] = length[k] / largest
+        return least(sound_times), least(acceleration_ratio)
     for k in range(volume.size):
         largest = 0.0
         for c in range(cell_nodes.shape[1]):
@@ -482,12 +583,24 @@ def time_limits(volume, length, sound_speed, jump, viscous, q_quadratic, q_linea
         if dim > 1:
             largest = np.sqrt(largest)
         acceleration_ratio[k] = length[k] / largest
-    least_sound, least_ratio = np.inf, np.inf
-    for k in range(volume.size):
-        least_sound = nan_min(least_sound, sound_times[k])
-    for k in range(volume.size):
-        least_ratio = nan_min(least_ratio, acceleration_ratio[k])
-    return least_sound, least_ratio
+    return least(sound_times), least(acceleration_ratio)
+
+
+@numba.njit(**LOOP)
+def time_limits(volume, length, sound_speed, jump, viscous, q_quadratic, q_linear, artificial, mixed_cells,
+                mixed_sound_speed, acceleration, cell_nodes, runs, sound_times,
+                acceleration_ratio):  # pragma: no cover (compiled)
+    """Each cell's time step limits before the CFL number: ``sound_times`` from its signal
+    speed (a mixed cell also from the larger sound speed of its materials) and
+    ``acceleration_ratio`` L / a, a the largest acceleration of its nodes (``acceleration``
+    (dim, n_nodes), held directions removed).  Returns the least of each (NaN if any is)."""
+    if acceleration.shape[0] == 1 and runs[4] == 1:
+        return _time_limits(True, volume, length, sound_speed, jump, viscous, q_quadratic, q_linear, artificial,
+                            mixed_cells, mixed_sound_speed, acceleration, cell_nodes, runs, sound_times,
+                            acceleration_ratio)
+    return _time_limits(False, volume, length, sound_speed, jump, viscous, q_quadratic, q_linear, artificial,
+                        mixed_cells, mixed_sound_speed, acceleration, cell_nodes, runs, sound_times,
+                        acceleration_ratio)
 
 
 @numba.njit(**LOOP)
@@ -583,11 +696,7 @@ def pure_step(cell_type, mesh, boundaries, eos, cell_material, viscosity_law, ho
     force0 = start[4]
     _stage(cell_type, mesh, boundaries, eos, cell_material, viscosity_law, hourglass_coefficient, dt,
            inverse_node_mass, start, force0, predicted, predicted, (start[8], start[9], start[10]), False, True)
-    volume = predicted[6]
-    least = np.inf
-    for k in range(volume.size):
-        least = nan_min(least, volume[k])
-    if not least > 0.0:
+    if not least(predicted[6]) > 0.0:
         return 1
     predicted_force = predicted[17]
     for d in range(mean_force.shape[0]):

@@ -7,7 +7,9 @@ element-wise kernels are single-threaded)."""
 
 from __future__ import annotations
 
+import importlib.util
 import time
+from pathlib import Path
 
 import numpy as np
 
@@ -19,7 +21,10 @@ DEFAULT_SIZES = (1_000, 10_000, 100_000, 1_000_000)
 
 
 def explicit_loop_rate(cells: int, steps: int, scene: str = "sod", repeats: int = 3) -> dict:
-    """``cells``: 1D cells, or in 2D the zones of a square mesh of √cells × √cells."""
+    """``cells``: 1D cells, or in 2D the zones of a square mesh of √cells × √cells.  Times
+    ``steps`` steps two ways, each the best of ``repeats``: called one by one from Python
+    at a fixed dt (``ExplicitWilkins.step``), and as a run takes them (the compiled chunks of
+    ``ExplicitWilkins.pure_steps``, each step's dt from the CFL condition)."""
     path = resolve_scene_path(scene)
     size = f"mesh.cells={cells}"
     if load_scene(path).dimension == 2:
@@ -41,8 +46,20 @@ def explicit_loop_rate(cells: int, steps: int, scene: str = "sod", repeats: int 
         for _ in range(steps):
             current, current_eval, _, _ = stepper.step(current, dt, current_eval)
         best = min(best, time.perf_counter() - clock)
+    # as a run takes them (ale_xfem.run.simulate): the same number of steps from the same state
+    clock_state = {"t_end": problem.scene.t_end, "dt_previous": dt, "growth": problem.scene.numerics.dt_growth,
+                   "budget": steps, "steps_left": steps, "watch_stall": False, "boundary_work": 0.0}
+    stepper.pure_steps(state, evaluation, dict(clock_state, budget=1), np.zeros(problem.mesh.dimension))  # warm-up
+    best_run, run_steps = np.inf, 0
+    for _ in range(repeats):
+        clock = time.perf_counter()
+        taken = stepper.pure_steps(state, evaluation, dict(clock_state), np.zeros(problem.mesh.dimension))[0]
+        elapsed = time.perf_counter() - clock
+        if taken and elapsed / taken < best_run:
+            best_run, run_steps = elapsed / taken, taken
     return {"cells": cells, "steps": steps, "seconds_per_step": best / steps,
-            "zone_cycles_per_second": cells * steps / best}
+            "zone_cycles_per_second": cells * steps / best, "run_steps": run_steps,
+            "run_seconds_per_step": best_run, "run_zone_cycles_per_second": cells / best_run}
 
 
 def steps_for(cells: int, dimension: int = 1) -> int:
@@ -51,15 +68,42 @@ def steps_for(cells: int, dimension: int = 1) -> int:
     return int(max(10, min(2000, 2e7 // cells)))
 
 
+BENCHMARKS = Path(__file__).resolve().parents[2] / "benchmarks"
+
+
+def plain_numpy_step(cells: int, dimension: int, steps: int) -> float | None:
+    """Seconds a step of the plain numpy loop of the repository's ``benchmarks/`` (the
+    scheme's arithmetic as whole-array numpy expressions: 1D plain_1d_remap.py, 2D
+    plain_quad_step.py), best of 3; None outside a source checkout."""
+    script = BENCHMARKS / ("plain_1d_remap.py" if dimension == 1 else "plain_quad_step.py")
+    if not script.is_file():
+        return None
+    spec = importlib.util.spec_from_file_location(f"plain_{dimension}d", script)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    if dimension == 1:
+        return module.cycle_seconds("numpy", cells, steps)["pure"]
+    return module.step_seconds("numpy", cells, steps)[0]
+
+
 def run_bench(sizes=DEFAULT_SIZES, scene: str = "sod", out=print) -> list[dict]:
-    out(f"explicit Wilkins loop, scene '{scene}', best of 3 (one core)")
-    out(f"{'cells':>10} {'steps':>6} {'us/step':>10} {'zone-cycles/s':>15}")
+    dimension = load_scene(resolve_scene_path(scene)).dimension
+    out(f"explicit Wilkins loop, scene '{scene}', one core, best of 3: steps called from Python (fixed dt), "
+        f"steps as a run takes them (compiled chunks, CFL dt), and the plain numpy loop of benchmarks/ "
+        f"(the same scheme's arithmetic as whole-array numpy expressions) in the same process")
+    out(f"{'cells':>10} {'steps':>6} {'called us/step':>15} {'run us/step':>12} {'run zone-cycles/s':>18} "
+        f"{'numpy us/step':>14} {'run / numpy':>12}")
     rows = []
     for cells in sizes:
-        row = explicit_loop_rate(cells, steps_for(cells, load_scene(resolve_scene_path(scene)).dimension), scene)
+        steps = steps_for(cells, dimension)
+        row = explicit_loop_rate(cells, steps, scene)
+        plain = plain_numpy_step(row["cells"], dimension, min(row["steps"], 50))
+        row["numpy_seconds_per_step"] = plain
         rows.append(row)
-        out(f"{row['cells']:>10d} {row['steps']:>6d} {1e6 * row['seconds_per_step']:>10.1f} "
-            f"{row['zone_cycles_per_second']:>15.3e}")
+        out(f"{row['cells']:>10d} {row['steps']:>6d} {1e6 * row['seconds_per_step']:>15.1f} "
+            f"{1e6 * row['run_seconds_per_step']:>12.1f} {row['run_zone_cycles_per_second']:>18.3e} "
+            + (f"{1e6 * plain:>14.1f} {plain / row['run_seconds_per_step']:>11.2f}x" if plain is not None
+               else f"{'(no benchmarks/)':>27}"))
     return rows
 
 
