@@ -6,6 +6,15 @@ from pathlib import Path
 
 __version__ = "0.1.0"
 
+# One BLAS thread.  The per-step work is compiled loops and numpy's element-wise kernels,
+# which are single-threaded; what BLAS remains on a step's path (a wall's normal component
+# in the 2D remap, `normal @ u`) is a product of a few hundred numbers, which OpenBLAS's
+# default threads made slower, not faster: np.dot of 10⁵ doubles took 4–8 ms with them on a
+# loaded two-core machine against 26 µs with one.  Set before numpy is first imported (the
+# command line imports this package first); a value already in the environment is kept.
+for _variable in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_variable, "1")
+
 # The compiled kernels (numba, cache=True) are cached in a folder named after the source of
 # every module that holds kernels.  numba checks a cached kernel against its own file only:
 # a kernel that inlines another file's (the fused loop inlines the equations of state) would
