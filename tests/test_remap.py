@@ -205,6 +205,7 @@ def test_swept_remap_redoes_nodes_that_moved_more_than_half_a_cell(scene):
     further (here 0.7 of a cell, in a smooth region and next to the interface) has its
     cells redone in a window, and the result is still the general intersection's."""
     from ale_xfem.remap import swept_1d as remap_swept
+    from ale_xfem.remap import swept_kernels
     from ale_xfem.remap.intersection_1d import remap_1d
     from ale_xfem.remap.remapper_1d import Remapper
     from ale_xfem.run import make_stepper
@@ -226,13 +227,13 @@ def test_swept_remap_redoes_nodes_that_moved_more_than_half_a_cell(scene):
                  stepper.layout.cell_material, state.material_mass, state.material_energy,
                  state.material_volume, remapper.corner_mass, state.node_velocity, cells, velocity,
                  len(problem.materials), 2)
-    kernel = remap_swept._pure_kernel
+    kernel = swept_kernels.pure_cells
     seen = []
-    remap_swept._pure_kernel = lambda *a: seen.append(kernel(*a)) or seen[-1]
+    swept_kernels.pure_cells = lambda *a: seen.append(kernel(*a)) or seen[-1]
     try:
         swept = remap_swept.remap_1d_swept(*arguments)
     finally:
-        remap_swept._pure_kernel = kernel
+        swept_kernels.pure_cells = kernel
     assert seen and 20 in seen[0][-1]  # the kernel handed node 20 to a window
     general = remap_1d(*arguments)
     assert swept is not None, remap_swept._too_far.last_reason
@@ -339,3 +340,63 @@ def test_a_remap_onto_the_unmoved_mesh_is_the_identity(scene, overrides, order):
                                atol=1e-14 * max(np.abs(state.node_velocity).max(), 1.0))
     np.testing.assert_allclose(node_mass, problem.node_mass, rtol=1e-14)
     assert abs(kinetic_change) <= 1e-14 * float(np.sum(problem.node_mass * state.node_velocity**2))
+
+
+def _swept_kernel_inputs(rng, n, components, case):
+    """A tube of n cells for the swept remap's whole-mesh pass: ``case`` "smooth" (random
+    fields), "steps" (piecewise-constant fields: exact zero gradients), "negative" (some
+    negative energies: bounded slopes), "far" (nodes moving by more than half a cell),
+    "still" (no node moves: every displacement a signed zero)."""
+    widths = 1.0 + 0.3 * rng.random(n)
+    x = np.concatenate([[0.0], np.cumsum(widths)]) / widths.sum()
+    width = np.diff(x)
+    move = np.zeros(n + 1)
+    move[1:-1] = 0.2 * np.minimum(width[:-1], width[1:]) * rng.uniform(-1, 1, n - 1)
+    if case == "far" and n > 2:
+        move[n // 2] = 0.7 * width[n // 2]
+    X = x if case == "still" else x + move
+    if case == "steps":
+        rho = np.where(np.arange(n) < n // 2, 1.0, 0.125)
+        e = np.where(np.arange(n) < n // 2, 2.5, 2.0)
+        u = np.where(np.arange(n + 1) < n // 3, 0.5, 0.0) * np.ones((components, 1))
+    else:
+        rho = 1.0 + rng.random(n)
+        e = 2.0 + rng.random(n) - (3.0 * (np.arange(n) % 3 == 0) if case == "negative" else 0.0)
+        u = rng.normal(size=(components, n + 1))
+    mass = rho * width
+    share = np.where(rng.random(n) < 0.5, 0.5, 0.3 + 0.4 * rng.random(n))
+    corner = np.array([share * mass, mass - share * mass])
+    return x, X, mass, e, corner, u
+
+
+@pytest.mark.parametrize("order", [1, 2])
+@pytest.mark.parametrize("components", [1, 2])
+def test_the_compiled_swept_kernel_gives_the_numpy_kernels_bits(order, components):
+    """The swept remap's whole-mesh pass, compiled, against the numpy code it replaced
+    (tests/oracles.py): the same bits (signs of zeros included) in every output, for tubes
+    of 1 to 40 cells, smooth and piecewise-constant fields, negative energies, nodes moving
+    by more than half a cell and nodes not moving at all, with and without the kinetic
+    energy balance."""
+    from oracles import pure_kernel
+
+    from ale_xfem.remap.swept_kernels import pure_cells
+
+    def bits(a):
+        return np.ascontiguousarray(a, dtype=float).view(np.uint64)
+
+    rng = np.random.default_rng(11)
+    for n in (1, 2, 3, 40):
+        for case in ("smooth", "steps", "negative", "far", "still"):
+            x, X, mass, e, corner, u = _swept_kernel_inputs(rng, n, components, case)
+            for slots, heat in ((1, True), (2, False)):
+                expected = pure_kernel(x, X, mass, e, corner, u, order, slots, heat)
+                got = pure_cells(x, X, mass, e, corner, u, order, slots, heat)
+                label = f"n = {n}, {case}, slots {slots}, heat {heat}"
+                for name, a, b in zip(("mass", "energy", "corner", "node mass", "momentum"), expected[:5], got[:5]):
+                    if name == "corner":  # row 0 is the caller's
+                        a, b = a[1], b[1]
+                    np.testing.assert_array_equal(bits(b), bits(a), err_msg=f"{name}, {label}")
+                assert float(got[5].sum()) == expected[5], label
+                if heat:
+                    np.testing.assert_array_equal(bits(got[6]), bits(expected[6]), err_msg=f"kinetic, {label}")
+                np.testing.assert_array_equal(got[7], expected[7], err_msg=f"far nodes, {label}")

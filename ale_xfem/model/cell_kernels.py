@@ -46,14 +46,16 @@ CELL_TYPE_CODES = {"interval": INTERVAL, "triangle": TRIANGLE, "quadrilateral": 
 
 @numba.njit(**LOOP)
 def nan_max(a, b):  # pragma: no cover (compiled)
-    """np.maximum of two numbers: NaN if either is (one select, which vectorises)."""
-    return a if (a >= b or a != a) else b
+    """np.maximum of two numbers: NaN if either is (one select, which vectorises; ``|``, not
+    ``or``, which branches)."""
+    return a if (a >= b) | (a != a) else b
 
 
 @numba.njit(**LOOP)
 def nan_min(a, b):  # pragma: no cover (compiled)
-    """np.minimum of two numbers: NaN if either is (one select, which vectorises)."""
-    return a if (a <= b or a != a) else b
+    """np.minimum of two numbers: NaN if either is (one select, which vectorises; ``|``, not
+    ``or``, which branches)."""
+    return a if (a <= b) | (a != a) else b
 
 
 @numba.njit(**LOOP)
