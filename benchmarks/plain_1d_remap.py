@@ -178,10 +178,11 @@ def loop_kernels():
 KERNELS = {"numpy": numpy_kernels, "loops": loop_kernels}
 
 
-def cycle_seconds(kernel: str = "numpy", cells: int = 100000, steps: int = 50, repeats: int = 3) -> dict:
-    """Seconds a step of the pure Lagrangian loop ("pure") and of the Eulerian cycle
-    ("eulerian"), each the best of ``repeats`` timings of ``steps`` steps after a warm-up
-    (``ale-xfem bench`` calls it for the numpy reference)."""
+def cycle_seconds(kernel: str = "numpy", cells: int = 100000, steps: int = 50, repeats: int = 3,
+                  eulerian: bool = True) -> dict:
+    """Seconds a step of the pure Lagrangian loop ("pure") and (``eulerian``) of the
+    Eulerian cycle ("eulerian"), each the best of ``repeats`` timings of ``steps`` steps
+    after a warm-up (``ale-xfem bench`` calls it for the numpy reference)."""
     forces, remap = KERNELS[kernel]()
     dt = 0.1 / cells
 
@@ -204,7 +205,7 @@ def cycle_seconds(kernel: str = "numpy", cells: int = 100000, steps: int = 50, r
         for _ in range(count):
             x, u, e, start = lagrange(x, u, mass, e, node_mass, start, True)
 
-    def eulerian(count):
+    def eulerian_cycle(count):
         x0, u, mass, e, node_mass = sod_tube(cells)
         start = forces(x0, u, mass, e)
         for _ in range(count):
@@ -213,7 +214,7 @@ def cycle_seconds(kernel: str = "numpy", cells: int = 100000, steps: int = 50, r
             start = forces(x0, u, mass, e)
 
     seconds = {}
-    for name, run in (("pure", pure), ("eulerian", eulerian)):
+    for name, run in (("pure", pure), ("eulerian", eulerian_cycle))[:2 if eulerian else 1]:
         run(3)  # warm-up (and numba's compilation)
         best = np.inf
         for _ in range(repeats):

@@ -20,14 +20,18 @@ from ale_xfem.scene import load_scene, resolve_scene_path
 DEFAULT_SIZES = (1_000, 10_000, 100_000, 1_000_000)
 
 
-def explicit_loop_rate(cells: int, steps: int, scene: str = "sod", repeats: int = 3) -> dict:
+def explicit_loop_rate(cells: int, steps: int, scene: str = "sod", rounds: int = 3) -> dict:
     """``cells``: 1D cells, or in 2D the zones of a square mesh of √cells × √cells.  Times
-    ``steps`` steps two ways, each the best of ``repeats``: called one by one from Python
-    at a fixed dt (``ExplicitWilkins.step``), and as a run takes them (the compiled chunks of
-    ``ExplicitWilkins.pure_steps``, each step's dt from the CFL condition)."""
+    ``steps`` steps three ways, in turn within each of ``rounds`` rounds: called one by one
+    from Python at a fixed dt (``ExplicitWilkins.step``); as a run takes them (the compiled
+    chunks of ``ExplicitWilkins.pure_steps``, each step's dt from the CFL condition); and the
+    plain numpy loop of ``benchmarks/`` (:func:`plain_numpy_step`).  Each time is the fastest
+    round's, the ratio numpy / run the median of the rounds' own (a ratio of timings taken
+    minutes apart would carry the machine's drift), with its range."""
     path = resolve_scene_path(scene)
     size = f"mesh.cells={cells}"
-    if load_scene(path).dimension == 2:
+    dimension = load_scene(path).dimension
+    if dimension == 2:
         side = int(round(np.sqrt(cells)))
         cells, size = side * side, f"mesh.cells=[{side},{side}]"
     problem = build_problem(load_scene(path, [size]))
@@ -39,27 +43,31 @@ def explicit_loop_rate(cells: int, steps: int, scene: str = "sod", repeats: int 
     # the CFL limit of the start)
     steps = int(max(1, min(steps, problem.scene.t_end / dt - 1)))
     state, evaluation, _, _ = stepper.step(state, dt, evaluation)  # warm-up
-    best = np.inf
-    for _ in range(repeats):
-        current, current_eval = state, evaluation
-        clock = time.perf_counter()
-        for _ in range(steps):
-            current, current_eval, _, _ = stepper.step(current, dt, current_eval)
-        best = min(best, time.perf_counter() - clock)
     # as a run takes them (ale_xfem.run.simulate): the same number of steps from the same state
     clock_state = {"t_end": problem.scene.t_end, "dt_previous": dt, "growth": problem.scene.numerics.dt_growth,
                    "budget": steps, "steps_left": steps, "watch_stall": False, "boundary_work": 0.0}
     stepper.pure_steps(state, evaluation, dict(clock_state, budget=1), np.zeros(problem.mesh.dimension))  # warm-up
-    best_run, run_steps = np.inf, 0
-    for _ in range(repeats):
+    plain = plain_numpy_loop(dimension)
+    called, run, numpy_step, ratios, run_steps = np.inf, np.inf, np.inf, [], 0
+    for _ in range(rounds):
+        current, current_eval = state, evaluation
+        clock = time.perf_counter()
+        for _ in range(steps):
+            current, current_eval, _, _ = stepper.step(current, dt, current_eval)
+        called = min(called, (time.perf_counter() - clock) / steps)
         clock = time.perf_counter()
         taken = stepper.pure_steps(state, evaluation, dict(clock_state), np.zeros(problem.mesh.dimension))[0]
-        elapsed = time.perf_counter() - clock
-        if taken and elapsed / taken < best_run:
-            best_run, run_steps = elapsed / taken, taken
-    return {"cells": cells, "steps": steps, "seconds_per_step": best / steps,
-            "zone_cycles_per_second": cells * steps / best, "run_steps": run_steps,
-            "run_seconds_per_step": best_run, "run_zone_cycles_per_second": cells / best_run}
+        this_run = (time.perf_counter() - clock) / max(taken, 1)
+        if taken and this_run < run:
+            run, run_steps = this_run, taken
+        if plain is not None:
+            this_numpy = plain(cells, min(steps, 50))
+            numpy_step = min(numpy_step, this_numpy)
+            ratios.append(this_numpy / this_run)
+    return {"cells": cells, "steps": steps, "seconds_per_step": called, "zone_cycles_per_second": cells / called,
+            "run_steps": run_steps, "run_seconds_per_step": run, "run_zone_cycles_per_second": cells / run,
+            "numpy_seconds_per_step": numpy_step if plain is not None else None,
+            "numpy_over_run": (float(np.median(ratios)), min(ratios), max(ratios)) if ratios else None}
 
 
 def steps_for(cells: int, dimension: int = 1) -> int:
@@ -71,10 +79,11 @@ def steps_for(cells: int, dimension: int = 1) -> int:
 BENCHMARKS = Path(__file__).resolve().parents[2] / "benchmarks"
 
 
-def plain_numpy_step(cells: int, dimension: int, steps: int) -> float | None:
-    """Seconds a step of the plain numpy loop of the repository's ``benchmarks/`` (the
-    scheme's arithmetic as whole-array numpy expressions: 1D plain_1d_remap.py, 2D
-    plain_quad_step.py), best of 3; None outside a source checkout."""
+def plain_numpy_loop(dimension: int):
+    """The plain numpy loop of the repository's ``benchmarks/`` (the scheme's arithmetic as
+    whole-array numpy expressions: 1D plain_1d_remap.py, 2D plain_quad_step.py) as a
+    function (cells, steps) → seconds a step (one timing after a warm-up); None outside a
+    source checkout."""
     script = BENCHMARKS / ("plain_1d_remap.py" if dimension == 1 else "plain_quad_step.py")
     if not script.is_file():
         return None
@@ -82,28 +91,29 @@ def plain_numpy_step(cells: int, dimension: int, steps: int) -> float | None:
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     if dimension == 1:
-        return module.cycle_seconds("numpy", cells, steps)["pure"]
-    return module.step_seconds("numpy", cells, steps)[0]
+        return lambda cells, steps: module.cycle_seconds("numpy", cells, steps, repeats=1, eulerian=False)["pure"]
+    return lambda cells, steps: module.step_seconds("numpy", cells, steps, repeats=1)[0]
 
 
 def run_bench(sizes=DEFAULT_SIZES, scene: str = "sod", out=print) -> list[dict]:
-    dimension = load_scene(resolve_scene_path(scene)).dimension
-    out(f"explicit Wilkins loop, scene '{scene}', one core, best of 3: steps called from Python (fixed dt), "
-        f"steps as a run takes them (compiled chunks, CFL dt), and the plain numpy loop of benchmarks/ "
-        f"(the same scheme's arithmetic as whole-array numpy expressions) in the same process")
+    out(f"explicit Wilkins loop, scene '{scene}', one core, fastest of 3 interleaved rounds: steps called from "
+        f"Python (fixed dt), steps as a run takes them (compiled chunks, CFL dt), and the plain numpy loop of "
+        f"benchmarks/ (the same scheme's arithmetic as whole-array numpy expressions) in the same process; "
+        f"numpy/run: median of the rounds' (range)")
     out(f"{'cells':>10} {'steps':>6} {'called us/step':>15} {'run us/step':>12} {'run zone-cycles/s':>18} "
-        f"{'numpy us/step':>14} {'run / numpy':>12}")
+        f"{'numpy us/step':>14} {'numpy/run':>10} {'range':>12}")
     rows = []
     for cells in sizes:
-        steps = steps_for(cells, dimension)
-        row = explicit_loop_rate(cells, steps, scene)
-        plain = plain_numpy_step(row["cells"], dimension, min(row["steps"], 50))
-        row["numpy_seconds_per_step"] = plain
+        dimension = load_scene(resolve_scene_path(scene)).dimension
+        row = explicit_loop_rate(cells, steps_for(cells, dimension), scene)
         rows.append(row)
-        out(f"{row['cells']:>10d} {row['steps']:>6d} {1e6 * row['seconds_per_step']:>15.1f} "
-            f"{1e6 * row['run_seconds_per_step']:>12.1f} {row['run_zone_cycles_per_second']:>18.3e} "
-            + (f"{1e6 * plain:>14.1f} {plain / row['run_seconds_per_step']:>11.2f}x" if plain is not None
-               else f"{'(no benchmarks/)':>27}"))
+        line = (f"{row['cells']:>10d} {row['steps']:>6d} {1e6 * row['seconds_per_step']:>15.1f} "
+                f"{1e6 * row['run_seconds_per_step']:>12.1f} {row['run_zone_cycles_per_second']:>18.3e} ")
+        if row["numpy_over_run"] is None:
+            out(line + f"{'(no benchmarks/)':>27}")
+        else:
+            median, low, high = row["numpy_over_run"]
+            out(line + f"{1e6 * row['numpy_seconds_per_step']:>14.1f} {median:>10.2f} {low:>5.2f}–{high:<6.2f}")
     return rows
 
 
