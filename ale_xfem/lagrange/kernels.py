@@ -23,9 +23,8 @@ import numba
 import numpy as np
 
 from ale_xfem.eos.kernels import BODY, LOOP, STIFFENED_GAS, pressure_sound_speed
-from ale_xfem.model.cell_kernels import (INTERVAL, QUADRILATERAL, TRIANGLE, cell_shape, cfl_length, least_corner_jacobian,
-                                         load_shape, nan_max, nan_min, node, node_access, quad_combinations,
-                                         store_shape)
+from ale_xfem.model.cell_kernels import (INTERVAL, QUADRILATERAL, TRIANGLE, geometry_of_cell, load_shape, nan_max,
+                                         nan_min, node, node_access, quad_combinations, store_shape)
 
 # how corner values are summed onto the nodes (ExplicitWilkins.scatter_mode)
 RUNS, PER_CORNER, FLAT = 0, 1, 2
@@ -181,12 +180,8 @@ def _geometry_and_rates(cell_type, running, x, u, combos, cell_nodes, runs, hour
                         mass, volume, shape, least_corner, length, density, jump):  # pragma: no cover (compiled)
     at = node_access(runs, running)
     for k in range(volume.size):
-        v, s = cell_shape(cell_type, x, cell_nodes, at, k, hourglass)
-        volume[k] = v
-        if cell_type == QUADRILATERAL and least_corner.size:
-            least_corner[k] = least_corner_jacobian(v, s)
-        if cell_type != INTERVAL and with_length:  # an interval's is its length, the volume
-            length[k] = cfl_length(cell_type, x, cell_nodes, at, k, v, s)
+        v, s = geometry_of_cell(cell_type, x, cell_nodes, at, k, hourglass, volume, least_corner, with_length,
+                                length)
         if with_density:
             density[k] = mass[k] / v
         jump[k] = velocity_jump(cell_type, v, volume_rate(cell_type, s, cell_nodes, at, k, u, combos))
@@ -291,12 +286,8 @@ def _evaluate_pure(cell_type, running, kind, x, u, combos, cell_nodes, runs, hou
     volume, shape, least_corner, length, density, pressure, sound_speed, jump, viscosity, stress = out
     at = node_access(runs, running)
     for k in range(volume.size):
-        v, s = cell_shape(cell_type, x, cell_nodes, at, k, hourglass)
-        volume[k] = v
-        if cell_type == QUADRILATERAL and least_corner.size:
-            least_corner[k] = least_corner_jacobian(v, s)
-        if cell_type != INTERVAL and with_length:  # an interval's is its length, the volume
-            length[k] = cfl_length(cell_type, x, cell_nodes, at, k, v, s)
+        v, s = geometry_of_cell(cell_type, x, cell_nodes, at, k, hourglass, volume, least_corner, with_length,
+                                length)
         rho = mass[k] / v
         density[k] = rho
         material = 0 if kind >= 0 else cell_material[k]

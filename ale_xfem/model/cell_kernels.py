@@ -185,16 +185,29 @@ def least_corner_jacobian(volume, s):  # pragma: no cover (compiled)
     return nan_max(across_r, across_p) * -0.5 + volume
 
 
+@numba.njit(**LOOP)
+def geometry_of_cell(cell_type, x, cell_nodes, at, k, hourglass, volume, least_corner, with_length,
+                     length):  # pragma: no cover (compiled)
+    """Cell k's volume (written to ``volume``) and shape (returned, :func:`cell_shape`); and
+    where asked its least corner det J (quadrilaterals, ``least_corner`` not empty) and its
+    CFL length (2D, ``with_length``; an interval's is its volume), written to their arrays.
+    Returns (volume, shape)."""
+    v, s = cell_shape(cell_type, x, cell_nodes, at, k, hourglass)
+    volume[k] = v
+    if cell_type == QUADRILATERAL and least_corner.size:
+        least_corner[k] = least_corner_jacobian(v, s)
+    if cell_type != INTERVAL and with_length:
+        length[k] = cfl_length(cell_type, x, cell_nodes, at, k, v, s)
+    return v, s
+
+
 @numba.njit(**BODY)
 def _cell_geometry(cell_type, running, x, cell_nodes, runs, hourglass, volume, shape,
                    least_corner):  # pragma: no cover
     at = node_access(runs, running)
     for k in range(volume.size):
-        v, s = cell_shape(cell_type, x, cell_nodes, at, k, hourglass)
-        volume[k] = v
+        _, s = geometry_of_cell(cell_type, x, cell_nodes, at, k, hourglass, volume, least_corner, False, volume)
         store_shape(cell_type, s, hourglass, shape, k)
-        if cell_type == QUADRILATERAL and least_corner.size:
-            least_corner[k] = least_corner_jacobian(v, s)
 
 
 @numba.njit(**LOOP)
