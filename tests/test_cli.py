@@ -2,6 +2,7 @@
 
 import csv
 import json
+import os
 import subprocess
 import sys
 import tomllib
@@ -192,3 +193,27 @@ def test_the_progress_bar_reports_simulated_time_and_steps_and_is_silent_when_re
     assert "t = 0.2 / 0.2" in shown and f"step {result.steps}" in shown and "100%" in shown
     simulate(build_problem(problem.scene), Progress(problem.scene.t_end))  # stderr is captured: not a terminal
     assert capsys.readouterr().err == ""
+
+
+@pytest.mark.parametrize("scene, overrides, output", [
+    ("sod", ["mesh.cells=20"], "profile.csv"),
+    ("sod-two-gamma-enriched", ["mesh.cells=40", "mesh.motion=eulerian"], "profile.csv"),
+    ("sod-2d", ["mesh.cells=[6,6]"], "cells.csv"),
+    ("noh", ["mesh.cells=[6,6]", "mesh.cell_type=triangle"], "cells.csv"),
+])
+def test_the_kernels_run_as_plain_python_with_the_compiled_results(tmp_path, scene, overrides, output):
+    """NUMBA_DISABLE_JIT=1 (the way to step through a kernel in a debugger, README) runs
+    every compiled kernel as plain Python: the runs it makes — 1D, an enriched interface
+    through the swept remap, quadrilaterals with hourglass control, triangles — write the
+    same bytes as the compiled kernels'."""
+    files = {}
+    for label, environment in (("compiled", {}), ("python", {"NUMBA_DISABLE_JIT": "1"})):
+        out = tmp_path / label
+        args = ["run", scene, *(a for o in overrides for a in ("--set", o)), "--quiet", "--no-plot", "--out", str(out)]
+        if load_scene(resolve_scene_path(scene)).dimension == 2:
+            args += ["--frames", "0"]
+        done = subprocess.run([sys.executable, "-m", "ale_xfem.cli", *args], capture_output=True, text=True,
+                              env={**os.environ, **environment})
+        assert done.returncode == 0, done.stderr
+        files[label] = (out / output).read_bytes()
+    assert files["python"] == files["compiled"]
