@@ -277,7 +277,7 @@ def stress_and_corner_forces(cell_type, volume, shape, combos, jump, density, so
 
 
 @numba.njit(**BODY)
-def _evaluate_pure(cell_type, running, kind, x, u, combos, cell_nodes, runs, hourglass, with_length, eos,
+def _evaluate_pure(cell_type, running, kind, store, x, u, combos, cell_nodes, runs, hourglass, with_length, eos,
                    cell_material, mass, energy, viscosity_law, hourglass_control, out,
                    rows):  # pragma: no cover (compiled)
     kinds, parameters = eos
@@ -289,14 +289,16 @@ def _evaluate_pure(cell_type, running, kind, x, u, combos, cell_nodes, runs, hou
         v, s = geometry_of_cell(cell_type, x, cell_nodes, at, k, hourglass, volume, least_corner, with_length,
                                 length)
         rho = mass[k] / v
-        density[k] = rho
         material = 0 if kind >= 0 else cell_material[k]
         p, c = pressure_sound_speed(kind if kind >= 0 else kinds[material], parameters, material, rho, energy[k])
-        pressure[k], sound_speed[k] = p, c
+        sound_speed[k] = c
+        if store:
+            density[k], pressure[k] = rho, p
         du = velocity_jump(cell_type, v, volume_rate(cell_type, s, cell_nodes, at, k, u, combos))
         jump[k] = du
         qk = artificial_viscosity(q_quadratic, q_linear, du, rho, c) if artificial else 0.0
-        viscosity[k] = qk
+        if store:
+            viscosity[k] = qk
         pk = p + qk if artificial else p
         stress[k] = pk
         a, b, qx, qy = cell_hourglass(cell_type, compute_hourglass, hourglass_forces, v, s, combos, rho, c,
@@ -322,23 +324,30 @@ def evaluate_pure(cell_type, x, u, combos, cell_nodes, runs, hourglass, with_len
     alone); otherwise each cell's model is chosen in the loop (ale_xfem.eos.kernels).  In 2D
     the cells' nodes are gathered through ``cell_nodes`` and the loop stays scalar: there
     the constant model gained 6 % (2.9 against 3.1 ms at 10⁵ quadrilaterals), not worth
-    the compile time of two more loops."""
+    the compile time of two more loops.
+
+    Empty density, pressure and viscosity arrays: those are not stored (a lean evaluation,
+    :func:`pure_steps`); what the step goes on with is."""
     gas = eos[0].size == 1 and eos[0][0] == STIFFENED_GAS
+    store = out[4].size > 0
     if cell_type == INTERVAL:
-        if runs[4] == 1 and gas:
-            _evaluate_pure(INTERVAL, True, STIFFENED_GAS, x, u, combos, cell_nodes, runs, hourglass, with_length, eos,
-                           cell_material, mass, energy, viscosity_law, hourglass_control, out, rows)
+        if runs[4] == 1 and gas and store:
+            _evaluate_pure(INTERVAL, True, STIFFENED_GAS, True, x, u, combos, cell_nodes, runs, hourglass,
+                           with_length, eos, cell_material, mass, energy, viscosity_law, hourglass_control, out, rows)
+        elif runs[4] == 1 and gas:
+            _evaluate_pure(INTERVAL, True, STIFFENED_GAS, False, x, u, combos, cell_nodes, runs, hourglass,
+                           with_length, eos, cell_material, mass, energy, viscosity_law, hourglass_control, out, rows)
         elif runs[4] == 1:
-            _evaluate_pure(INTERVAL, True, -1, x, u, combos, cell_nodes, runs, hourglass, with_length, eos,
+            _evaluate_pure(INTERVAL, True, -1, store, x, u, combos, cell_nodes, runs, hourglass, with_length, eos,
                            cell_material, mass, energy, viscosity_law, hourglass_control, out, rows)
         else:
-            _evaluate_pure(INTERVAL, False, -1, x, u, combos, cell_nodes, runs, hourglass, with_length, eos,
+            _evaluate_pure(INTERVAL, False, -1, store, x, u, combos, cell_nodes, runs, hourglass, with_length, eos,
                            cell_material, mass, energy, viscosity_law, hourglass_control, out, rows)
     elif cell_type == TRIANGLE:
-        _evaluate_pure(TRIANGLE, False, -1, x, u, combos, cell_nodes, runs, hourglass, with_length, eos,
+        _evaluate_pure(TRIANGLE, False, -1, store, x, u, combos, cell_nodes, runs, hourglass, with_length, eos,
                        cell_material, mass, energy, viscosity_law, hourglass_control, out, rows)
     else:
-        _evaluate_pure(QUADRILATERAL, False, -1, x, u, combos, cell_nodes, runs, hourglass, with_length, eos,
+        _evaluate_pure(QUADRILATERAL, False, -1, store, x, u, combos, cell_nodes, runs, hourglass, with_length, eos,
                        cell_material, mass, energy, viscosity_law, hourglass_control, out, rows)
 
 
@@ -630,11 +639,34 @@ def healthy(volume, sound_speed, energy, stress, least_corner):  # pragma: no co
 
 
 @numba.njit(**LOOP)
+def evaluate_stage(cell_type, mesh, eos, cell_material, viscosity_law, hourglass_coefficient, mass, hourglass,
+                   state, hourglass_state, corrector, lean):  # pragma: no cover (compiled)
+    """The forces of a stage's state (``state``: pure_step's arrays of it): the predicted
+    state takes the start's hourglass forces (``hourglass``: whether they act) and needs no
+    tangle check and no CFL length; the final state (``corrector``) has its own hourglass
+    forces.  ``lean``: its density, pressure and viscosity are not stored."""
+    cell_nodes, runs, mode, corner_is_run, scratch = mesh
+    (u, _, x, combos, _, e, volume, shape, least_corner, length, density, pressure,
+     sound_speed, jump, viscosity, stress, rows, nodal_force) = state
+    compute = corrector and cell_type == QUADRILATERAL and hourglass_coefficient > 0.0
+    hourglass_s0, hourglass_s1, hourglass_q = hourglass_state
+    if lean:
+        density, pressure, viscosity = density[:0], pressure[:0], viscosity[:0]
+    evaluate_pure(cell_type, x, u, combos, cell_nodes, runs, corrector, corrector and cell_type != INTERVAL,
+                  eos, cell_material, mass, e, viscosity_law,
+                  (compute if corrector else hourglass, compute, hourglass_coefficient, hourglass_s0, hourglass_s1,
+                   hourglass_q),
+                  (volume, shape, least_corner, length, density, pressure, sound_speed, jump, viscosity, stress), rows)
+    scatter_corners(cell_type, stress, rows, cell_nodes, runs, mode, corner_is_run, scratch, nodal_force)
+
+
+@numba.njit(**LOOP)
 def _stage(cell_type, mesh, boundaries, eos, cell_material, viscosity_law, hourglass_coefficient, dt,
-           inverse_node_mass, start, force, other, state, hourglass_state, corrector, evaluate):  # pragma: no cover
+           inverse_node_mass, start, force, other, state, hourglass_state, corrector, evaluate,
+           lean):  # pragma: no cover
     """One stage of :func:`pure_step`: the velocity from ``force``, the positions, the
     energy (with the forces of the start, and of ``other``, the predicted state, in the
-    corrector) and, ``evaluate``, the forces of the new state."""
+    corrector) and, ``evaluate``, the forces of the new state (:func:`evaluate_stage`)."""
     cell_nodes, runs, mode, corner_is_run, scratch = mesh
     x0, u0, mass, energy, force0, stress0, shape0, combos0, s0, s1, q, hourglass = start
     (u, velocity_sum, x, combos, combos_sum, e, volume, shape, least_corner, length, density, pressure,
@@ -650,24 +682,15 @@ def _stage(cell_type, mesh, boundaries, eos, cell_material, viscosity_law, hourg
                     combos_sum[c, d, k] = combos0[c, d, k] + combos[c, d, k]
     compatible_energy(cell_type, cell_nodes, runs, energy, mass, dt, shape0, stress0, other[7], other[15], corrector,
                       hourglass, s0, s1, q, velocity_sum, combos_sum, e)
-    if not evaluate:
-        return
-    # the predicted state takes the start's hourglass forces, and needs no tangle check and
-    # no CFL length; the final state has its own hourglass forces
-    compute = corrector and cell_type == QUADRILATERAL and hourglass_coefficient > 0.0
-    hourglass_s0, hourglass_s1, hourglass_q = hourglass_state
-    evaluate_pure(cell_type, x, u, combos, cell_nodes, runs, corrector, corrector and cell_type != INTERVAL,
-                  eos, cell_material, mass, e, viscosity_law,
-                  (compute if corrector else hourglass, compute, hourglass_coefficient, hourglass_s0, hourglass_s1,
-                   hourglass_q),
-                  (volume, shape, least_corner, length, density, pressure, sound_speed, jump, viscosity, stress), rows)
-    scatter_corners(cell_type, stress, rows, cell_nodes, runs, mode, corner_is_run, scratch, nodal_force)
+    if evaluate:
+        evaluate_stage(cell_type, mesh, eos, cell_material, viscosity_law, hourglass_coefficient, mass, hourglass,
+                       state, hourglass_state, corrector, lean)
 
 
 @numba.njit(**LOOP)
 def pure_step(cell_type, mesh, boundaries, eos, cell_material, viscosity_law, hourglass_coefficient, dt,
-              inverse_node_mass, start, predicted, final, final_hourglass, mean_force,
-              evaluate_final):  # pragma: no cover (compiled)
+              inverse_node_mass, start, predicted, final, final_hourglass, mean_force, evaluate_final,
+              lean):  # pragma: no cover (compiled)
     """One whole step of a state whose cells are all pure (ExplicitWilkins.step), from the
     start's forces to the new state and (``evaluate_final``) its forces, in one call:
 
@@ -681,11 +704,12 @@ def pure_step(cell_type, mesh, boundaries, eos, cell_material, viscosity_law, ho
     combinations, u^n + u combinations, e, volume, shape, least corner, length, density,
     pressure, sound speed, velocity jump, viscosity, stress, corner forces, nodal forces);
     ``final_hourglass``: (s_0, s_1, Q) of the final state; ``mean_force``: F̄ is written
-    there.  Returns 0, or 1 when a predicted volume is not positive, 2 when the final state
-    is not healthy (the caller names the cause)."""
+    there; ``lean``: the evaluations store no density, pressure and viscosity (the step
+    does not need them).  Returns 0, or 1 when a predicted volume is not positive, 2 when
+    the final state is not healthy (the caller names the cause)."""
     force0 = start[4]
     _stage(cell_type, mesh, boundaries, eos, cell_material, viscosity_law, hourglass_coefficient, dt,
-           inverse_node_mass, start, force0, predicted, predicted, (start[8], start[9], start[10]), False, True)
+           inverse_node_mass, start, force0, predicted, predicted, (start[8], start[9], start[10]), False, True, lean)
     if not least(predicted[6]) > 0.0:
         return 1
     predicted_force = predicted[17]
@@ -693,7 +717,7 @@ def pure_step(cell_type, mesh, boundaries, eos, cell_material, viscosity_law, ho
         for i in range(mean_force.shape[1]):
             mean_force[d, i] = (force0[d, i] + predicted_force[d, i]) * 0.5
     _stage(cell_type, mesh, boundaries, eos, cell_material, viscosity_law, hourglass_coefficient, dt,
-           inverse_node_mass, start, mean_force, predicted, final, final_hourglass, True, evaluate_final)
+           inverse_node_mass, start, mean_force, predicted, final, final_hourglass, True, evaluate_final, lean)
     if evaluate_final and not healthy(final[6], final[12], final[5], final[15], final[8]):
         return 2
     return 0
@@ -838,7 +862,7 @@ def pure_steps(cell_type, mesh, boundaries, eos, cell_material, viscosity_law, h
         start = (arrays[2], u0, mass, arrays[5], force, arrays[15], arrays[7], arrays[3], hourglass_state[0],
                  hourglass_state[1], hourglass_state[2], hourglass)
         status = pure_step(cell_type, mesh, boundaries, eos, cell_material, viscosity_law, hourglass_coefficient,
-                           dt, inverse_node_mass, start, predicted, new_arrays, new_hourglass, mean_force, True)
+                           dt, inverse_node_mass, start, predicted, new_arrays, new_hourglass, mean_force, True, True)
         if status != 0:
             break
         if held_nodes.size:
@@ -850,4 +874,8 @@ def pure_steps(cell_type, mesh, boundaries, eos, cell_material, viscosity_law, h
         dt_max = dt if dt > dt_max else dt_max
         steps += 1
         current = target
+    if steps:  # the steps were lean: the state reached, evaluated in full (the same numbers)
+        arrays, hourglass_state, _ = buffers[0] if current == 1 else buffers[1]
+        evaluate_stage(cell_type, mesh, eos, cell_material, viscosity_law, hourglass_coefficient, mass, False,
+                       arrays, hourglass_state, True, False)
     return steps, t, dt_previous, dt_min, dt_max, work, current

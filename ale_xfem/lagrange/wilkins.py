@@ -476,7 +476,7 @@ class ExplicitWilkins:
             self.viscosity_law, float(self.hourglass), dt, self.inverse_node_mass, start,
             predicted[1],
             tuple(a[0] if i in as_rows else a for i, a in enumerate(final)),
-            final_hourglass, mean_force, not remapped_next)
+            final_hourglass, mean_force, not remapped_next, False)
         u_new, velocity_sum, x_new = final[0], final[1], final[2]
         e_new = final[5]
         if status == 1:
