@@ -309,7 +309,7 @@ def _evaluate_pure(cell_type, running, kind, store, x, u, combos, cell_nodes, ru
 
 @numba.njit(**LOOP)
 def evaluate_pure(cell_type, x, u, combos, cell_nodes, runs, hourglass, with_length, eos, cell_material, mass,
-                  energy, viscosity_law, hourglass_control, out, rows):  # pragma: no cover (compiled)
+                  energy, viscosity_law, hourglass_control, out, rows, store):  # pragma: no cover (compiled)
     """A state whose cells are all pure, in one loop: what :func:`geometry_and_rates`, the
     equation of state and :func:`stress_and_corner_forces` give.  ``hourglass``: the
     positions' hourglass shape; ``eos``: (kinds, parameters) of the materials;
@@ -326,17 +326,18 @@ def evaluate_pure(cell_type, x, u, combos, cell_nodes, runs, hourglass, with_len
     the constant model gained 6 % (2.9 against 3.1 ms at 10⁵ quadrilaterals), not worth
     the compile time of two more loops.
 
-    Empty density, pressure and viscosity arrays: those are not stored (a lean evaluation,
-    :func:`pure_steps`); what the step goes on with is."""
+    ``store`` False: density, pressure and viscosity are not stored (a lean evaluation,
+    :func:`pure_steps`); what the step goes on with is.  The one-gas 1D loop is always lean
+    (a constant, so that it vectorises) and adds those three after, when asked
+    (:func:`gas_thermodynamics`): one compiled loop less."""
     gas = eos[0].size == 1 and eos[0][0] == STIFFENED_GAS
-    store = out[4].size > 0
     if cell_type == INTERVAL:
-        if runs[4] == 1 and gas and store:
-            _evaluate_pure(INTERVAL, True, STIFFENED_GAS, True, x, u, combos, cell_nodes, runs, hourglass,
-                           with_length, eos, cell_material, mass, energy, viscosity_law, hourglass_control, out, rows)
-        elif runs[4] == 1 and gas:
+        if runs[4] == 1 and gas:
             _evaluate_pure(INTERVAL, True, STIFFENED_GAS, False, x, u, combos, cell_nodes, runs, hourglass,
                            with_length, eos, cell_material, mass, energy, viscosity_law, hourglass_control, out, rows)
+            if store:
+                volume, _, _, _, density, pressure, _, jump, viscosity, _ = out
+                gas_thermodynamics(eos[1], mass, energy, volume, jump, viscosity_law, density, pressure, viscosity)
         elif runs[4] == 1:
             _evaluate_pure(INTERVAL, True, -1, store, x, u, combos, cell_nodes, runs, hourglass, with_length, eos,
                            cell_material, mass, energy, viscosity_law, hourglass_control, out, rows)
@@ -349,6 +350,20 @@ def evaluate_pure(cell_type, x, u, combos, cell_nodes, runs, hourglass, with_len
     else:
         _evaluate_pure(QUADRILATERAL, False, -1, store, x, u, combos, cell_nodes, runs, hourglass, with_length, eos,
                        cell_material, mass, energy, viscosity_law, hourglass_control, out, rows)
+
+
+@numba.njit(**LOOP)
+def gas_thermodynamics(parameters, mass, energy, volume, jump, viscosity_law, density, pressure,
+                       viscosity):  # pragma: no cover (compiled)
+    """ρ, p and the viscosity q of each cell of a state of one stiffened (or ideal) gas (row 0
+    of ``parameters``) from its volumes and velocity jumps: what a lean evaluation leaves
+    out, by the same formulas."""
+    q_quadratic, q_linear, artificial = viscosity_law
+    for k in range(volume.size):
+        rho = mass[k] / volume[k]
+        p, c = pressure_sound_speed(STIFFENED_GAS, parameters, 0, rho, energy[k])
+        density[k], pressure[k] = rho, p
+        viscosity[k] = artificial_viscosity(q_quadratic, q_linear, jump[k], rho, c) if artificial else 0.0
 
 
 @numba.njit(**BODY)
@@ -650,13 +665,12 @@ def evaluate_stage(cell_type, mesh, eos, cell_material, viscosity_law, hourglass
      sound_speed, jump, viscosity, stress, rows, nodal_force) = state
     compute = corrector and cell_type == QUADRILATERAL and hourglass_coefficient > 0.0
     hourglass_s0, hourglass_s1, hourglass_q = hourglass_state
-    if lean:
-        density, pressure, viscosity = density[:0], pressure[:0], viscosity[:0]
     evaluate_pure(cell_type, x, u, combos, cell_nodes, runs, corrector, corrector and cell_type != INTERVAL,
                   eos, cell_material, mass, e, viscosity_law,
                   (compute if corrector else hourglass, compute, hourglass_coefficient, hourglass_s0, hourglass_s1,
                    hourglass_q),
-                  (volume, shape, least_corner, length, density, pressure, sound_speed, jump, viscosity, stress), rows)
+                  (volume, shape, least_corner, length, density, pressure, sound_speed, jump, viscosity, stress), rows,
+                  not lean)
     scatter_corners(cell_type, stress, rows, cell_nodes, runs, mode, corner_is_run, scratch, nodal_force)
 
 

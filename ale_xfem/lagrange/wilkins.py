@@ -191,7 +191,7 @@ class ExplicitWilkins:
                                   length is not None, self.eos_tables,
                                   self.pure_layout.cell_material[0], mass0[0], energy0[0], self.viscosity_law,
                                   (hourglass is not None, compute_hourglass, self.hourglass, *hourglass_arrays),
-                                  out, rows)
+                                  out, rows, True)
         else:
             cells = self.mixed.cells if mixed_view is not None else self.no_cells
             if known is not None:
