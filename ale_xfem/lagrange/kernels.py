@@ -327,17 +327,18 @@ def evaluate_pure(cell_type, x, u, combos, cell_nodes, runs, hourglass, with_len
     the compile time of two more loops.
 
     ``store`` False: density, pressure and viscosity are not stored (a lean evaluation,
-    :func:`pure_steps`); what the step goes on with is.  The one-gas 1D loop is always lean
-    (a constant, so that it vectorises) and adds those three after, when asked
-    (:func:`gas_thermodynamics`): one compiled loop less."""
+    :func:`pure_steps`); what the step goes on with is.  The one-gas 1D loop has ``store``
+    as a constant, so that it vectorises either way.  (Lean always and the three added by a
+    second pass when asked cost a step called from Python about 10 %, interleaved A/B at
+    10⁵ cells; the two loops cost the first run's compilation a few seconds.)"""
     gas = eos[0].size == 1 and eos[0][0] == STIFFENED_GAS
     if cell_type == INTERVAL:
-        if runs[4] == 1 and gas:
+        if runs[4] == 1 and gas and store:
+            _evaluate_pure(INTERVAL, True, STIFFENED_GAS, True, x, u, combos, cell_nodes, runs, hourglass,
+                           with_length, eos, cell_material, mass, energy, viscosity_law, hourglass_control, out, rows)
+        elif runs[4] == 1 and gas:
             _evaluate_pure(INTERVAL, True, STIFFENED_GAS, False, x, u, combos, cell_nodes, runs, hourglass,
                            with_length, eos, cell_material, mass, energy, viscosity_law, hourglass_control, out, rows)
-            if store:
-                volume, _, _, _, density, pressure, _, jump, viscosity, _ = out
-                gas_thermodynamics(eos[1], mass, energy, volume, jump, viscosity_law, density, pressure, viscosity)
         elif runs[4] == 1:
             _evaluate_pure(INTERVAL, True, -1, store, x, u, combos, cell_nodes, runs, hourglass, with_length, eos,
                            cell_material, mass, energy, viscosity_law, hourglass_control, out, rows)
@@ -350,20 +351,6 @@ def evaluate_pure(cell_type, x, u, combos, cell_nodes, runs, hourglass, with_len
     else:
         _evaluate_pure(QUADRILATERAL, False, -1, store, x, u, combos, cell_nodes, runs, hourglass, with_length, eos,
                        cell_material, mass, energy, viscosity_law, hourglass_control, out, rows)
-
-
-@numba.njit(**LOOP)
-def gas_thermodynamics(parameters, mass, energy, volume, jump, viscosity_law, density, pressure,
-                       viscosity):  # pragma: no cover (compiled)
-    """ρ, p and the viscosity q of each cell of a state of one stiffened (or ideal) gas (row 0
-    of ``parameters``) from its volumes and velocity jumps: what a lean evaluation leaves
-    out, by the same formulas."""
-    q_quadratic, q_linear, artificial = viscosity_law
-    for k in range(volume.size):
-        rho = mass[k] / volume[k]
-        p, c = pressure_sound_speed(STIFFENED_GAS, parameters, 0, rho, energy[k])
-        density[k], pressure[k] = rho, p
-        viscosity[k] = artificial_viscosity(q_quadratic, q_linear, jump[k], rho, c) if artificial else 0.0
 
 
 @numba.njit(**BODY)
