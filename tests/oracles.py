@@ -5,7 +5,53 @@ from __future__ import annotations
 
 import numpy as np
 
-from ale_xfem.remap.pieces_1d import component_dot, lump_kinetic, minmod, piece_slopes
+from ale_xfem.remap.pieces_1d import component_dot, lump_kinetic, minmod
+
+
+def limited_slopes(value, inverse_spacing, one_material, bound):
+    """Minmod slopes of value over sorted pieces (1 / spacing of their centres given),
+    clipped to ±bound (None: no bound); zero in the first and last piece and —
+    ``one_material[k]``: pieces k and k + 1 hold the same material; None: all do — next to
+    a piece of another material, so no information crosses Γ."""
+    if value.size < 3:
+        return np.zeros_like(value)
+    slope = np.empty_like(value)
+    slope[0] = slope[-1] = 0.0
+    gradient = np.diff(value)
+    gradient *= inverse_spacing
+    right = gradient[1:]
+    if bound is None:
+        minmod(gradient[:-1], right, out=slope[1:-1])
+    else:
+        # minmod(g_left, g_right) clipped to ±bound in one clip: g_left held between
+        # 0 and g_right, g_right first held within ±bound
+        bound = bound[1:-1]
+        np.clip(gradient[:-1], np.clip(right, -bound, 0.0), np.clip(right, 0.0, bound), out=slope[1:-1])
+    inner = slope[1:-1]
+    if one_material is not None:
+        inner[~(one_material[:-1] & one_material[1:])] = 0.0
+    return slope
+
+
+def piece_slopes(centre, width, density, energy_density, material, order):
+    """The limited slopes of a material's density and energy density over the pieces
+    (sorted left to right): minmod within one material, zero at Γ, and no more than keeps
+    the reconstruction of the same sign at both ends of the piece.  ``material``: per
+    piece, or None when all pieces hold one material.  Order 1: zero."""
+    if order != 2:
+        return np.zeros_like(density), np.zeros_like(energy_density)
+    inverse_spacing = np.diff(centre)
+    np.divide(1.0, inverse_spacing, out=inverse_spacing)
+    one_material = None if material is None else material[1:] == material[:-1]
+    # A minmod slope keeps both ends of a piece between its neighbours' values (the
+    # spacing of the centres is at least half the piece): a field with no negative value
+    # stays non-negative without the bound ±2|f|/w, which then cannot bind and is not
+    # formed (densities always; energy densities unless some are negative).
+    bounds = [None if field.min(initial=0.0) >= 0.0 else np.abs(field) * (2.0 / width)
+              for field in (density, energy_density)]
+    density_slope = limited_slopes(density, inverse_spacing, one_material, bounds[0])
+    energy_slope = limited_slopes(energy_density, inverse_spacing, one_material, bounds[1])
+    return density_slope, energy_slope
 
 
 def pure_kernel(x, X, mass, specific_energy, corner, u, order, slots=1, heat=True):

@@ -1,4 +1,6 @@
-"""Compiled kernel of the 1D swept-region remap over pure cells (ale_xfem.remap.swept_1d).
+"""Compiled kernels of the 1D remap: the limited slopes of the pieces, which both remaps use
+(ale_xfem.remap.pieces_1d), and the swept-region remap's whole-mesh pass over pure cells
+(ale_xfem.remap.swept_1d).
 
 :func:`pure_cells` is the whole-mesh pass of the swept remap: each formula of the numpy code
 it replaced, written per cell and per node in the same order of operations, so the results
@@ -40,14 +42,19 @@ def minmod(a, b):  # pragma: no cover (compiled)
 
 
 @numba.njit(**KERNEL)
-def limited_slopes(value, inverse_spacing, bounded, width):  # pragma: no cover (compiled)
-    """pieces_1d.limited_slopes of one material's pieces: minmod of the neighbouring
-    gradients, zero in the first and last piece; ``bounded``: clipped to ±2|value|/width."""
+def limited_slopes(value, inverse_spacing, bounded, width, same_material):  # pragma: no cover (compiled)
+    """Minmod slopes of ``value`` over sorted pieces (1 / spacing of their centres given),
+    zero in the first and last piece and next to a piece of another material
+    (``same_material[k]``: pieces k and k + 1 hold the same material), so that no
+    information crosses Γ; ``bounded``: clipped to ±2|value|/width, in one clip (the left
+    gradient held between 0 and the right one, that one first held within ±bound)."""
     n = value.size
     slope = np.zeros(n)
     if n < 3:
         return slope
     for j in range(1, n - 1):
+        if not (same_material[j - 1] and same_material[j]):
+            continue
         left = (value[j] - value[j - 1]) * inverse_spacing[j - 1]
         right = (value[j + 1] - value[j]) * inverse_spacing[j]
         if bounded:
@@ -61,9 +68,15 @@ def limited_slopes(value, inverse_spacing, bounded, width):  # pragma: no cover 
 
 
 @numba.njit(**KERNEL)
-def piece_slopes(centre, width, density, energy_density, order):  # pragma: no cover (compiled)
-    """pieces_1d.piece_slopes of one material: the limited slopes of ρ and ρe (order 2),
-    bounded only where the field has a negative value."""
+def piece_slopes(centre, width, density, energy_density, order, same_material):  # pragma: no cover (compiled)
+    """The limited slopes of a material's density and energy density over the pieces
+    (sorted left to right; ``same_material``: see :func:`limited_slopes`): minmod within
+    one material, zero at Γ, and no more than keeps the reconstruction of the same sign at
+    both ends of the piece.  A minmod slope keeps both ends of a piece between its
+    neighbours' values (the spacing of the centres is at least half the piece): a field
+    with no negative value stays non-negative without the bound ±2|f|/w, which then cannot
+    bind and is not formed (densities always; energy densities unless some are negative).
+    Order 1: zero."""
     n = density.size
     if order != 2:
         return np.zeros(n), np.zeros(n)
@@ -79,8 +92,8 @@ def piece_slopes(centre, width, density, energy_density, order):  # pragma: no c
             else energy_density[j]
     negative_density = not least_density >= 0.0
     negative_energy = not least_energy >= 0.0
-    return (limited_slopes(density, inverse_spacing, negative_density, width),
-            limited_slopes(energy_density, inverse_spacing, negative_energy, width))
+    return (limited_slopes(density, inverse_spacing, negative_density, width, same_material),
+            limited_slopes(energy_density, inverse_spacing, negative_energy, width, same_material))
 
 
 @numba.njit(**KERNEL)
@@ -103,7 +116,7 @@ def pure_cells(x, X, mass, specific_energy, corner, u, order, slots, heat):  # p
         energy[j] = mass[j] * specific_energy[j]
         rho[j] = mass[j] / w
         eps[j] = energy[j] / w
-    srho, seps = piece_slopes(centre, width, rho, eps, order)
+    srho, seps = piece_slopes(centre, width, rho, eps, order, np.ones(max(n - 1, 0), dtype=np.bool_))
 
     # nodes 1 … n − 1 move by d; those moving by more than half a neighbouring cell are
     # redone in windows by the caller
