@@ -123,6 +123,44 @@ def test_the_compiled_steps_are_the_step_by_step_loop_to_the_bit(scene, override
     assert chunked.conservation == stepwise.conservation
 
 
+@pytest.mark.parametrize("scene, overrides", [
+    ("sod", ["mesh.cells=150"]),  # one ideal gas between walls
+    ("sod", ["mesh.cells=2", "t_end=20.0"]),  # each end's cell is the other's
+    ("piston", ["mesh.cells=1", "t_end=20.0"]),  # both ends in one cell
+    ("piston", ["mesh.cells=40"]),  # a piston drives one end
+    ("water-air", ["mesh.cells=80"]),  # two stiffened gases: each cell's model
+    ("plate-impact", ["mesh.cells=60"]),  # Mie–Grüneisen plates with free ends
+    ("blast-symmetric", ["mesh.cells=40", "numerics.q_linear=0.0", "numerics.q_quadratic=0.0"]),
+], ids=["sod", "two-cells", "one-cell", "piston", "water-air", "plate-impact", "no-viscosity"])
+def test_interval_steps_in_three_passes_are_the_staged_steps_to_the_bit(scene, overrides):
+    """Intervals numbered along the tube take their compiled steps in three passes over the
+    cells (ale_xfem.lagrange.interval_steps) instead of the staged step's dozen: the same
+    steps, time steps, boundary work and impulse, states and evaluations, bit for bit."""
+    from ale_xfem.lagrange.interval_steps import runs_in_passes
+    from ale_xfem.problem import build_problem
+    from ale_xfem.run import make_stepper
+    from ale_xfem.scene import load_scene, resolve_scene_path
+
+    problem = build_problem(load_scene(resolve_scene_path(scene), overrides))
+    stepper = make_stepper(problem)
+    assert runs_in_passes(stepper.cell_code, stepper.runs, stepper.scatter_mode, stepper.held_nodes,
+                          problem.mesh.n_nodes)
+    state = problem.state
+    evaluation = stepper.evaluate_state(state)
+    clock = {"t_end": problem.scene.t_end, "dt_previous": np.inf, "growth": problem.scene.numerics.dt_growth,
+             "budget": 60, "steps_left": 60, "watch_stall": False, "boundary_work": 0.25}
+    passes, staged = (stepper.pure_steps(state, evaluation, dict(clock), np.full(1, 0.5), in_passes=flag)
+                      for flag in (True, False))
+    assert passes[0] == staged[0] > 10
+    for a, b in zip(passes[3:], staged[3:]):  # the time steps, the boundary work and impulse
+        np.testing.assert_array_equal(a, b)
+    for name in ("node_position", "node_velocity", "material_energy", "material_density", "material_pressure",
+                 "material_sound_speed", "time"):
+        np.testing.assert_array_equal(getattr(passes[1], name), getattr(staged[1], name))
+    for name in ("volume", "stress", "viscosity", "velocity_jump", "nodal_force"):
+        np.testing.assert_array_equal(getattr(passes[2], name), getattr(staged[2], name))
+
+
 @pytest.mark.parametrize("case", ["sound speed not real", "mesh tangles"])
 def test_the_compiled_steps_hand_a_failing_step_to_the_loop_that_names_it(case):
     """A step the compiled steps cannot take stops them before it; the loop then takes it

@@ -168,6 +168,13 @@ def cfl_time(c, jump, length, stiffness, q_quadratic, q_linear, artificial):  # 
     return length / signal
 
 
+@numba.njit(**LOOP)
+def sound_time(c, jump, volume, length, viscous, q_quadratic, q_linear, artificial):  # pragma: no cover (compiled)
+    """A cell's :func:`cfl_time`, the viscosity's length L_q = √V (``viscous``) or L."""
+    stiffness = np.sqrt(volume) / length if viscous else 1.0
+    return cfl_time(c, jump, length, stiffness, q_quadratic, q_linear, artificial)
+
+
 # -- evaluations of a state ----------------------------------------------------------------
 #
 # Each loop is written once (``_name``) for a cell type and a way of reading nodes given as
@@ -385,7 +392,7 @@ def _scatter_corners(cell_type, running, stress, rows, cell_nodes, runs, mode, c
         target = out[0]
         target[0] = -stress[0]
         for i in range(1, n):
-            target[i] = -stress[i] + stress[i - 1]
+            target[i] = node_force(stress[i - 1], stress[i])
         target[n] = 0.0 + stress[n - 1]
         return
     for d in range(out.shape[0]):
@@ -427,13 +434,44 @@ def scatter_corners(cell_type, stress, rows, cell_nodes, runs, mode, corner_is_r
 # -- the step --------------------------------------------------------------------------------
 
 @numba.njit(**LOOP)
+def advanced(u0, force, dt, inverse_mass):  # pragma: no cover (compiled)
+    """A node's velocity after dt under ``force``: u = u0 + dt F/M."""
+    return force * (dt * inverse_mass) + u0
+
+
+@numba.njit(**LOOP)
+def moved(u0, u, x0, dt):  # pragma: no cover (compiled)
+    """(u^n + u, x^n + dt (u^n + u)/2) of a node: the velocity sum (the ½ of ū folded into
+    the scalars that use it) and the position."""
+    total = u0 + u
+    return total, total * (0.5 * dt) + x0
+
+
+@numba.njit(**LOOP)
+def node_force(left_stress, right_stress):  # pragma: no cover (compiled)
+    """The force on the node between two intervals, −P_right + P_left (their corner forces
+    ∓P, the right one's first, as the scatter sums them)."""
+    return -right_stress + left_stress
+
+
+@numba.njit(**LOOP)
+def energy_after(energy, mass, dt, work, two):  # pragma: no cover (compiled)
+    """The compatible energy update of a cell, e = e^n − (dt/2) work/m, ``work`` the corner
+    forces' Σ_i F_Ki·(u^n + u)_i (``two``: of two evaluations' forces, whose mean acts)."""
+    scale = 0.5 * dt / mass
+    if two:
+        scale *= 0.5
+    return energy - work * scale
+
+
+@numba.njit(**LOOP)
 def advance_velocity(u0, force, dt, inverse_node_mass, out):  # pragma: no cover (compiled)
     """u = u0 + dt F/M for the components the forces have; transverse components (1D)
     carried unchanged (paper §3.1)."""
     for d in range(u0.shape[0]):
         if d < force.shape[0]:
             for i in range(u0.shape[1]):
-                out[d, i] = force[d, i] * (dt * inverse_node_mass[i]) + u0[d, i]
+                out[d, i] = advanced(u0[d, i], force[d, i], dt, inverse_node_mass[i])
         else:
             for i in range(u0.shape[1]):
                 out[d, i] = u0[d, i]
@@ -465,9 +503,7 @@ def velocity_sum_and_position(u0, u, x0, dt, velocity_sum, x):  # pragma: no cov
     for d in range(u0.shape[0]):
         if d < x0.shape[0]:
             for i in range(u0.shape[1]):
-                total = u0[d, i] + u[d, i]
-                velocity_sum[d, i] = total
-                x[d, i] = total * (0.5 * dt) + x0[d, i]
+                velocity_sum[d, i], x[d, i] = moved(u0[d, i], u[d, i], x0[d, i], dt)
         else:
             for i in range(u0.shape[1]):
                 velocity_sum[d, i] = u0[d, i] + u[d, i]
@@ -504,10 +540,7 @@ def _energy_loop(cell_type, running, cell_nodes, runs, energy, mass, dt, shape_a
                 if hourglass:
                     term += extra
                 work += term
-        scale = 0.5 * dt / mass[k]
-        if two:
-            scale *= 0.5
-        out[k] = energy[k] - work * scale
+        out[k] = energy_after(energy[k], mass[k], dt, work, two)
 
 
 @numba.njit(**LOOP)
@@ -558,8 +591,8 @@ def _time_limits(running, volume, length, sound_speed, jump, viscous, q_quadrati
     dim = acceleration.shape[0]
     at = node_access(runs, running)
     for k in range(volume.size):
-        stiffness = np.sqrt(volume[k]) / length[k] if viscous else 1.0
-        sound_times[k] = cfl_time(sound_speed[k], jump[k], length[k], stiffness, q_quadratic, q_linear, artificial)
+        sound_times[k] = sound_time(sound_speed[k], jump[k], volume[k], length[k], viscous, q_quadratic, q_linear,
+                                    artificial)
     for j in range(mixed_cells.size):
         k = mixed_cells[j]
         stiffness = np.sqrt(volume[k]) / length[k] if viscous else 1.0
@@ -621,6 +654,12 @@ def stable_time_step(force, inverse_node_mass, boundaries, volume, length, sound
     least_sound, least_ratio = time_limits(volume, length, sound_speed, jump, viscous, q_quadratic, q_linear,
                                            artificial, mixed_cells, mixed_sound_speed, acceleration, cell_nodes,
                                            runs, sound_times, ratios)
+    return cfl_step(cfl, least_sound, least_ratio)
+
+
+@numba.njit(**LOOP)
+def cfl_step(cfl, least_sound, least_ratio):  # pragma: no cover (compiled)
+    """cfl × the smaller of the least signal-speed limit and √(L / 2a) at the least L / a."""
     limit = np.sqrt(0.5 * least_ratio)
     return cfl * (limit if limit < least_sound else least_sound)
 
@@ -812,6 +851,26 @@ def boundary_reaction(node_mass, held, u0, u, velocity_sum, mean_force, dt, scra
 
 
 @numba.njit(**LOOP)
+def clamped_step(dt, growth_limit, time_left):  # pragma: no cover (compiled)
+    """A run's time step: the CFL step, at most ``growth_limit`` (growth × the previous
+    step) and the time left."""
+    if growth_limit < dt:
+        dt = growth_limit
+    if time_left < dt:
+        dt = time_left
+    return dt
+
+
+@numba.njit(**LOOP)
+def plain_step(dt, time_left, watch_stall, steps_left):  # pragma: no cover (compiled)
+    """Whether a compiled loop may take a step of dt: positive and finite, and (the stall
+    watch on) one that reaches the end within the steps left."""
+    if not (dt > 0.0 and abs(dt) < np.inf):
+        return False
+    return not (watch_stall and time_left > dt * steps_left)
+
+
+@numba.njit(**LOOP)
 def pure_steps(cell_type, mesh, boundaries, eos, cell_material, viscosity_law, hourglass_coefficient,
                inverse_node_mass, mass, time_step, held, clock, first, predicted, buffers,
                impulse):  # pragma: no cover (compiled)
@@ -851,13 +910,8 @@ def pure_steps(cell_type, mesh, boundaries, eos, cell_material, viscosity_law, h
         dt = stable_time_step(force, inverse_node_mass, boundaries, arrays[6], length, arrays[12], arrays[13],
                               viscous, viscosity_law, no_cells, no_values, cell_nodes, runs, cfl, acceleration,
                               sound_times, ratios)
-        if growth * dt_previous < dt:
-            dt = growth * dt_previous
-        if t_end - t < dt:
-            dt = t_end - t
-        if not (dt > 0.0 and abs(dt) < np.inf):
-            break
-        if watch_stall and t_end - t > dt * (steps_left - steps):
+        dt = clamped_step(dt, growth * dt_previous, t_end - t)
+        if not plain_step(dt, t_end - t, watch_stall, steps_left - steps):
             break
         u0 = arrays[0]
         start = (arrays[2], u0, mass, arrays[5], force, arrays[15], arrays[7], arrays[3], hourglass_state[0],

@@ -26,6 +26,7 @@ import numpy as np
 
 from ale_xfem.lagrange import kernels
 from ale_xfem.lagrange.breakdown import Breakdown
+from ale_xfem.lagrange.interval_steps import interval_steps, runs_in_passes
 from ale_xfem.eos import kernel_tables
 from ale_xfem.model.cell_kernels import CELL_TYPE_CODES, cell_geometry, quad_combinations
 from ale_xfem.model.diagnostics import place
@@ -496,12 +497,15 @@ class ExplicitWilkins:
             material_pressure=evaluation.pressure, material_sound_speed=evaluation.sound_speed)
         return new_state, evaluation, work, impulse
 
-    def pure_steps(self, state: State, evaluation: ForceEvaluation, clock: dict, boundary_impulse):
+    def pure_steps(self, state: State, evaluation: ForceEvaluation, clock: dict, boundary_impulse,
+                   in_passes: bool = True):
         """Steps of a state whose cells are all pure on a Lagrangian mesh, in one compiled
         call (kernels.pure_steps): the steps simulate() would take one by one, stopping
         before one that is not plain (see there).  ``clock``: t_end, dt_previous, growth,
         budget, steps_left, watch_stall, boundary_work, and t_stop (optional: stop once the
-        time reaches it).  Returns (steps taken, state,
+        time reaches it).  Intervals numbered along the tube take their steps in three
+        passes over the cells (``in_passes``, ale_xfem.lagrange.interval_steps), other meshes
+        in stages (kernels.pure_steps): the same numbers.  Returns (steps taken, state,
         evaluation, last dt, least dt, largest dt, boundary work, boundary impulse)."""
         u0, x0 = np.ascontiguousarray(state.node_velocity), np.ascontiguousarray(state.node_position)
         n, n_nodes = self.mesh.n_cells, self.mesh.n_nodes
@@ -528,7 +532,9 @@ class ExplicitWilkins:
         dim = self.mesh.dimension
         held = self.held_nodes
         impulse = np.array(boundary_impulse, dtype=float)
-        steps, t, dt_previous, dt_min, dt_max, work, current = kernels.pure_steps(
+        passes = (in_passes and u0.shape[0] == 1
+                  and runs_in_passes(self.cell_code, self.runs, self.scatter_mode, held, n_nodes))
+        steps, t, dt_previous, dt_min, dt_max, work, current = (interval_steps if passes else kernels.pure_steps)(
             self.cell_code, (self.cell_nodes, self.runs, self.scatter_mode, self.corner_is_run, self.scratch),
             self.held, self.eos_tables, self.pure_layout.cell_material[0],
             self.viscosity_law, float(self.hourglass), self.inverse_node_mass, state.material_mass[0],
