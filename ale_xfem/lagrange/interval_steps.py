@@ -36,8 +36,8 @@ import numpy as np
 
 from ale_xfem.eos.kernels import BODY, LOOP, STIFFENED_GAS, pressure_sound_speed
 from ale_xfem.lagrange.kernels import (RUNS, advanced, artificial_viscosity, boundary_reaction, cfl_step, clamped_step,
-                                       energy_after, evaluate_stage, hold, least, moved, node_force, plain_step,
-                                       sound_time, stable_time_step, velocity_jump)
+                                       energy_after, evaluate_intervals, hold, least, moved, node_force, plain_step,
+                                       sound_time, velocity_jump)
 from ale_xfem.model.cell_kernels import INTERVAL, nan_max
 
 
@@ -90,18 +90,24 @@ def stage_cell(kind, two, eos, cell_material, law, dt, k, mass, energy, stress0,
 
 
 @numba.njit(**LOOP)
+def interval_sound_time(c, du, v, law):  # pragma: no cover (compiled)
+    """An interval's sound-speed time limit (kernels.time_limits'): its length is its volume,
+    and 1D has no viscous length (ExplicitWilkins.viscous_time_step is for 2D cells)."""
+    q_quadratic, q_linear, artificial = law
+    return sound_time(c, du, v, v, False, q_quadratic, q_linear, artificial)
+
+
+@numba.njit(**LOOP)
 def keep_cell(two, k, e, v, c, du, stress, law, out):  # pragma: no cover (compiled)
     """Store what a stage keeps of cell k and return whether it is sound: the predictor its
     stress (sound: V > 0); the corrector its energy, volume, stress and sound-speed time
     limit (sound: V > 0, c, e and P finite)."""
-    q_quadratic, q_linear, artificial = law
     energy, volume, stress_out, sound_times = out
     stress_out[k] = stress
     if not two:
         return v > 0.0
     energy[k], volume[k] = e, v
-    # (no viscous length in 1D: ExplicitWilkins.viscous_time_step is for 2D cells)
-    sound_times[k] = sound_time(c, du, v, v, False, q_quadratic, q_linear, artificial)
+    sound_times[k] = interval_sound_time(c, du, v, law)
     return (v > 0.0) & (abs(c) < np.inf) & (abs(e) < np.inf) & (abs(stress) < np.inf)
 
 
@@ -156,20 +162,14 @@ def _stage(kind, two, eos, cell_material, law, boundaries, dt, inverse_node_mass
 @numba.njit(**LOOP)
 def stage(kind, two, eos, cell_material, law, boundaries, dt, inverse_node_mass, x0, u0, mass, energy, stress0,
           stress1, u, x, velocity_sum, mean_force, out):  # pragma: no cover (compiled)
-    """A stage (:func:`_stage`), entered with ``kind`` (STIFFENED_GAS or −1) and ``two`` (the
-    corrector) as constants.  A function of its own: inlined into the run loop, its passes
+    """A stage (:func:`_stage`), compiled for each ``kind`` (STIFFENED_GAS or −1) and ``two``
+    (the corrector) apart, both constants of its loop (numba.literally: only the variants a
+    run uses are compiled).  A function of its own: inlined into the run loop, its passes
     did not vectorise (the 1D step took 3.2 ms at 10⁵ cells, against 1.5 ms)."""
-    if kind == STIFFENED_GAS:
-        if two:
-            return _stage(STIFFENED_GAS, True, eos, cell_material, law, boundaries, dt, inverse_node_mass, x0,
-                          u0, mass, energy, stress0, stress1, u, x, velocity_sum, mean_force, out)
-        return _stage(STIFFENED_GAS, False, eos, cell_material, law, boundaries, dt, inverse_node_mass, x0,
-                      u0, mass, energy, stress0, stress1, u, x, velocity_sum, mean_force, out)
-    if two:
-        return _stage(-1, True, eos, cell_material, law, boundaries, dt, inverse_node_mass, x0, u0, mass,
-                      energy, stress0, stress1, u, x, velocity_sum, mean_force, out)
-    return _stage(-1, False, eos, cell_material, law, boundaries, dt, inverse_node_mass, x0, u0, mass,
-                  energy, stress0, stress1, u, x, velocity_sum, mean_force, out)
+    numba.literally(kind)
+    numba.literally(two)
+    return _stage(kind, two, eos, cell_material, law, boundaries, dt, inverse_node_mass, x0, u0, mass, energy,
+                  stress0, stress1, u, x, velocity_sum, mean_force, out)
 
 
 @numba.njit(**LOOP)
@@ -207,22 +207,21 @@ def next_time_step(stress, volume, sound_times, inverse_node_mass, boundaries, c
     return cfl_step(cfl, least(sound_times), least(ratios))
 
 
-@numba.njit(**LOOP)
-def interval_steps(cell_type, mesh, boundaries, eos, cell_material, law, hourglass_coefficient, inverse_node_mass,
-                   mass, time_step, held, clock, first, predicted, buffers, impulse):  # pragma: no cover (compiled)
-    """:func:`ale_xfem.lagrange.kernels.pure_steps` (the same arguments and results) for
-    intervals that :func:`runs_in_passes` admits: a step in three passes (module
-    docstring), the same numbers to the bit."""
-    kind = STIFFENED_GAS if eos[0].size == 1 and eos[0][0] == STIFFENED_GAS else -1
-    node_mass, cfl, viscous, acceleration, sound_times, ratios, no_cells, no_values = time_step
+@numba.njit(**BODY)
+def _interval_steps(kind, cell_type, mesh, boundaries, eos, cell_material, law, hourglass_coefficient,
+                    inverse_node_mass, mass, time_step, held, clock, first, predicted, buffers,
+                    impulse):  # pragma: no cover (compiled)
+    node_mass, cfl, _, acceleration, sound_times, ratios, _, _ = time_step
     held_nodes, held_scratch, stack, partial, mean_force = held
     t, t_end, dt_previous, growth, budget, steps_left, watch_stall, work, t_stop = clock
     steps = 0
     dt_min, dt_max = np.inf, 0.0
     current = 0
     arrays = first[0]
-    dt = stable_time_step(arrays[17], inverse_node_mass, boundaries, arrays[6], arrays[6], arrays[12], arrays[13],
-                          viscous, law, no_cells, no_values, mesh[0], mesh[1], cfl, acceleration, sound_times, ratios)
+    volume, sound_speed, jump = arrays[6], arrays[12], arrays[13]
+    for k in range(volume.size):  # the start's limits, as the corrector leaves them
+        sound_times[k] = interval_sound_time(sound_speed[k], jump[k], volume[k], law)
+    dt = next_time_step(arrays[15], volume, sound_times, inverse_node_mass, boundaries, cfl, acceleration, ratios)
     while t < t_end * (1.0 - 1e-14) and steps < budget and steps < steps_left and t < t_stop:
         arrays = first[0] if current == 0 else (buffers[0][0] if current == 1 else buffers[1][0])
         target = 2 if current == 1 else 1
@@ -251,7 +250,26 @@ def interval_steps(cell_type, mesh, boundaries, eos, cell_material, law, hourgla
         current = target
         dt = next_time_step(new_stress, volume, sound_times, inverse_node_mass, boundaries, cfl, acceleration, ratios)
     if steps:  # the state reached, evaluated in full
-        arrays, hourglass_state, _ = buffers[0] if current == 1 else buffers[1]
-        evaluate_stage(cell_type, mesh, eos, cell_material, law, hourglass_coefficient, mass, False, arrays,
-                       hourglass_state, True, False)
+        arrays, (s0, s1, q), _ = buffers[0] if current == 1 else buffers[1]
+        evaluate_intervals(kind, arrays[2], arrays[0], arrays[3], mesh[0], mesh[1], eos, cell_material, mass, arrays[5],
+                           law, (False, False, hourglass_coefficient, s0, s1, q), arrays[6:16], arrays[16],
+                           mesh[2:], arrays[17])
     return steps, t, dt_previous, dt_min, dt_max, work, current
+
+
+@numba.njit(**LOOP)
+def one_gas_steps(cell_type, mesh, boundaries, eos, cell_material, law, hourglass_coefficient, inverse_node_mass,
+                  mass, time_step, held, clock, first, predicted, buffers, impulse):  # pragma: no cover (compiled)
+    """:func:`ale_xfem.lagrange.kernels.pure_steps` (the same arguments and results) for
+    intervals that :func:`runs_in_passes` admits, in a state of one stiffened (or ideal)
+    gas: a step in three passes (module docstring), the same numbers to the bit."""
+    return _interval_steps(STIFFENED_GAS, cell_type, mesh, boundaries, eos, cell_material, law, hourglass_coefficient,
+                           inverse_node_mass, mass, time_step, held, clock, first, predicted, buffers, impulse)
+
+
+@numba.njit(**LOOP)
+def interval_steps(cell_type, mesh, boundaries, eos, cell_material, law, hourglass_coefficient, inverse_node_mass,
+                   mass, time_step, held, clock, first, predicted, buffers, impulse):  # pragma: no cover (compiled)
+    """:func:`one_gas_steps` for any state: each cell's model is chosen in the loop."""
+    return _interval_steps(-1, cell_type, mesh, boundaries, eos, cell_material, law, hourglass_coefficient,
+                           inverse_node_mass, mass, time_step, held, clock, first, predicted, buffers, impulse)

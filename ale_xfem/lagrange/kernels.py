@@ -360,6 +360,46 @@ def evaluate_pure(cell_type, x, u, combos, cell_nodes, runs, hourglass, with_len
                        cell_material, mass, energy, viscosity_law, hourglass_control, out, rows)
 
 
+def one_gas_model(eos_tables) -> int:
+    """STIFFENED_GAS for a state of one stiffened (or ideal) gas, whose loops then have its
+    model as a constant (and vectorise); −1: each cell's model chosen in the loop."""
+    kinds = eos_tables[0]
+    return STIFFENED_GAS if kinds.size == 1 and kinds[0] == STIFFENED_GAS else -1
+
+
+@numba.njit(**LOOP)
+def evaluate_intervals(kind, x, u, combos, cell_nodes, runs, eos, cell_material, mass, energy, viscosity_law,
+                       hourglass_control, out, rows, mesh_scatter, nodal_force):  # pragma: no cover (compiled)
+    """A state of intervals whose corners run on (cell k: nodes k + runs[0], k + runs[1]),
+    evaluated in full and its nodal forces summed, as :func:`evaluate_stage` does it for a
+    corrector's state: the intervals' loops of :func:`evaluate_pure` and
+    :func:`scatter_corners`, compiled for ``kind`` (STIFFENED_GAS, one gas's model, or −1)
+    alone (numba.literally), not for every cell type.  ``mesh_scatter``: (scatter mode,
+    corner_is_run, node scratch)."""
+    numba.literally(kind)
+    _evaluate_pure(INTERVAL, True, kind, True, x, u, combos, cell_nodes, runs, True, False, eos, cell_material, mass,
+                   energy, viscosity_law, hourglass_control, out, rows)
+    mode, corner_is_run, scratch = mesh_scatter
+    _scatter_corners(INTERVAL, True, out[9], rows, cell_nodes, runs, mode, corner_is_run, scratch, nodal_force)
+
+
+@numba.njit(**LOOP)
+def evaluate_one_gas_intervals(x, u, combos, cell_nodes, runs, eos, cell_material, mass, energy, viscosity_law,
+                               hourglass_control, out, rows, mesh_scatter, nodal_force):  # pragma: no cover (compiled)
+    """:func:`evaluate_intervals` of a state of one stiffened (or ideal) gas, called from
+    Python (a literal argument requested from Python costs milliseconds a call)."""
+    evaluate_intervals(STIFFENED_GAS, x, u, combos, cell_nodes, runs, eos, cell_material, mass, energy, viscosity_law,
+                       hourglass_control, out, rows, mesh_scatter, nodal_force)
+
+
+@numba.njit(**LOOP)
+def evaluate_any_intervals(x, u, combos, cell_nodes, runs, eos, cell_material, mass, energy, viscosity_law,
+                           hourglass_control, out, rows, mesh_scatter, nodal_force):  # pragma: no cover (compiled)
+    """:func:`evaluate_intervals` of any state, called from Python."""
+    evaluate_intervals(-1, x, u, combos, cell_nodes, runs, eos, cell_material, mass, energy, viscosity_law,
+                       hourglass_control, out, rows, mesh_scatter, nodal_force)
+
+
 @numba.njit(**BODY)
 def _scatter_corner(cell_type, stress, rows, cell_nodes, at, d, c, assign, target):  # pragma: no cover (compiled)
     """Corner c's values of component d written (``assign``) or added to ``target``."""

@@ -26,7 +26,7 @@ import numpy as np
 
 from ale_xfem.lagrange import kernels
 from ale_xfem.lagrange.breakdown import Breakdown
-from ale_xfem.lagrange.interval_steps import interval_steps, runs_in_passes
+from ale_xfem.lagrange.interval_steps import interval_steps, one_gas_steps, runs_in_passes
 from ale_xfem.eos import kernel_tables
 from ale_xfem.model.cell_kernels import CELL_TYPE_CODES, cell_geometry, quad_combinations
 from ale_xfem.model.diagnostics import place
@@ -116,6 +116,13 @@ class ExplicitWilkins:
         self.viscosity_law = (float(numerics.q_quadratic), float(numerics.q_linear), bool(artificial_viscosity))
         self.held_nodes = self.constrained_nodes.astype(np.int64)
         self.eos_tables = kernel_tables(tuple(m.eos for m in materials))  # (kinds, parameters)
+        # 1D meshes whose cell k is nodes k + r_0, k + r_1 (every DOLFINx interval mesh in
+        # serial): their pure states are evaluated by the intervals' loops alone, and their
+        # runs' compiled steps taken in passes (interval_steps), with one gas's model a
+        # constant of the loops where there is one
+        self.gas_model = kernels.one_gas_model(self.eos_tables)
+        self.running_intervals = self.cell_code == CELL_TYPE_CODES["interval"] and self.runs[4] == 1
+        self.interval_steps = one_gas_steps if self.gas_model >= 0 else interval_steps
         self.predicted_arrays = None  # kernels.pure_step's arrays of the predicted state, reused
         self.sum_stack, self.sum_partial = np.empty((3, 64), dtype=np.int64), np.empty(64)  # kernels.pairwise_sum's
 
@@ -188,11 +195,19 @@ class ExplicitWilkins:
             out = (volume, shape, self.no_values if least_corner is None else least_corner,
                    self.no_values if length is None else length, density[0], pressure[0], sound_speed[0], jump,
                    viscosity, stress)
+            hourglass_control = (hourglass is not None, compute_hourglass, self.hourglass, *hourglass_arrays)
+            if self.running_intervals:  # the intervals' loops alone (compiled for the one gas's model)
+                nodal_force = np.empty((dim, self.mesh.n_nodes))
+                (kernels.evaluate_one_gas_intervals if self.gas_model >= 0 else kernels.evaluate_any_intervals)(
+                    node_position, node_velocity, combos, nodes, runs, self.eos_tables,
+                    self.pure_layout.cell_material[0], mass0[0], energy0[0], self.viscosity_law, hourglass_control,
+                    out, rows, (self.scatter_mode, self.corner_is_run, self.scratch), nodal_force)
+                return ForceEvaluation(volume, shape, density, pressure, sound_speed, viscosity, jump, stress, None,
+                                       nodal_force, None, None, volume, hourglass, corner_velocity, least_corner)
             kernels.evaluate_pure(code, node_position, node_velocity, combos, nodes, runs, tangle_check,
                                   length is not None, self.eos_tables,
                                   self.pure_layout.cell_material[0], mass0[0], energy0[0], self.viscosity_law,
-                                  (hourglass is not None, compute_hourglass, self.hourglass, *hourglass_arrays),
-                                  out, rows, True)
+                                  hourglass_control, out, rows, True)
         else:
             cells = self.mixed.cells if mixed_view is not None else self.no_cells
             if known is not None:
@@ -534,7 +549,8 @@ class ExplicitWilkins:
         impulse = np.array(boundary_impulse, dtype=float)
         passes = (in_passes and u0.shape[0] == 1
                   and runs_in_passes(self.cell_code, self.runs, self.scatter_mode, held, n_nodes))
-        steps, t, dt_previous, dt_min, dt_max, work, current = (interval_steps if passes else kernels.pure_steps)(
+        steps, t, dt_previous, dt_min, dt_max, work, current = (
+            self.interval_steps if passes else kernels.pure_steps)(
             self.cell_code, (self.cell_nodes, self.runs, self.scatter_mode, self.corner_is_run, self.scratch),
             self.held, self.eos_tables, self.pure_layout.cell_material[0],
             self.viscosity_law, float(self.hourglass), self.inverse_node_mass, state.material_mass[0],

@@ -211,17 +211,32 @@ def _cell_geometry(cell_type, running, x, cell_nodes, runs, hourglass, volume, s
 
 
 @numba.njit(**LOOP)
-def cell_geometry(cell_type, x, cell_nodes, runs, hourglass, volume, shape,
-                  least_corner):  # pragma: no cover (compiled)
+def interval_geometry(x, cell_nodes, runs, hourglass, volume, shape, least_corner):  # pragma: no cover (compiled)
+    """:func:`cell_geometry` of intervals."""
+    if runs[4] == 1:
+        _cell_geometry(INTERVAL, True, x, cell_nodes, runs, hourglass, volume, shape, least_corner)
+    else:
+        _cell_geometry(INTERVAL, False, x, cell_nodes, runs, hourglass, volume, shape, least_corner)
+
+
+@numba.njit(**LOOP)
+def triangle_geometry(x, cell_nodes, runs, hourglass, volume, shape, least_corner):  # pragma: no cover (compiled)
+    """:func:`cell_geometry` of triangles."""
+    _cell_geometry(TRIANGLE, False, x, cell_nodes, runs, hourglass, volume, shape, least_corner)
+
+
+@numba.njit(**LOOP)
+def quadrilateral_geometry(x, cell_nodes, runs, hourglass, volume, shape,
+                           least_corner):  # pragma: no cover (compiled)
+    """:func:`cell_geometry` of quadrilaterals."""
+    _cell_geometry(QUADRILATERAL, False, x, cell_nodes, runs, hourglass, volume, shape, least_corner)
+
+
+_GEOMETRY = {INTERVAL: interval_geometry, TRIANGLE: triangle_geometry, QUADRILATERAL: quadrilateral_geometry}
+
+
+def cell_geometry(cell_type, x, cell_nodes, runs, hourglass, volume, shape, least_corner) -> None:
     """Each cell's volume and shape at node positions x (dim, n_nodes); ``hourglass``: also
     the quadrilaterals' hourglass shape and (``least_corner`` not empty) their least corner
-    det J."""
-    if cell_type == INTERVAL:
-        if runs[4] == 1:
-            _cell_geometry(INTERVAL, True, x, cell_nodes, runs, hourglass, volume, shape, least_corner)
-        else:
-            _cell_geometry(INTERVAL, False, x, cell_nodes, runs, hourglass, volume, shape, least_corner)
-    elif cell_type == TRIANGLE:
-        _cell_geometry(TRIANGLE, False, x, cell_nodes, runs, hourglass, volume, shape, least_corner)
-    else:
-        _cell_geometry(QUADRILATERAL, False, x, cell_nodes, runs, hourglass, volume, shape, least_corner)
+    det J.  One compiled loop per cell type, so that a run compiles its own type's only."""
+    _GEOMETRY[cell_type](x, cell_nodes, runs, hourglass, volume, shape, least_corner)
