@@ -26,7 +26,7 @@ import numpy as np
 
 from ale_xfem.lagrange import kernels
 from ale_xfem.lagrange.breakdown import Breakdown
-from ale_xfem.lagrange.interval_steps import interval_steps, one_gas_steps, runs_in_passes
+from ale_xfem.lagrange.interval_steps import one_gas_steps, runs_in_passes
 from ale_xfem.eos import kernel_tables
 from ale_xfem.model.cell_kernels import CELL_TYPE_CODES, cell_geometry, quad_combinations
 from ale_xfem.model.diagnostics import place
@@ -117,12 +117,10 @@ class ExplicitWilkins:
         self.held_nodes = self.constrained_nodes.astype(np.int64)
         self.eos_tables = kernel_tables(tuple(m.eos for m in materials))  # (kinds, parameters)
         # 1D meshes whose cell k is nodes k + r_0, k + r_1 (every DOLFINx interval mesh in
-        # serial): their pure states are evaluated by the intervals' loops alone, and their
-        # runs' compiled steps taken in passes (interval_steps), with one gas's model a
-        # constant of the loops where there is one
+        # serial): their pure states are evaluated by the intervals' loops alone, with one
+        # gas's model a constant of the loop where there is one
         self.gas_model = kernels.one_gas_model(self.eos_tables)
         self.running_intervals = self.cell_code == CELL_TYPE_CODES["interval"] and self.runs[4] == 1
-        self.interval_steps = one_gas_steps if self.gas_model >= 0 else interval_steps
         self.predicted_arrays = None  # kernels.pure_step's arrays of the predicted state, reused
         self.sum_stack, self.sum_partial = np.empty((3, 64), dtype=np.int64), np.empty(64)  # kernels.pairwise_sum's
 
@@ -518,9 +516,9 @@ class ExplicitWilkins:
         call (kernels.pure_steps): the steps simulate() would take one by one, stopping
         before one that is not plain (see there).  ``clock``: t_end, dt_previous, growth,
         budget, steps_left, watch_stall, boundary_work, and t_stop (optional: stop once the
-        time reaches it).  Intervals numbered along the tube take their steps in three
-        passes over the cells (``in_passes``, ale_xfem.lagrange.interval_steps), other meshes
-        in stages (kernels.pure_steps): the same numbers.  Returns (steps taken, state,
+        time reaches it).  One gas on intervals numbered along the tube takes its steps in
+        three passes over the cells (``in_passes``, ale_xfem.lagrange.interval_steps), other
+        states in stages (kernels.pure_steps): the same numbers.  Returns (steps taken, state,
         evaluation, last dt, least dt, largest dt, boundary work, boundary impulse)."""
         u0, x0 = np.ascontiguousarray(state.node_velocity), np.ascontiguousarray(state.node_position)
         n, n_nodes = self.mesh.n_cells, self.mesh.n_nodes
@@ -548,9 +546,8 @@ class ExplicitWilkins:
         held = self.held_nodes
         impulse = np.array(boundary_impulse, dtype=float)
         passes = (in_passes and u0.shape[0] == 1
-                  and runs_in_passes(self.cell_code, self.runs, self.scatter_mode, held, n_nodes))
-        steps, t, dt_previous, dt_min, dt_max, work, current = (
-            self.interval_steps if passes else kernels.pure_steps)(
+                  and runs_in_passes(self.cell_code, self.runs, self.scatter_mode, held, n_nodes, self.gas_model))
+        steps, t, dt_previous, dt_min, dt_max, work, current = (one_gas_steps if passes else kernels.pure_steps)(
             self.cell_code, (self.cell_nodes, self.runs, self.scatter_mode, self.corner_is_run, self.scratch),
             self.held, self.eos_tables, self.pure_layout.cell_material[0],
             self.viscosity_law, float(self.hourglass), self.inverse_node_mass, state.material_mass[0],
