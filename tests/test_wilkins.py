@@ -133,7 +133,7 @@ def test_the_compiled_steps_are_the_step_by_step_loop_to_the_bit(scene, override
     ("blast-symmetric", ["mesh.cells=40", "numerics.q_linear=0.0", "numerics.q_quadratic=0.0"]),
 ], ids=["sod", "two-cells", "one-cell", "piston", "stiffened-gas", "free-ends", "no-viscosity"])
 def test_interval_steps_in_three_passes_are_the_staged_steps_to_the_bit(scene, overrides):
-    """One gas on intervals numbered along the tube takes its compiled steps in three passes
+    """One gas on intervals numbered along the tube takes its compiled steps in three stages
     over the cells (ale_xfem.lagrange.interval_steps) instead of the staged step's dozen:
     the same steps, time steps, boundary work and impulse, states and evaluations, bit for
     bit.  (Several materials take the staged steps: there they are faster.)"""
@@ -145,7 +145,7 @@ def test_interval_steps_in_three_passes_are_the_staged_steps_to_the_bit(scene, o
     problem = build_problem(load_scene(resolve_scene_path(scene), overrides))
     stepper = make_stepper(problem)
     assert runs_in_passes(stepper.cell_code, stepper.runs, stepper.scatter_mode, stepper.held_nodes,
-                          problem.mesh.n_nodes, stepper.gas_model)
+                          problem.mesh.n_cells, problem.mesh.n_nodes, 1, stepper.gas_model)
     state = problem.state
     evaluation = stepper.evaluate_state(state)
     clock = {"t_end": problem.scene.t_end, "dt_previous": np.inf, "growth": problem.scene.numerics.dt_growth,
@@ -160,6 +160,31 @@ def test_interval_steps_in_three_passes_are_the_staged_steps_to_the_bit(scene, o
         np.testing.assert_array_equal(getattr(passes[1], name), getattr(staged[1], name))
     for name in ("volume", "stress", "viscosity", "velocity_jump", "nodal_force"):
         np.testing.assert_array_equal(getattr(passes[2], name), getattr(staged[2], name))
+
+
+def test_only_one_gas_on_a_plain_tube_takes_its_steps_in_three_stages():
+    """The three-stage steps assume one gas, one velocity component, intervals numbered along
+    the tube and held nodes at the ends only; anything else takes the staged steps."""
+    from ale_xfem.lagrange.interval_steps import runs_in_passes
+    from ale_xfem.problem import build_problem
+    from ale_xfem.run import make_stepper
+    from ale_xfem.scene import load_scene, resolve_scene_path
+
+    def admitted(scene, held=None, components=1, cells=None):
+        problem = build_problem(load_scene(resolve_scene_path(scene), ["mesh.cells=20"]))
+        stepper = make_stepper(problem)
+        mesh = problem.mesh
+        return runs_in_passes(stepper.cell_code, stepper.runs, stepper.scatter_mode,
+                              stepper.held_nodes if held is None else held,
+                              mesh.n_cells if cells is None else cells, mesh.n_nodes, components, stepper.gas_model)
+
+    assert admitted("sod") and admitted("piston")
+    assert not admitted("water-air")  # two materials: each cell chooses its model
+    assert not admitted("sod-two-gamma")
+    assert not admitted("sod", components=2)  # a transverse velocity
+    assert not admitted("sod", held=np.array([0, 7], dtype=np.int64))  # a node held inside the tube
+    assert not admitted("sod", cells=19)  # nodes the loops would not write
+    assert not admitted("sod-2d")
 
 
 @pytest.mark.parametrize("case", ["sound speed not real", "mesh tangles"])

@@ -1,4 +1,4 @@
-"""The 1D Lagrangian run loop in three passes over the cells a step (compiled; the loop
+"""The 1D Lagrangian run loop of one gas in three stages a step (compiled; the loop
 :meth:`ale_xfem.lagrange.wilkins.ExplicitWilkins.pure_steps` runs on intervals numbered
 along the tube, the usual 1D mesh).
 
@@ -6,12 +6,14 @@ along the tube, the usual 1D mesh).
 nodes or the cells that stores what the next one reads: the new velocities, then the
 positions, the energies, the evaluation, the nodal forces, their mean, the accelerations,
 the time-step limits; about seventy arrays are read or written a step.  Here a step is
-three passes, about thirty arrays, and what a cell needs of its nodes is computed in the
-pass that needs it, from the values of the step's start:
+three stages, four loops over the cells and nodes and about thirty arrays, and what a cell
+needs of its nodes is computed in the loop that needs it, from the values of the step's
+start:
 
 - the predictor: per cell, its two nodes' velocities and positions under the start's
   forces F^n (each node's −P_right + P_left from the cells beside it, as the scatter sums
-  them), the cell's energy e* and its evaluation at x*.  Only the stress P* is stored;
+  them), the cell's energy e* and its evaluation at x*.  Only the stress P* is stored
+  (and the end nodes' values);
 - the corrector: the same under F̄ = (F^n + F*)/2, the energy from both; it stores the
   energies, volumes, stresses and each cell's sound-speed time limit and checks the
   state's health, then the nodes' new velocities and positions in a loop of their own
@@ -41,15 +43,18 @@ from ale_xfem.lagrange.kernels import (RUNS, advanced, artificial_viscosity, bou
 from ale_xfem.model.cell_kernels import INTERVAL, nan_max
 
 
-def runs_in_passes(cell_code: int, runs, scatter_mode: int, held_nodes, n_nodes: int, gas_model: int) -> bool:
+def runs_in_passes(cell_code: int, runs, scatter_mode: int, held_nodes, n_cells: int, n_nodes: int,
+                   components: int, gas_model: int) -> bool:
     """Whether a run's steps are taken by :func:`one_gas_steps`: intervals whose cell k is
-    nodes k and k + 1, their corner forces summed along the tube, the held nodes among the
-    two ends, one stiffened (or ideal) gas (``gas_model``: kernels.one_gas_model).  With
-    several materials each cell chooses its model in the loop, which then does not
-    vectorise, and the passes were slower than the staged step (3.5 against 3.2 ms a step
-    at 10⁵ cells, 35 against 25 µs at 10³, the two-gamma tube)."""
+    nodes k and k + 1 (n_cells + 1 nodes), their corner forces summed along the tube, the
+    held nodes among the two ends, one velocity component (no transverse one), one
+    stiffened (or ideal) gas (``gas_model``: kernels.one_gas_model).  With several materials
+    each cell chooses its model in the loop, which then does not vectorise, and the stages
+    were slower than the staged step (measured on the two-gamma tube, best of 7 interleaved
+    runs: 3.5 against 3.2 ms a step at 10⁵ cells, 35 against 25 µs at 10³)."""
     return bool(cell_code == INTERVAL and runs[4] == 1 and runs[0] == 0 and runs[1] == 1 and scatter_mode == RUNS
-                and np.isin(held_nodes, (0, n_nodes - 1)).all() and gas_model == STIFFENED_GAS)
+                and n_nodes == n_cells + 1 and components == 1 and gas_model == STIFFENED_GAS
+                and np.isin(held_nodes, (0, n_nodes - 1)).all())
 
 
 @numba.njit(**LOOP)
@@ -165,8 +170,9 @@ def stage(kind, two, parameters, law, boundaries, dt, inverse_node_mass, x0, u0,
           stress1, u, x, velocity_sum, mean_force, out):  # pragma: no cover (compiled)
     """A stage (:func:`_stage`), compiled for each ``kind`` (the gas's model) and ``two`` (the
     corrector) apart, both constants of its loop (numba.literally; it is called from
-    compiled code with constants).  A function of its own: inlined into the run loop, its passes
-    did not vectorise (the 1D step took 3.2 ms at 10⁵ cells, against 1.5 ms)."""
+    compiled code with constants).  A function of its own: inlined into the run loop, its
+    loops did not vectorise (measured: the 1D step took 3.2 ms at 10⁵ cells, against about
+    1.5 ms as it is)."""
     numba.literally(kind)
     numba.literally(two)
     return _stage(kind, two, parameters, law, boundaries, dt, inverse_node_mass, x0, u0, mass, energy,
@@ -262,7 +268,9 @@ def _interval_steps(kind, cell_type, mesh, boundaries, eos, cell_material, law, 
 def one_gas_steps(cell_type, mesh, boundaries, eos, cell_material, law, hourglass_coefficient, inverse_node_mass,
                   mass, time_step, held, clock, first, predicted, buffers, impulse):  # pragma: no cover (compiled)
     """:func:`ale_xfem.lagrange.kernels.pure_steps` (the same arguments and results) where
-    :func:`runs_in_passes` admits it: a step in three passes (module docstring), the same
-    numbers to the bit."""
+    :func:`runs_in_passes` admits it: a step in three stages (module docstring), the same
+    numbers to the bit.  The start's forces are formed again from its stresses: ``first``
+    must be an evaluation whose nodal forces are the scatter of its stresses (every pure
+    state's is)."""
     return _interval_steps(STIFFENED_GAS, cell_type, mesh, boundaries, eos, cell_material, law, hourglass_coefficient,
                            inverse_node_mass, mass, time_step, held, clock, first, predicted, buffers, impulse)

@@ -165,7 +165,8 @@ class ExplicitWilkins:
         ``corner_velocity`` (corner_velocities of node_velocity): already known.
 
         Without mixed cells and with the thermodynamics to evaluate, one compiled loop does
-        it all (kernels.evaluate_pure); otherwise the same functions run in stages, between
+        it all (kernels.evaluate_pure; on running intervals kernels.evaluate_one_gas_intervals
+        or evaluate_any_intervals, which compile the intervals' loop alone); otherwise the same functions run in stages, between
         which the mixed cells' closure sets their entries."""
         n, code, nodes, runs = self.mesh.n_cells, self.cell_code, self.cell_nodes, self.runs
         dim, k = self.mesh.cell_type.dimension, self.mesh.cell_type.nodes_per_cell
@@ -517,7 +518,8 @@ class ExplicitWilkins:
         before one that is not plain (see there).  ``clock``: t_end, dt_previous, growth,
         budget, steps_left, watch_stall, boundary_work, and t_stop (optional: stop once the
         time reaches it).  One gas on intervals numbered along the tube takes its steps in
-        three passes over the cells (``in_passes``, ale_xfem.lagrange.interval_steps), other
+        three stages, four loops over the cells and nodes (``in_passes``,
+        ale_xfem.lagrange.interval_steps), other
         states in stages (kernels.pure_steps): the same numbers.  Returns (steps taken, state,
         evaluation, last dt, least dt, largest dt, boundary work, boundary impulse)."""
         u0, x0 = np.ascontiguousarray(state.node_velocity), np.ascontiguousarray(state.node_position)
@@ -545,8 +547,8 @@ class ExplicitWilkins:
         dim = self.mesh.dimension
         held = self.held_nodes
         impulse = np.array(boundary_impulse, dtype=float)
-        passes = (in_passes and u0.shape[0] == 1
-                  and runs_in_passes(self.cell_code, self.runs, self.scatter_mode, held, n_nodes, self.gas_model))
+        passes = in_passes and runs_in_passes(self.cell_code, self.runs, self.scatter_mode, held, n, n_nodes,
+                                              u0.shape[0], self.gas_model)
         steps, t, dt_previous, dt_min, dt_max, work, current = (one_gas_steps if passes else kernels.pure_steps)(
             self.cell_code, (self.cell_nodes, self.runs, self.scatter_mode, self.corner_is_run, self.scratch),
             self.held, self.eos_tables, self.pure_layout.cell_material[0],
