@@ -37,7 +37,7 @@ import numba
 import numpy as np
 
 from ale_xfem.eos.kernels import BODY, LOOP, STIFFENED_GAS, pressure_sound_speed
-from ale_xfem.lagrange.kernels import (RUNS, advanced, artificial_viscosity, boundary_reaction, cfl_step, clamped_step,
+from ale_xfem.lagrange.kernels import (RUNS, account_step, advanced, artificial_viscosity, cfl_step, clamped_step,
                                        energy_after, evaluate_intervals, hold, least, moved, node_force, plain_step,
                                        sound_time, velocity_jump)
 from ale_xfem.model.cell_kernels import INTERVAL, nan_max
@@ -219,7 +219,7 @@ def _interval_steps(kind, cell_type, mesh, boundaries, eos, cell_material, law, 
                     inverse_node_mass, mass, time_step, held, clock, first, predicted, buffers,
                     impulse):  # pragma: no cover (compiled)
     node_mass, cfl, _, acceleration, sound_times, ratios, _, _ = time_step
-    held_nodes, held_scratch, stack, partial, mean_force = held
+    mean_force = held[4]
     t, t_end, dt_previous, growth, budget, steps_left, watch_stall, work, t_stop = clock
     steps = 0
     dt_min, dt_max = np.inf, 0.0
@@ -246,13 +246,9 @@ def _interval_steps(kind, cell_type, mesh, boundaries, eos, cell_material, law, 
                       energy, stress, predicted[15], u, x, velocity_sum, mean_force,
                       (e, volume, new_stress, sound_times)):
             break
-        if held_nodes.size:
-            work = work + boundary_reaction(node_mass, held_nodes, u0, u, velocity_sum, mean_force, dt, held_scratch,
-                                            stack, partial, impulse)
-        t = t + dt
+        work, t, dt_min, dt_max = account_step(node_mass, held, u0, u, velocity_sum, mean_force, dt, impulse, t,
+                                               work, dt_min, dt_max)
         dt_previous = dt
-        dt_min = dt if dt < dt_min else dt_min
-        dt_max = dt if dt > dt_max else dt_max
         steps += 1
         current = target
         dt = next_time_step(new_stress, volume, sound_times, inverse_node_mass, boundaries, cfl, acceleration, ratios)

@@ -911,6 +911,19 @@ def plain_step(dt, time_left, watch_stall, steps_left):  # pragma: no cover (com
 
 
 @numba.njit(**LOOP)
+def account_step(node_mass, held, u0, u, velocity_sum, mean_force, dt, impulse, t, work, dt_min,
+                 dt_max):  # pragma: no cover (compiled)
+    """What a compiled run loop records of a step it took: (the boundary work so far with the
+    step's boundary reactions' work added, t + dt, the least and the largest dt so far);
+    their impulse is added to ``impulse``.  ``held``: as :func:`pure_steps` takes it."""
+    held_nodes, held_scratch, stack, partial, _ = held
+    if held_nodes.size:
+        work = work + boundary_reaction(node_mass, held_nodes, u0, u, velocity_sum, mean_force, dt, held_scratch,
+                                        stack, partial, impulse)
+    return work, t + dt, (dt if dt < dt_min else dt_min), (dt if dt > dt_max else dt_max)
+
+
+@numba.njit(**LOOP)
 def pure_steps(cell_type, mesh, boundaries, eos, cell_material, viscosity_law, hourglass_coefficient,
                inverse_node_mass, mass, time_step, held, clock, first, predicted, buffers,
                impulse):  # pragma: no cover (compiled)
@@ -934,7 +947,7 @@ def pure_steps(cell_type, mesh, boundaries, eos, cell_material, viscosity_law, h
     which of first (0) or buffers (1, 2) holds the state reached); ``impulse`` accumulates
     (both sums as simulate() makes them, step by step)."""
     node_mass, cfl, viscous, acceleration, sound_times, ratios, no_cells, no_values = time_step
-    held_nodes, held_scratch, stack, partial, mean_force = held
+    mean_force = held[4]
     t, t_end, dt_previous, growth, budget, steps_left, watch_stall, work, t_stop = clock
     cell_nodes, runs = mesh[0], mesh[1]
     steps = 0
@@ -960,13 +973,9 @@ def pure_steps(cell_type, mesh, boundaries, eos, cell_material, viscosity_law, h
                            dt, inverse_node_mass, start, predicted, new_arrays, new_hourglass, mean_force, True, True)
         if status != 0:
             break
-        if held_nodes.size:
-            work = work + boundary_reaction(node_mass, held_nodes, u0, new_arrays[0], new_arrays[1], mean_force,
-                                            dt, held_scratch, stack, partial, impulse)
-        t = t + dt
+        work, t, dt_min, dt_max = account_step(node_mass, held, u0, new_arrays[0], new_arrays[1], mean_force, dt,
+                                               impulse, t, work, dt_min, dt_max)
         dt_previous = dt
-        dt_min = dt if dt < dt_min else dt_min
-        dt_max = dt if dt > dt_max else dt_max
         steps += 1
         current = target
     if steps:  # the steps were lean: the state reached, evaluated in full (the same numbers)
