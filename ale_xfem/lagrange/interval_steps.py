@@ -215,9 +215,8 @@ def next_time_step(stress, volume, sound_times, inverse_node_mass, boundaries, c
 
 
 @numba.njit(**BODY)
-def _interval_steps(kind, cell_type, mesh, boundaries, eos, cell_material, law, hourglass_coefficient,
-                    inverse_node_mass, mass, time_step, held, clock, first, predicted, buffers,
-                    impulse):  # pragma: no cover (compiled)
+def _interval_steps(kind, mesh, boundaries, eos, cell_material, law, hourglass_coefficient, inverse_node_mass,
+                    mass, time_step, held, clock, first, predicted, buffers, impulse):  # pragma: no cover (compiled)
     node_mass, cfl, _, acceleration, sound_times, ratios, _, _ = time_step
     mean_force = held[4]
     t, t_end, dt_previous, growth, budget, steps_left, watch_stall, work, t_stop = clock
@@ -268,5 +267,6 @@ def one_gas_steps(cell_type, mesh, boundaries, eos, cell_material, law, hourglas
     numbers to the bit.  The start's forces are formed again from its stresses: ``first``
     must be an evaluation whose nodal forces are the scatter of its stresses (every pure
     state's is)."""
-    return _interval_steps(STIFFENED_GAS, cell_type, mesh, boundaries, eos, cell_material, law, hourglass_coefficient,
+    # (cell_type: pure_steps' signature; always intervals here)
+    return _interval_steps(STIFFENED_GAS, mesh, boundaries, eos, cell_material, law, hourglass_coefficient,
                            inverse_node_mass, mass, time_step, held, clock, first, predicted, buffers, impulse)

@@ -338,7 +338,7 @@ def evaluate_pure(cell_type, x, u, combos, cell_nodes, runs, hourglass, with_len
     as a constant, so that it vectorises either way.  (Lean always and the three added by a
     second pass when asked cost a step called from Python about 10 %, interleaved A/B at
     10⁵ cells; the two loops cost the first run's compilation a few seconds.)"""
-    gas = eos[0].size == 1 and eos[0][0] == STIFFENED_GAS
+    gas = one_gas_model(eos) == STIFFENED_GAS
     if cell_type == INTERVAL:
         if runs[4] == 1 and gas and store:
             _evaluate_pure(INTERVAL, True, STIFFENED_GAS, True, x, u, combos, cell_nodes, runs, hourglass,
@@ -360,7 +360,8 @@ def evaluate_pure(cell_type, x, u, combos, cell_nodes, runs, hourglass, with_len
                        cell_material, mass, energy, viscosity_law, hourglass_control, out, rows)
 
 
-def one_gas_model(eos_tables) -> int:
+@numba.njit(**LOOP)
+def one_gas_model(eos_tables):  # pragma: no cover (compiled)
     """STIFFENED_GAS for a state of one stiffened (or ideal) gas, whose loops then have its
     model as a constant (and vectorise); −1: each cell's model chosen in the loop."""
     kinds = eos_tables[0]
@@ -635,9 +636,8 @@ def _time_limits(running, volume, length, sound_speed, jump, viscous, q_quadrati
                                     artificial)
     for j in range(mixed_cells.size):
         k = mixed_cells[j]
-        stiffness = np.sqrt(volume[k]) / length[k] if viscous else 1.0
-        sound_times[k] = nan_min(sound_times[k], cfl_time(mixed_sound_speed[j], jump[k], length[k], stiffness,
-                                                          q_quadratic, q_linear, artificial))
+        sound_times[k] = nan_min(sound_times[k], sound_time(mixed_sound_speed[j], jump[k], volume[k], length[k],
+                                                            viscous, q_quadratic, q_linear, artificial))
     if running:  # intervals: two nodes, k + offsets
         _, offsets = at
         for k in range(volume.size):
