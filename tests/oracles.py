@@ -187,3 +187,92 @@ def pure_kernel(x, X, mass, specific_energy, corner, u, order, slots=1, heat=Tru
     donor_scale *= flux_mass
     right_corner[:-1] -= donor_scale
     return new_mass, new_energy, corner_new, node_mass, momentum, kinetic_before, kinetic, far_nodes
+
+
+def swept_pass_2d(mesh, x, target_a, target_b, edges, is_mixed, material, volume, mass, energy, order):
+    """The 2D remap's whole-mesh pass over pure donors (ale_xfem.remap.remapper_2d, before it
+    was compiled into ale_xfem.remap.swept_kernels_2d): the regions the interior edges
+    sweep from ``x`` to the target (edge ends ``target_a``, ``target_b``), the volumes pure
+    donors give (mixed donors give none here: the remapper clips theirs), each material's
+    density and energy density, the fluxes at order 1 or 2, and the cells' ``volume``,
+    ``mass`` and ``energy`` (n_materials, n_cells) after the exchange, in place.  ``edges``:
+    (a, b, plus, minus) of mesh_edges.  Returns (donor, receiver, size, swept, flux_volume,
+    flux_mass, flux_energy, rho, eps)."""
+    from ale_xfem.geometry.shapes import corner_centroid
+    from ale_xfem.model.mesh import node_averaged_gradient
+
+    a, b, plus, minus = edges
+    n_materials, n_cells = volume.shape
+    xa, xb = x.take(a, axis=1), x.take(b, axis=1)
+    Xa, Xb = target_a, target_b
+    S = (Xb[0] - xa[0]) * (xb[1] - Xa[1])
+    S -= (Xb[1] - xa[1]) * (xb[0] - Xa[0])
+    S *= 0.5
+    e = np.flatnonzero((S != 0.0) & (minus >= 0))
+    S_e = S[e]
+    swept = tuple([ends[d].take(e) for ends in (xa, Xa, Xb, xb)] for d in range(2))
+    donor = np.where(S_e > 0, minus[e], plus[e])
+    receiver = np.where(S_e > 0, plus[e], minus[e])
+    size = np.abs(S_e)
+    flux_volume = np.zeros((n_materials, e.size))
+    pure = ~is_mixed[donor]
+    from_pure = np.flatnonzero(pure)
+    entry = material.take(donor[from_pure])
+    entry *= e.size
+    entry += from_pure
+    flux_volume.reshape(-1)[entry] = size[from_pure]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        rho = np.where(volume > 0, mass / np.where(volume > 0, volume, 1.0), 0.0)
+        eps = np.where(volume > 0, energy / np.where(volume > 0, volume, 1.0), 0.0)
+    flux_mass = flux_volume * rho.take(donor, axis=1)
+    flux_energy = flux_volume * eps.take(donor, axis=1)
+    if order == 2:
+        k = mesh.cell_type.nodes_per_cell
+        cell_rho = rho[material, np.arange(n_cells)]
+        cell_eps = eps[material, np.arange(n_cells)]
+        corners = mesh.corners
+        corner_x = [c[0] for c in corners.gather(x[:1])]
+        corner_y = [c[0] for c in corners.gather(x[1:])]
+        _, centre_x, centre_y = corner_centroid(corner_x, corner_y)
+        tag = np.where(is_mixed, -1, material)
+        low_tag, high_tag = corners.node_extremes(tag, np.iinfo(np.int64).max, -2)
+        inside = ~is_mixed
+        for low_i, high_i in zip(corners.gather(low_tag[None]), corners.gather(high_tag[None])):
+            inside &= (low_i[0] == tag) & (high_i[0] == tag)
+        relative = [(cx - centre_x, cy - centre_y) for cx, cy in zip(corner_x, corner_y)]
+        slopes = []
+        gradients = node_averaged_gradient(mesh, x, np.stack([cell_rho, cell_eps]))
+        for value, grad in zip((cell_rho, cell_eps), gradients):
+            low, high = corners.node_extremes(value, np.inf, -np.inf)
+            gx, gy = np.ascontiguousarray(grad[:, 0]), np.ascontiguousarray(grad[:, 1])
+            limiter = np.ones(n_cells)
+            corner_low, corner_high = corners.gather(low[None]), corners.gather(high[None])
+            for i in range(k):
+                delta = gx * relative[i][0]
+                delta += gy * relative[i][1]
+                room = np.where(delta >= 0, corner_high[i][0], corner_low[i][0])
+                room -= value
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    bound = np.divide(room, delta, out=room)
+                np.clip(bound, 0.0, 1.0, out=bound)
+                np.fmin(limiter, bound, out=limiter)
+            limiter[~inside] = 0.0
+            slopes.append((gx * limiter, gy * limiter))
+        where = np.flatnonzero(pure)
+        source = donor[where]
+        m = material[source]
+        _, swept_x, swept_y = corner_centroid(*swept)
+        swept_x = swept_x[where] - centre_x[source]
+        swept_y = swept_y[where] - centre_y[source]
+        total = flux_volume.sum(axis=0)[where]
+        entry = m * flux_mass.shape[1]
+        entry += where
+        for (sx, sy), flux in ((slopes[0], flux_mass), (slopes[1], flux_energy)):
+            correction = sx[source] * swept_x
+            correction += sy[source] * swept_y
+            correction *= total
+            flux.reshape(-1)[entry] += correction
+    for quantity, flux in ((volume, flux_volume), (mass, flux_mass), (energy, flux_energy)):
+        for m in range(n_materials):
+            quantity[m] += np.bincount(receiver, flux[m], n_cells) - np.bincount(donor, flux[m], n_cells)
+    return donor, receiver, size, swept, flux_volume, flux_mass, flux_energy, rho, eps

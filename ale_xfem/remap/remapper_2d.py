@@ -46,9 +46,10 @@ import numpy as np
 
 from ale_xfem.model.mesh import mesh_edges, node_averaged_gradient, node_neighbour_cells
 from ale_xfem.model.mixed_cells import MixedCells
+from ale_xfem.remap import swept_kernels_2d
 from ale_xfem.remap.failure import RemapFailure
 from ale_xfem.remap.kinetic_energy import losses_only, made_kinetic_energy_factor
-from ale_xfem.geometry.shapes import clip_convex, clipped_area, corner_centroid, polygon_area
+from ale_xfem.geometry.shapes import clip_convex, clipped_area, polygon_area
 from ale_xfem.model.state import density_of, ranked_materials, thermodynamics
 
 # A material that falls below this fraction of its cell's area in a remap leaves the cell (its mass and energy go
@@ -180,51 +181,25 @@ class Remapper2D:
         standing_where = np.nonzero(standing)
         standing_volume = volume[standing_where]
 
-        # -- the swept regions ------------------------------------------------------------
-        a, b, plus, minus = self.a, self.b, self.plus, self.minus
-        # (take: numpy's fancy indexing along the second axis is several times slower)
-        xa, xb = x.take(a, axis=1), x.take(b, axis=1)
+        # -- the swept regions (compiled: ale_xfem.remap.swept_kernels_2d) --------------------
         Xa, Xb, area = self._target_geometry(X)
-        # the swept quadrilateral (x_a, X_a, X_b, x_b): S = ½ (X_b − x_a) × (x_b − X_a)
-        S = (Xb[0] - xa[0]) * (xb[1] - Xa[1])
-        S -= (Xb[1] - xa[1]) * (xb[0] - Xa[0])
-        S *= 0.5
-        moving = (S != 0.0) & (minus >= 0)
-        e = np.flatnonzero(moving)
-        S_e = S[e]
-        # the moving edges' swept quadrilaterals, vertex by vertex: ([x_i], [y_i])
-        swept = tuple([ends[d].take(e) for ends in (xa, Xa, Xb, xb)] for d in range(2))
-        donor = np.where(S_e > 0, minus[e], plus[e])
-        receiver = np.where(S_e > 0, plus[e], minus[e])
-        size = np.abs(S_e)
-        material_of = layout.cell_material
         is_mixed = np.zeros(n_cells, dtype=bool)
         if mixed is not None:
             is_mixed[mixed.cells] = True
-        # volume of each material in each swept region
-        flux_volume = np.zeros((n_materials, e.size))
+        # each moving edge's donor, receiver, |S|, quadrilateral (x_a, X_a, X_b, x_b) and the
+        # volume of each material in it from pure donors
+        _, donor, receiver, size, swept, flux_volume = swept_kernels_2d.swept_edges(
+            x, Xa, Xb, self.a, self.b, self.plus, self.minus, is_mixed, layout.cell_material[0], n_materials)
         pure = ~is_mixed[donor]
-        from_pure = np.flatnonzero(pure)
-        entry = material_of[0].take(donor[from_pure])  # (material, region) as flat indices
-        entry *= e.size
-        entry += from_pure
-        flux_volume.reshape(-1)[entry] = size[from_pure]
         if np.any(~pure):  # mixed donors: exact clipping with their PLIC polygons
             self._mixed_donor_volumes(state, layout, mixed, swept, donor, size, flux_volume)
-        if np.any(~pure):
             self._cap_outflow(volume, donor, size, flux_volume)
-        # densities and specific energies of the donors, per material
-        with np.errstate(invalid="ignore", divide="ignore"):
-            rho = np.where(volume > 0, mass / np.where(volume > 0, volume, 1.0), 0.0)
-            eps = np.where(volume > 0, energy / np.where(volume > 0, volume, 1.0), 0.0)  # energy density
-        flux_mass = flux_volume * rho.take(donor, axis=1)
-        flux_energy = flux_volume * eps.take(donor, axis=1)
+        # densities and energy densities of the donors, per material, and what the regions carry
+        rho, eps, flux_mass, flux_energy = swept_kernels_2d.donor_fluxes(flux_volume, volume, mass, energy, donor)
         if self.order == 2:
-            self._second_order(x, layout, is_mixed, rho, eps, swept, donor, pure, flux_volume,
-                               flux_mass, flux_energy)
+            self._second_order(x, layout, is_mixed, rho, eps, swept, donor, flux_volume, flux_mass, flux_energy)
         for quantity, flux in ((volume, flux_volume), (mass, flux_mass), (energy, flux_energy)):
-            for m in range(n_materials):
-                quantity[m] += np.bincount(receiver, flux[m], n_cells) - np.bincount(donor, flux[m], n_cells)
+            swept_kernels_2d.exchange(quantity, flux, donor, receiver)
         # a trace the fluxes changed is a trace this remap made: it moves (kept, traces of a
         # shock's path took energy below zero on the shock on a disk)
         touched = np.abs(volume[standing_where] - standing_volume) > 1e-6 * standing_volume
@@ -580,60 +555,13 @@ class Remapper2D:
         flux_volume[first, edges] = alpha
         flux_volume[second, edges] = beta
 
-    def _second_order(self, x, layout, is_mixed, rho, eps, swept, donor, pure, flux_volume, flux_mass,
-                      flux_energy):
+    def _second_order(self, x, layout, is_mixed, rho, eps, swept, donor, flux_volume, flux_mass, flux_energy):
         """Limited linear density and energy density in pure donors, at the centroid of the
-        swept region (module docstring)."""
+        swept region (module docstring): the node-averaged gradients here, the rest compiled
+        (swept_kernels_2d.second_order)."""
         mesh = self.mesh
-        k = mesh.cell_type.nodes_per_cell
         material = layout.cell_material[0]
-        cell_rho = rho[material, np.arange(mesh.n_cells)]
-        cell_eps = eps[material, np.arange(mesh.n_cells)]
-        corner_x = [c[0] for c in mesh.corners.gather(x[:1])]
-        corner_y = [c[0] for c in mesh.corners.gather(x[1:])]
-        _, centre_x, centre_y = corner_centroid(corner_x, corner_y)
-        # slopes only in cells whose every node touches cells of their own material alone
-        # (no slope next to another material or a mixed cell: nothing crosses Γ)
-        tag = np.where(is_mixed, -1, material)
-        corners = mesh.corners
-        low_tag, high_tag = corners.node_extremes(tag, np.iinfo(np.int64).max, -2)
-        inside = ~is_mixed
-        for low_i, high_i in zip(corners.gather(low_tag[None]), corners.gather(high_tag[None])):
-            inside &= (low_i[0] == tag) & (high_i[0] == tag)
-        # corners relative to the centroid, component by component
-        relative = [(cx - centre_x, cy - centre_y) for cx, cy in zip(corner_x, corner_y)]
-        slopes = []
-        gradients = node_averaged_gradient(mesh, x, np.stack([cell_rho, cell_eps]))
-        for value, grad in zip((cell_rho, cell_eps), gradients):
-            # Barth–Jespersen: the reconstruction at the corners within the node-neighbour range
-            low, high = corners.node_extremes(value, np.inf, -np.inf)
-            gx, gy = np.ascontiguousarray(grad[:, 0]), np.ascontiguousarray(grad[:, 1])
-            limiter = np.ones(mesh.n_cells)
-            corner_low, corner_high = corners.gather(low[None]), corners.gather(high[None])
-            for i in range(k):
-                delta = gx * relative[i][0]
-                delta += gy * relative[i][1]
-                # room ≥ 0 where δ = 0 (a cell's range holds its value): the bound is +∞ or
-                # NaN there, and fmin passes over NaN — no constraint, without masks
-                room = np.where(delta >= 0, corner_high[i][0], corner_low[i][0])
-                room -= value
-                with np.errstate(divide="ignore", invalid="ignore"):
-                    bound = np.divide(room, delta, out=room)
-                np.clip(bound, 0.0, 1.0, out=bound)
-                np.fmin(limiter, bound, out=limiter)
-            limiter[~inside] = 0.0
-            slopes.append((gx * limiter, gy * limiter))
-        where = np.flatnonzero(pure)
-        source = donor[where]
-        m = material[source]
-        _, swept_x, swept_y = corner_centroid(*swept)
-        swept_x = swept_x[where] - centre_x[source]
-        swept_y = swept_y[where] - centre_y[source]
-        volume = flux_volume.sum(axis=0)[where]
-        entry = m * flux_mass.shape[1]  # (m, where) as flat indices: each once, and faster
-        entry += where
-        for (sx, sy), flux in ((slopes[0], flux_mass), (slopes[1], flux_energy)):
-            correction = sx[source] * swept_x
-            correction += sy[source] * swept_y
-            correction *= volume
-            flux.reshape(-1)[entry] += correction
+        cells = np.arange(mesh.n_cells)
+        gradients = node_averaged_gradient(mesh, x, np.stack([rho[material, cells], eps[material, cells]]))
+        swept_kernels_2d.second_order(x, mesh.cell_nodes, material, is_mixed, rho, eps, gradients, swept, donor,
+                                      flux_volume, flux_mass, flux_energy)

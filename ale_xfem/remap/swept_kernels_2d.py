@@ -1,0 +1,229 @@
+"""Compiled kernels of the 2D remap's whole-mesh pass (ale_xfem.remap.remapper_2d): the
+swept region of every edge, the volumes pure donors give, each material's density and
+energy density in the donors and the fluxes at order 1, the limited linear reconstruction
+of order 2, and the exchange of the fluxes between the cells.
+
+Each loop computes, per edge, per cell or per node, what the numpy code it replaced computed
+over whole arrays, with the same operations in the same order, so the results are the same
+to the bit (tests/test_remap.py compares them with that code, kept in tests/oracles.py, and
+tests/test_regression.py compares the shipped scenes).  Comparisons follow numpy's
+(``swept_kernels.maximum``/``minimum``).  What crosses Γ — the swept regions of mixed
+donors, clipped by their PLIC polygons — stays in the remapper.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from ale_xfem.remap.swept_kernels import KERNEL, maximum, minimum
+
+
+@numba.njit(**KERNEL)
+def fan_centroid(px, py):  # pragma: no cover (compiled)
+    """(area, cx, cy) of one polygon (vertices ``px``, ``py`` in order), as
+    ale_xfem.geometry.shapes.corner_centroid computes it for each polygon of a batch: fanned
+    from vertex 0, coordinates relative to it; a polygon of zero area gets the mean of its
+    vertices."""
+    m = px.size
+    x0, y0 = px[0], py[0]
+    area = cx = cy = 0.0
+    for i in range(m - 2):
+        dx1, dy1 = px[i + 1] - x0, py[i + 1] - y0
+        dx2, dy2 = px[i + 2] - x0, py[i + 2] - y0
+        cross = dx1 * dy2
+        cross -= dx2 * dy1
+        tx = (dx1 + dx2) * cross
+        ty = (dy1 + dy2) * cross
+        if i == 0:
+            area, cx, cy = cross, tx, ty
+        else:
+            area += cross
+            cx += tx
+            cy += ty
+    area *= 0.5
+    if area == 0.0:
+        sx = sy = 0.0
+        for i in range(1, m):
+            sx += px[i] - x0
+            sy += py[i] - y0
+        cx, cy = sx / m, sy / m
+    else:
+        scale = 1.0 / (6.0 * area)
+        cx *= scale
+        cy *= scale
+    return area, cx + x0, cy + y0
+
+
+@numba.njit(**KERNEL)
+def swept_edges(x, target_a, target_b, a, b, plus, minus, is_mixed, material, n_materials):  # pragma: no cover (compiled)
+    """The regions the interior edges sweep from the Lagrangian mesh ``x`` (2, n_nodes) to
+    the target mesh (edge ends ``target_a``, ``target_b`` (2, n_edges)): each edge a→b
+    sweeps the quadrilateral (x_a, X_a, X_b, x_b) of signed area
+    S = ½ (X_b − x_a) × (x_b − X_a), from the cell on its other side into the cell on its left
+    (``plus``) where S > 0, the other way where S < 0.  Returns, over the edges that move
+    (S ≠ 0): their indices, donors, receivers, |S|, their quadrilaterals (2, 4, n) and each
+    material's volume in them (n_materials, n) — a pure donor's material's |S|, zero from mixed
+    donors (``is_mixed``: their share is clipped by their polygons; ``material``: each cell's
+    first material)."""
+    n_edges = a.size
+    area = np.empty(n_edges)
+    count = 0
+    for j in range(n_edges):
+        s = (target_b[0, j] - x[0, a[j]]) * (x[1, b[j]] - target_a[1, j])
+        s -= (target_b[1, j] - x[1, a[j]]) * (x[0, b[j]] - target_a[0, j])
+        s *= 0.5
+        area[j] = s
+        if (s != 0.0) & (minus[j] >= 0):
+            count += 1
+    edges = np.empty(count, dtype=np.int64)
+    donor = np.empty(count, dtype=np.int64)
+    receiver = np.empty(count, dtype=np.int64)
+    size = np.empty(count)
+    swept = np.empty((2, 4, count))
+    flux_volume = np.zeros((n_materials, count))
+    k = 0
+    for j in range(n_edges):
+        s = area[j]
+        if not ((s != 0.0) & (minus[j] >= 0)):
+            continue
+        edges[k] = j
+        if s > 0:
+            donor[k], receiver[k] = minus[j], plus[j]
+        else:
+            donor[k], receiver[k] = plus[j], minus[j]
+        size[k] = abs(s)
+        for d in range(2):
+            swept[d, 0, k] = x[d, a[j]]
+            swept[d, 1, k] = target_a[d, j]
+            swept[d, 2, k] = target_b[d, j]
+            swept[d, 3, k] = x[d, b[j]]
+        if not is_mixed[donor[k]]:
+            flux_volume[material[donor[k]], k] = size[k]
+        k += 1
+    return edges, donor, receiver, size, swept, flux_volume
+
+
+@numba.njit(**KERNEL)
+def donor_fluxes(flux_volume, volume, mass, energy, donor):  # pragma: no cover (compiled)
+    """Each material's density and energy density in every cell (mass and internal energy
+    over volume, zero where it has none: (n_materials, n_cells) each) and the mass and
+    energy its swept volumes ``flux_volume`` (n_materials, n) carry at its donors'."""
+    n_materials, n_cells = volume.shape
+    rho = np.empty((n_materials, n_cells))
+    eps = np.empty((n_materials, n_cells))
+    for m in range(n_materials):
+        for c in range(n_cells):
+            v = volume[m, c]
+            if v > 0:
+                rho[m, c] = mass[m, c] / v
+                eps[m, c] = energy[m, c] / v
+            else:
+                rho[m, c] = 0.0
+                eps[m, c] = 0.0
+    flux_mass = np.empty(flux_volume.shape)
+    flux_energy = np.empty(flux_volume.shape)
+    for m in range(n_materials):
+        for j in range(donor.size):
+            flux_mass[m, j] = flux_volume[m, j] * rho[m, donor[j]]
+            flux_energy[m, j] = flux_volume[m, j] * eps[m, donor[j]]
+    return rho, eps, flux_mass, flux_energy
+
+
+@numba.njit(**KERNEL)
+def second_order(x, cell_nodes, material, is_mixed, rho, eps, gradients, swept, donor, flux_volume,
+                 flux_mass, flux_energy):  # pragma: no cover (compiled)
+    """Order 2 (remapper_2d's module docstring): in pure donors whose every node touches
+    cells of their own material alone, a linear density and energy density, the gradients
+    ``gradients`` (2, n_cells, 2) (node-averaged) limited by Barth–Jespersen so that the
+    corners stay within the node-neighbour range, evaluated at the swept region's centroid:
+    ``flux_mass`` and ``flux_energy`` corrected in place."""
+    n_cells, k = cell_nodes.shape
+    n_nodes = x.shape[1]
+    value = np.empty((2, n_cells))
+    for c in range(n_cells):
+        value[0, c] = rho[material[c], c]
+        value[1, c] = eps[material[c], c]
+    centre = np.empty((2, n_cells))
+    px, py = np.empty(k), np.empty(k)
+    for c in range(n_cells):
+        for i in range(k):
+            px[i], py[i] = x[0, cell_nodes[c, i]], x[1, cell_nodes[c, i]]
+        _, centre[0, c], centre[1, c] = fan_centroid(px, py)
+    # slopes only in cells whose every node touches cells of their own material alone
+    low_tag = np.full(n_nodes, np.iinfo(np.int64).max)
+    high_tag = np.full(n_nodes, -2)
+    low = np.full((2, n_nodes), np.inf)
+    high = np.full((2, n_nodes), -np.inf)
+    for c in range(n_cells):
+        tag = -1 if is_mixed[c] else material[c]
+        for i in range(k):
+            node = cell_nodes[c, i]
+            low_tag[node] = min(low_tag[node], tag)
+            high_tag[node] = max(high_tag[node], tag)
+            for f in range(2):
+                low[f, node] = minimum(low[f, node], value[f, c])
+                high[f, node] = maximum(high[f, node], value[f, c])
+    slope = np.zeros((2, 2, n_cells))
+    for c in range(n_cells):
+        if is_mixed[c]:
+            continue
+        tag = material[c]
+        inside = True
+        for i in range(k):
+            node = cell_nodes[c, i]
+            inside &= (low_tag[node] == tag) & (high_tag[node] == tag)
+        if not inside:
+            continue
+        for f in range(2):
+            gx, gy = gradients[f, c, 0], gradients[f, c, 1]
+            limiter = 1.0
+            for i in range(k):
+                node = cell_nodes[c, i]
+                delta = gx * (x[0, node] - centre[0, c])
+                delta += gy * (x[1, node] - centre[1, c])
+                # room ≥ 0 where δ = 0 (a cell's range holds its value): the bound is +∞ or
+                # NaN there, and NaN sets no bound
+                room = (high[f, node] if delta >= 0 else low[f, node]) - value[f, c]
+                bound = minimum(maximum(room / delta, 0.0), 1.0)
+                if not (bound != bound):
+                    limiter = min(limiter, bound)
+            slope[f, 0, c] = gx * limiter
+            slope[f, 1, c] = gy * limiter
+    corner_x, corner_y = np.empty(4), np.empty(4)
+    for j in range(donor.size):
+        source = donor[j]
+        if is_mixed[source]:
+            continue
+        for v in range(4):
+            corner_x[v], corner_y[v] = swept[0, v, j], swept[1, v, j]
+        _, sx, sy = fan_centroid(corner_x, corner_y)
+        sx -= centre[0, source]
+        sy -= centre[1, source]
+        volume = flux_volume[0, j]
+        for m in range(1, flux_volume.shape[0]):
+            volume += flux_volume[m, j]
+        m = material[source]
+        correction = slope[0, 0, source] * sx
+        correction += slope[0, 1, source] * sy
+        flux_mass[m, j] += correction * volume
+        correction = slope[1, 0, source] * sx
+        correction += slope[1, 1, source] * sy
+        flux_energy[m, j] += correction * volume
+
+
+@numba.njit(**KERNEL)
+def exchange(quantity, flux, donor, receiver):  # pragma: no cover (compiled)
+    """Each cell's ``quantity`` (n_materials, n_cells) plus what the fluxes (n_materials, n)
+    bring in less what they take out, in place (the sums over the edges in their order)."""
+    n_materials, n_cells = quantity.shape
+    into = np.empty(n_cells)
+    out = np.empty(n_cells)
+    for m in range(n_materials):
+        into[:] = 0.0
+        out[:] = 0.0
+        for j in range(donor.size):
+            into[receiver[j]] += flux[m, j]
+            out[donor[j]] += flux[m, j]
+        for c in range(n_cells):
+            quantity[m, c] += into[c] - out[c]
