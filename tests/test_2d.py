@@ -747,6 +747,49 @@ def test_the_compiled_2d_swept_pass_gives_the_numpy_pass_bits(mesh_name, order):
             np.testing.assert_array_equal(bits(have), bits(want), err_msg=f"{name} after the exchange, {case}")
 
 
+@pytest.mark.parametrize("k", [3, 4])
+def test_the_compiled_clipping_of_mixed_donors_gives_the_numpy_clippings_bits(k):
+    """The part of a swept region inside its mixed donor and below the donor's PLIC line,
+    compiled (swept_kernels_2d.mixed_donor_parts), against the vectorised numpy polygon
+    clipping the remap used before (geometry.shapes): the same bits, for regions of either
+    orientation and self-crossing ones, inside, across and outside their cells, cells of
+    either orientation, lines through and beside them."""
+    from ale_xfem.geometry.shapes import clip_convex, clipped_area, polygon_area
+    from ale_xfem.remap.swept_kernels_2d import mixed_donor_parts
+
+    def bits(a):
+        return np.ascontiguousarray(a, dtype=float).view(np.uint64)
+
+    rng = np.random.default_rng(3)
+    n = 400
+    angles = np.sort(rng.uniform(0, 2 * np.pi, (n, k)), axis=1)
+    cell = np.stack([np.cos(angles), np.sin(angles)], axis=-1) * rng.uniform(0.5, 1.5, (n, 1, 1))
+    cell[n // 2:] = cell[n // 2:, ::-1]  # clockwise cells
+    x = cell.reshape(-1, 2).T.copy()
+    cell_nodes = np.arange(n * k).reshape(n, k)
+    centre = rng.uniform(-1.2, 1.2, (n, 1, 2))
+    region = centre + rng.uniform(-0.6, 0.6, (n, 4, 2))
+    region[::7] = region[::7, [0, 2, 1, 3]]  # bow ties
+    swept = np.ascontiguousarray(np.moveaxis(region, 0, -1).transpose(1, 0, 2))  # (2, 4, n)
+    size = np.abs(polygon_area(region))
+    normal = rng.normal(size=(n, 2))
+    normal /= np.linalg.norm(normal, axis=1)[:, None]
+    offset = rng.uniform(-1.0, 1.0, n)
+    edges, donor, line = np.arange(n), np.arange(n), np.arange(n)
+    inside, alpha = mixed_donor_parts(swept, edges, x, cell_nodes, donor, size, normal, offset, line)
+
+    ccw_region = np.where((polygon_area(region) < 0)[:, None, None], region[:, ::-1], region)
+    ccw_cell = np.where((polygon_area(cell) < 0)[:, None, None], cell[:, ::-1], cell)
+    in_donor = clip_convex(ccw_region, ccw_cell)
+    expected_inside = np.clip(polygon_area(in_donor), 0.0, size)
+    expected_alpha = np.clip(clipped_area(in_donor, normal, offset), 0.0, expected_inside)
+    np.testing.assert_array_equal(bits(inside), bits(expected_inside))
+    np.testing.assert_array_equal(bits(alpha), bits(expected_alpha))
+    # not vacuous: regions wholly out of their cells, partly in, and lines cutting parts
+    assert np.any(inside == 0.0) and np.any((inside > 0.0) & (inside < size))
+    assert np.any((alpha > 0.0) & (alpha < inside))
+
+
 @pytest.mark.parametrize("motion", ["eulerian", "smoothed"])
 def test_2d_remap_conserves_mass_momentum_and_total_energy_with_mixed_cells(motion):
     problem, result = run_scene("rotated-tube", "mesh.cells=[30,30]", f"mesh.motion={motion}")

@@ -49,7 +49,6 @@ from ale_xfem.model.mixed_cells import MixedCells
 from ale_xfem.remap import swept_kernels_2d
 from ale_xfem.remap.failure import RemapFailure
 from ale_xfem.remap.kinetic_energy import losses_only, made_kinetic_energy_factor
-from ale_xfem.geometry.shapes import clip_convex, clipped_area, polygon_area
 from ale_xfem.model.state import density_of, ranked_materials, thermodynamics
 
 # A material that falls below this fraction of its cell's area in a remap leaves the cell (its mass and energy go
@@ -527,18 +526,11 @@ class Remapper2D:
         edges = np.flatnonzero(where[donor] >= 0)
         if edges.size == 0:
             return
-        k = where[donor[edges]]
         # the swept quadrilateral, counter-clockwise, clipped by its donor cell; then its α
         # part, {x·n ≤ s} of that (α's PLIC polygon is the cell's part there), by area only
-        region = np.stack([np.stack([px[edges], py[edges]], axis=-1) for px, py in zip(*swept)], axis=1)
-        region = np.where((polygon_area(region) < 0)[:, None, None], region[:, ::-1], region)
+        inside, alpha = swept_kernels_2d.mixed_donor_parts(swept, edges, state.node_position, self.mesh.cell_nodes,
+                                                           donor, size, normal, offset, where[donor[edges]])
         cells = donor[edges]
-        cell_polygon = np.moveaxis(state.node_position[:, self.mesh.cell_nodes[cells]], 0, -1)
-        cell_polygon = np.where((polygon_area(cell_polygon) < 0)[:, None, None], cell_polygon[:, ::-1],
-                                cell_polygon)
-        in_donor = clip_convex(region, cell_polygon)
-        inside = np.clip(polygon_area(in_donor), 0.0, size[edges])
-        alpha = np.clip(clipped_area(in_donor, normal[k], offset[k]), 0.0, inside)
         # Near a node the region may reach out of its donor (the swept regions of the
         # node's edges overlap there): that part is neither of the donor's polygons and is
         # shared by the donor's volume fractions.  (Counted as β, it carried a trace of β

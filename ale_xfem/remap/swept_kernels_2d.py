@@ -212,6 +212,129 @@ def second_order(x, cell_nodes, material, is_mixed, rho, eps, gradients, swept, 
         flux_energy[m, j] += correction * volume
 
 
+# a swept quadrilateral clipped by a cell's k edges has at most 4 · 2^k vertices (each pass
+# emits at most two points an edge)
+MAX_CLIPPED = 64
+
+
+@numba.njit(**KERNEL)
+def shoelace(px, py, m):  # pragma: no cover (compiled)
+    """Signed area of the polygon of the first ``m`` points (geometry.shapes.polygon_area's
+    order: the closing edge first)."""
+    total = px[m - 1] * py[0] - px[0] * py[m - 1]
+    for i in range(m - 1):
+        total += px[i] * py[i + 1] - px[i + 1] * py[i]
+    return total * 0.5
+
+
+@numba.njit(**KERNEL)
+def clip_by_line(px, py, m, nx, ny, offset, out_x, out_y):  # pragma: no cover (compiled)
+    """One Sutherland–Hodgman pass (geometry.shapes.clip_half_plane): the part of the
+    polygon of the first ``m`` points where x·n ≤ offset into ``out_x``, ``out_y``; returns
+    its number of points (0: empty)."""
+    count = 0
+    for i in range(m):
+        j = (i + 1) % m
+        d0 = px[i] * nx + py[i] * ny - offset
+        d1 = px[j] * nx + py[j] * ny - offset
+        inside0, inside1 = d0 <= 0.0, d1 <= 0.0
+        if inside0:
+            out_x[count], out_y[count] = px[i], py[i]
+            count += 1
+        if inside0 != inside1:
+            t = d0 / (d0 - d1)
+            out_x[count] = (px[j] - px[i]) * t + px[i]
+            out_y[count] = (py[j] - py[i]) * t + py[i]
+            count += 1
+    return count
+
+
+@numba.njit(**KERNEL)
+def area_below_line(px, py, m, nx, ny, offset):  # pragma: no cover (compiled)
+    """Signed area of the part of a polygon where x·n ≤ offset, by Green's theorem, as
+    geometry.shapes.clipped_area computes it."""
+    area = 0.0
+    exit_x = exit_y = first_x = first_y = 0.0
+    pending = first = False
+    for i in range(m):
+        j = (i + 1) % m
+        di = px[i] * nx + py[i] * ny - offset
+        dj = px[j] * nx + py[j] * ny - offset
+        inside_i, inside_j = di <= 0.0, dj <= 0.0
+        t = di / (di - dj) if inside_i != inside_j else 0.0
+        cut_x, cut_y = px[i] + t * (px[j] - px[i]), py[i] + t * (py[j] - py[i])
+        if inside_i | inside_j:
+            qx, qy = (px[j], py[j]) if inside_j else (cut_x, cut_y)
+            ax, ay = (px[i], py[i]) if inside_i else (cut_x, cut_y)
+            area += ax * qy - qx * ay
+        else:
+            area += 0.0
+        entering = (not inside_i) & inside_j
+        joined = entering & pending
+        area += exit_x * cut_y - cut_x * exit_y if joined else 0.0
+        opening = entering & (not pending) & (not first)
+        if opening:
+            first_x, first_y = cut_x, cut_y
+        first |= opening
+        pending &= not joined
+        leaving = inside_i & (not inside_j)
+        if leaving:
+            exit_x, exit_y = cut_x, cut_y
+        pending |= leaving
+    area += exit_x * first_y - first_x * exit_y if pending & first else 0.0
+    return 0.5 * area
+
+
+@numba.njit(**KERNEL)
+def mixed_donor_parts(swept, edges, x, cell_nodes, donor, size, normal, offset, line):  # pragma: no cover (compiled)
+    """Of each swept region ``edges`` (indices into the moving edges) whose donor is a
+    mixed cell: the part inside the donor (the region, counter-clockwise, clipped by the
+    donor's counter-clockwise cell) and of that the part {x·n ≤ s} of the donor's PLIC line
+    (``line[j]``: the row of ``normal``, ``offset``) — each clipped to [0, what holds it].
+    Returns (inside, alpha), each (len(edges),)."""
+    n = edges.size
+    k = cell_nodes.shape[1]
+    inside = np.empty(n)
+    alpha = np.empty(n)
+    ax, ay = np.empty(MAX_CLIPPED), np.empty(MAX_CLIPPED)
+    bx, by = np.empty(MAX_CLIPPED), np.empty(MAX_CLIPPED)
+    cx, cy = np.empty(k), np.empty(k)
+    for r in range(n):
+        e = edges[r]
+        for v in range(4):
+            ax[v], ay[v] = swept[0, v, e], swept[1, v, e]
+        if shoelace(ax, ay, 4) < 0:  # counter-clockwise
+            for v in range(2):
+                ax[v], ax[3 - v] = ax[3 - v], ax[v]
+                ay[v], ay[3 - v] = ay[3 - v], ay[v]
+        cell = donor[e]
+        for v in range(k):
+            cx[v], cy[v] = x[0, cell_nodes[cell, v]], x[1, cell_nodes[cell, v]]
+        if shoelace(cx, cy, k) < 0:
+            for v in range(k // 2):
+                cx[v], cx[k - 1 - v] = cx[k - 1 - v], cx[v]
+                cy[v], cy[k - 1 - v] = cy[k - 1 - v], cy[v]
+        m = 4
+        for v in range(k):  # one pass per edge of the cell (geometry.shapes.clip_convex)
+            w = (v + 1) % k
+            ex, ey = cx[w] - cx[v], cy[w] - cy[v]
+            ox, oy = ey, -ex  # right of a counter-clockwise edge
+            length = np.sqrt(ox * ox + oy * oy)
+            if length == 0.0:  # a zero-length edge clips nothing
+                continue
+            ox, oy = ox / length, oy / length
+            m = clip_by_line(ax, ay, m, ox, oy, ox * cx[v] + oy * cy[v], bx, by)
+            ax, bx = bx, ax
+            ay, by = by, ay
+            if m == 0:
+                break
+        part = shoelace(ax, ay, m) if m > 0 else 0.0
+        inside[r] = minimum(maximum(part, 0.0), size[e])
+        cut = area_below_line(ax, ay, m, normal[line[r], 0], normal[line[r], 1], offset[line[r]]) if m > 0 else 0.0
+        alpha[r] = minimum(maximum(cut, 0.0), inside[r])
+    return inside, alpha
+
+
 @numba.njit(**KERNEL)
 def exchange(quantity, flux, donor, receiver):  # pragma: no cover (compiled)
     """Each cell's ``quantity`` (n_materials, n_cells) plus what the fluxes (n_materials, n)
