@@ -276,3 +276,27 @@ def swept_pass_2d(mesh, x, target_a, target_b, edges, is_mixed, material, volume
         for m in range(n_materials):
             quantity[m] += np.bincount(receiver, flux[m], n_cells) - np.bincount(donor, flux[m], n_cells)
     return donor, receiver, size, swept, flux_volume, flux_mass, flux_energy, rho, eps
+
+
+def cell_momentum_2d(mesh, u, old_cell_mass, new_cell_mass, flux_mass, donor, receiver):
+    """Nodal momentum through the cells in the 2D remap (ale_xfem.remap.remapper_2d, before it
+    was compiled into swept_kernels_2d.cell_momentum).  Returns (velocity, node masses,
+    kinetic energy before, loss) per node."""
+    corners = mesh.corners
+    k = mesh.cell_type.nodes_per_cell
+    n_cells = mesh.n_cells
+    old_node_mass = corners.scatter([old_cell_mass / k] * k)
+    cell_velocity = np.stack([sum(c[0] for c in corners.gather(u[d:d + 1])) / k for d in range(u.shape[0])])
+    total_flux = flux_mass.sum(axis=0)
+    donor_velocity = cell_velocity.take(donor, axis=1)
+    momentum_flux = total_flux * donor_velocity
+    kinetic_flux = 0.5 * total_flux * np.sum(donor_velocity ** 2, axis=0)
+    change = np.stack([np.bincount(receiver, f, n_cells) - np.bincount(donor, f, n_cells) for f in momentum_flux])
+    kinetic_change_cells = np.bincount(receiver, kinetic_flux, n_cells) - np.bincount(donor, kinetic_flux, n_cells)
+    node_mass = corners.scatter([new_cell_mass / k] * k)
+    momentum = u * old_node_mass + np.stack([corners.scatter([c / k] * k) for c in change])
+    velocity = momentum / node_mass
+    kinetic_before = 0.5 * old_node_mass * np.sum(u * u, axis=0)
+    kinetic_in = corners.scatter([kinetic_change_cells / k] * k)
+    loss = kinetic_before + kinetic_in - 0.5 * node_mass * np.sum(velocity * velocity, axis=0)
+    return velocity, node_mass, kinetic_before, loss

@@ -675,12 +675,13 @@ def test_sedov_shock_radius_is_within_two_percent_of_the_similarity_solution():
 @pytest.mark.parametrize("order", [1, 2])
 def test_the_compiled_2d_swept_pass_gives_the_numpy_pass_bits(mesh_name, order):
     """The 2D remap's whole-mesh pass, compiled (swept regions, pure donors' volumes,
-    densities and fluxes, the limited reconstruction, the exchange), against the numpy code
+    densities and fluxes, the limited reconstruction, the exchange, one velocity field's
+    momentum through the cells), against the numpy code
     it replaced (tests/oracles.py): the same bits in every output, on quadrilaterals (the
     grid's strided corners), triangles and a skewed mesh, with nodes that move and nodes
     that do not, mixed cells, absent materials (zero volumes), negative energies and
     piecewise-constant fields (zero gradients)."""
-    from oracles import swept_pass_2d
+    from oracles import cell_momentum_2d, swept_pass_2d
 
     from ale_xfem.model.mesh import mesh_edges, node_averaged_gradient
     from ale_xfem.remap import swept_kernels_2d
@@ -745,6 +746,16 @@ def test_the_compiled_2d_swept_pass_gives_the_numpy_pass_bits(mesh_name, order):
                 np.testing.assert_array_equal(bits(have), bits(np.asarray(want)), err_msg=f"{name}, {case}")
         for name, want, have in zip(("volume", "mass", "energy"), expected_cells, got_cells):
             np.testing.assert_array_equal(bits(have), bits(want), err_msg=f"{name} after the exchange, {case}")
+        # nodal momentum through the cells (one velocity field)
+        u = rng.normal(size=(2, mesh.n_nodes))
+        if case == "still":
+            u[:, keep] = 0.0
+        old_cell_mass, new_cell_mass = mass.sum(axis=0), got_cells[1].sum(axis=0)
+        want = cell_momentum_2d(mesh, u, old_cell_mass, new_cell_mass, flux_mass, donor, receiver)
+        have = swept_kernels_2d.cell_momentum(u, mesh.cell_nodes, old_cell_mass, new_cell_mass, flux_mass, donor,
+                                              receiver)
+        for name, a_, b_ in zip(("velocity", "node mass", "kinetic energy", "loss"), want, have):
+            np.testing.assert_array_equal(bits(b_), bits(a_), err_msg=f"{name}, {case}")
 
 
 @pytest.mark.parametrize("k", [3, 4])

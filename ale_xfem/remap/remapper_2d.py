@@ -159,7 +159,7 @@ class Remapper2D:
 
     def apply(self, state, layout, mixed):
         mesh = self.mesh
-        n_materials, n_cells, k = len(self.materials), mesh.n_cells, mesh.cell_type.nodes_per_cell
+        n_materials, n_cells = len(self.materials), mesh.n_cells
         x, X = state.node_position, self.target(state.node_position)
         # per material dense arrays (n_materials, n_cells): volume, mass, internal energy
         volume, mass, energy = (np.zeros((n_materials, n_cells)) for _ in range(3))
@@ -216,27 +216,12 @@ class Remapper2D:
                                    node_mass, kinetic_change, material_fields)
         self._move_traces(volume, mass, energy, area, standing)
 
-        # -- nodal momentum through the cells -------------------------------------------------
-        corners = mesh.corners
+        # -- nodal momentum through the cells (compiled) -------------------------------------
         u = state.node_velocity
-        old_node_mass = corners.scatter([old_cell_mass / k] * k)
-        cell_velocity = np.stack([sum(c[0] for c in corners.gather(u[d:d + 1])) / k for d in range(u.shape[0])])
-        total_flux = flux_mass.sum(axis=0)
-        donor_velocity = cell_velocity.take(donor, axis=1)
-        momentum_flux = total_flux * donor_velocity
-        kinetic_flux = 0.5 * total_flux * np.sum(donor_velocity ** 2, axis=0)
-        change = np.stack([np.bincount(receiver, f, n_cells) - np.bincount(donor, f, n_cells) for f in momentum_flux])
-        kinetic_change_cells = np.bincount(receiver, kinetic_flux, n_cells) - np.bincount(donor, kinetic_flux, n_cells)
-        new_cell_mass = mass.sum(axis=0)
-        node_mass = corners.scatter([new_cell_mass / k] * k)
+        velocity, node_mass, kinetic_before, loss = swept_kernels_2d.cell_momentum(
+            u, mesh.cell_nodes, old_cell_mass, mass.sum(axis=0), flux_mass, donor, receiver)
         if np.any(node_mass <= 0):
             raise RemapFailure("a node lost all its mass in the remap")
-        momentum = u * old_node_mass + np.stack([corners.scatter([c / k] * k) for c in change])
-        velocity = momentum / node_mass
-        kinetic_before = 0.5 * old_node_mass * np.sum(u * u, axis=0)
-        kinetic_in = corners.scatter([kinetic_change_cells / k] * k)
-        # per node: what the remap itself dissipates (sums to the global loss)
-        loss = kinetic_before + kinetic_in - 0.5 * node_mass * np.sum(velocity * velocity, axis=0)
         # walls take the normal velocity (that kinetic energy is heat too); pistons impose
         # theirs (the energy that costs is work of the boundary, like in the Lagrange step)
         self.wall_impulse, self.wall_work = np.zeros(velocity.shape[0]), 0.0

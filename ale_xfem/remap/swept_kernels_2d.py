@@ -336,6 +336,83 @@ def mixed_donor_parts(swept, edges, x, cell_nodes, donor, size, normal, offset, 
 
 
 @numba.njit(**KERNEL)
+def corner_sums(cell_nodes, values, n_nodes):  # pragma: no cover (compiled)
+    """Σ over corners of each cell's ``values`` (n_cells,) onto the nodes, corner by corner
+    (each corner's sum over the cells in order, then added: ale_xfem.model.mesh.Corners.scatter's
+    order)."""
+    n_cells, k = cell_nodes.shape
+    out = np.zeros(n_nodes)
+    part = np.empty(n_nodes)
+    for i in range(k):
+        part[:] = 0.0
+        for c in range(n_cells):
+            part[cell_nodes[c, i]] += values[c]
+        for node in range(n_nodes):
+            out[node] += part[node]
+    return out
+
+
+@numba.njit(**KERNEL)
+def cell_momentum(u, cell_nodes, old_cell_mass, new_cell_mass, flux_mass, donor, receiver):  # pragma: no cover (compiled)
+    """Nodal momentum through the cells (remapper_2d's module docstring), one velocity field
+    ``u`` (dim, n_nodes): each cell holds the momentum of its corners at m_K/k each, the
+    swept regions carry their mass at the donor cell's mean velocity, each node receives its
+    cells' change by corner share.  Returns (velocity (dim, n_nodes), node masses, and per
+    node the kinetic energy before and what the remap dissipated: that, plus what the
+    fluxes brought, less the kinetic energy after)."""
+    n_cells, k = cell_nodes.shape
+    dim, n_nodes = u.shape
+    old_node_mass = corner_sums(cell_nodes, old_cell_mass / k, n_nodes)
+    cell_velocity = np.zeros((dim, n_cells))
+    for d in range(dim):
+        for c in range(n_cells):
+            total = 0.0
+            for i in range(k):
+                total += u[d, cell_nodes[c, i]]
+            cell_velocity[d, c] = total / k
+    n = donor.size
+    total_flux = flux_mass[0].copy()
+    for m in range(1, flux_mass.shape[0]):
+        total_flux += flux_mass[m]
+    change = np.zeros((dim, n_cells))
+    kinetic_change = np.zeros(n_cells)
+    into, out = np.zeros((dim + 1, n_cells)), np.zeros((dim + 1, n_cells))
+    for j in range(n):
+        speed2 = 0.0
+        for d in range(dim):
+            v = cell_velocity[d, donor[j]]
+            flux = total_flux[j] * v
+            into[d, receiver[j]] += flux
+            out[d, donor[j]] += flux
+            speed2 = speed2 + v * v if d > 0 else v * v
+        kinetic = 0.5 * total_flux[j] * speed2
+        into[dim, receiver[j]] += kinetic
+        out[dim, donor[j]] += kinetic
+    for c in range(n_cells):
+        for d in range(dim):
+            change[d, c] = (into[d, c] - out[d, c]) / k
+        kinetic_change[c] = (into[dim, c] - out[dim, c]) / k
+    node_mass = corner_sums(cell_nodes, new_cell_mass / k, n_nodes)
+    velocity = np.empty((dim, n_nodes))
+    for d in range(dim):
+        moved = corner_sums(cell_nodes, change[d], n_nodes)
+        for node in range(n_nodes):
+            velocity[d, node] = (u[d, node] * old_node_mass[node] + moved[node]) / node_mass[node]
+    kinetic_in = corner_sums(cell_nodes, kinetic_change, n_nodes)
+    kinetic_before = np.empty(n_nodes)
+    loss = np.empty(n_nodes)
+    for node in range(n_nodes):
+        before = u[0, node] * u[0, node]
+        after = velocity[0, node] * velocity[0, node]
+        for d in range(1, dim):
+            before += u[d, node] * u[d, node]
+            after += velocity[d, node] * velocity[d, node]
+        kinetic_before[node] = 0.5 * old_node_mass[node] * before
+        loss[node] = kinetic_before[node] + kinetic_in[node] - 0.5 * node_mass[node] * after
+    return velocity, node_mass, kinetic_before, loss
+
+
+@numba.njit(**KERNEL)
 def exchange(quantity, flux, donor, receiver):  # pragma: no cover (compiled)
     """Each cell's ``quantity`` (n_materials, n_cells) plus what the fluxes (n_materials, n)
     bring in less what they take out, in place (the sums over the edges in their order)."""
