@@ -20,38 +20,33 @@ from ale_xfem.remap.swept_kernels import KERNEL, maximum, minimum
 
 
 @numba.njit(**KERNEL)
-def fan_centroid(px, py):  # pragma: no cover (compiled)
-    """(area, cx, cy) of one polygon (vertices ``px``, ``py`` in order), as
-    ale_xfem.geometry.shapes.corner_centroid computes it for each polygon of a batch: fanned
-    from vertex 0, coordinates relative to it; a polygon of zero area gets the mean of its
-    vertices."""
-    m = px.size
-    x0, y0 = px[0], py[0]
-    area = cx = cy = 0.0
-    for i in range(m - 2):
-        dx1, dy1 = px[i + 1] - x0, py[i + 1] - y0
-        dx2, dy2 = px[i + 2] - x0, py[i + 2] - y0
-        cross = dx1 * dy2
-        cross -= dx2 * dy1
-        tx = (dx1 + dx2) * cross
-        ty = (dy1 + dy2) * cross
-        if i == 0:
-            area, cx, cy = cross, tx, ty
-        else:
-            area += cross
-            cx += tx
-            cy += ty
+def fan_centroid(x0, y0, x1, y1, x2, y2, x3, y3, m):  # pragma: no cover (compiled)
+    """(area, cx, cy) of a triangle (``m`` = 3: the first three points) or a quadrilateral,
+    as ale_xfem.geometry.shapes.corner_centroid computes it for each polygon of a batch:
+    fanned from vertex 0, coordinates relative to it; a polygon of zero area gets the mean
+    of its vertices.  Straight-line code, so that the loops calling it vectorise."""
+    dx1, dy1 = x1 - x0, y1 - y0
+    dx2, dy2 = x2 - x0, y2 - y0
+    cross = dx1 * dy2
+    cross -= dx2 * dy1
+    area = cross
+    cx = (dx1 + dx2) * cross
+    cy = (dy1 + dy2) * cross
+    sx, sy = dx1 + dx2, dy1 + dy2
+    if m == 4:
+        dx3, dy3 = x3 - x0, y3 - y0
+        cross = dx2 * dy3
+        cross -= dx3 * dy2
+        area += cross
+        cx += (dx2 + dx3) * cross
+        cy += (dy2 + dy3) * cross
+        sx += dx3
+        sy += dy3
     area *= 0.5
-    if area == 0.0:
-        sx = sy = 0.0
-        for i in range(1, m):
-            sx += px[i] - x0
-            sy += py[i] - y0
-        cx, cy = sx / m, sy / m
-    else:
-        scale = 1.0 / (6.0 * area)
-        cx *= scale
-        cy *= scale
+    empty = area == 0.0
+    scale = 1.0 / (6.0 * (1.0 if empty else area))
+    cx = sx / m if empty else cx * scale
+    cy = sy / m if empty else cy * scale
     return area, cx + x0, cy + y0
 
 
@@ -145,11 +140,11 @@ def second_order(x, cell_nodes, material, is_mixed, rho, eps, gradients, swept, 
         value[0, c] = rho[material[c], c]
         value[1, c] = eps[material[c], c]
     centre = np.empty((2, n_cells))
-    px, py = np.empty(k), np.empty(k)
+    last = k - 1
     for c in range(n_cells):
-        for i in range(k):
-            px[i], py[i] = x[0, cell_nodes[c, i]], x[1, cell_nodes[c, i]]
-        _, centre[0, c], centre[1, c] = fan_centroid(px, py)
+        n0, n1, n2, n3 = cell_nodes[c, 0], cell_nodes[c, 1], cell_nodes[c, 2], cell_nodes[c, last]
+        _, centre[0, c], centre[1, c] = fan_centroid(x[0, n0], x[1, n0], x[0, n1], x[1, n1], x[0, n2], x[1, n2],
+                                                     x[0, n3], x[1, n3], k)
     # slopes only in cells whose every node touches cells of their own material alone
     low_tag = np.full(n_nodes, np.iinfo(np.int64).max)
     high_tag = np.full(n_nodes, -2)
@@ -190,16 +185,20 @@ def second_order(x, cell_nodes, material, is_mixed, rho, eps, gradients, swept, 
                     limiter = min(limiter, bound)
             slope[f, 0, c] = gx * limiter
             slope[f, 1, c] = gy * limiter
-    corner_x, corner_y = np.empty(4), np.empty(4)
-    for j in range(donor.size):
+    # the swept regions' centroids (every region's, in a loop that vectorises), then the
+    # pure donors' corrections
+    n = donor.size
+    centroid = np.empty((2, n))
+    for j in range(n):
+        _, centroid[0, j], centroid[1, j] = fan_centroid(swept[0, 0, j], swept[1, 0, j], swept[0, 1, j],
+                                                         swept[1, 1, j], swept[0, 2, j], swept[1, 2, j],
+                                                         swept[0, 3, j], swept[1, 3, j], 4)
+    for j in range(n):
         source = donor[j]
         if is_mixed[source]:
             continue
-        for v in range(4):
-            corner_x[v], corner_y[v] = swept[0, v, j], swept[1, v, j]
-        _, sx, sy = fan_centroid(corner_x, corner_y)
-        sx -= centre[0, source]
-        sy -= centre[1, source]
+        sx = centroid[0, j] - centre[0, source]
+        sy = centroid[1, j] - centre[1, source]
         volume = flux_volume[0, j]
         for m in range(1, flux_volume.shape[0]):
             volume += flux_volume[m, j]
