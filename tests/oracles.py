@@ -300,3 +300,23 @@ def cell_momentum_2d(mesh, u, old_cell_mass, new_cell_mass, flux_mass, donor, re
     kinetic_in = corners.scatter([kinetic_change_cells / k] * k)
     loss = kinetic_before + kinetic_in - 0.5 * node_mass * np.sum(velocity * velocity, axis=0)
     return velocity, node_mass, kinetic_before, loss
+
+
+def cap_outflow(volume, donor, flux_volume):
+    """No donor gives more of a material than it holds (ale_xfem.remap.remapper_2d, before
+    it was compiled into swept_kernels_2d.cap_outflow), in place."""
+    n_materials, n_cells = volume.shape
+    for m in range(n_materials):
+        out = np.bincount(donor, flux_volume[m], n_cells)
+        over = out > volume[m]
+        if not np.any(over[donor] & (flux_volume[m] > 0)):
+            continue
+        ratio = np.where(over, volume[m] / np.where(over, out, 1.0), 1.0)
+        kept = flux_volume[m] * ratio[donor]
+        moved = flux_volume[m] - kept
+        flux_volume[m] = kept
+        others = [o for o in range(n_materials) if o != m]
+        share = np.maximum(flux_volume[others], 0.0)
+        total = share.sum(axis=0)
+        share = np.where(total > 0, share / np.where(total > 0, total, 1.0), 1.0 / len(others))
+        flux_volume[others] += share * moved

@@ -758,6 +758,36 @@ def test_the_compiled_2d_swept_pass_gives_the_numpy_pass_bits(mesh_name, order):
             np.testing.assert_array_equal(bits(b_), bits(a_), err_msg=f"{name}, {case}")
 
 
+@pytest.mark.parametrize("n_materials", [2, 3])
+def test_the_compiled_outflow_cap_gives_the_numpy_caps_bits(n_materials):
+    """No donor gives more of a material than it holds: the compiled cap
+    (swept_kernels_2d.cap_outflow) against the numpy code it replaced (tests/oracles.py),
+    bit for bit, with donors overdrawn of one material, of several, and not at all, and
+    regions holding none of the other materials (shared equally then)."""
+    from oracles import cap_outflow as numpy_cap_outflow
+
+    from ale_xfem.remap.swept_kernels_2d import cap_outflow
+
+    rng = np.random.default_rng(13)
+    n_cells, n = 30, 90
+    for trial in range(20):
+        volume = rng.uniform(0.0, 1.0, (n_materials, n_cells)) * (rng.random((n_materials, n_cells)) < 0.8)
+        donor = rng.integers(0, n_cells, n)
+        flux = rng.uniform(0.0, 0.6, (n_materials, n)) * (rng.random((n_materials, n)) < 0.6)
+        # as in a remap, no donor gives more than its whole volume
+        given = np.bincount(donor, flux.sum(axis=0), n_cells)
+        flux *= np.minimum(1.0, 0.9 * volume.sum(axis=0) / np.maximum(given, 1e-300))[donor]
+        expected, got = flux.copy(), flux.copy()
+        numpy_cap_outflow(volume, donor, expected)
+        cap_outflow(volume, donor, got)
+        np.testing.assert_array_equal(got.view(np.uint64), expected.view(np.uint64), err_msg=f"trial {trial}")
+        assert not np.array_equal(got, flux)  # some donor was overdrawn
+        if n_materials == 2:  # then one pass caps both
+            out = np.stack([np.bincount(donor, got[m], n_cells) for m in range(n_materials)])
+            assert np.all(out <= volume * (1 + 1e-12) + 1e-15)
+        np.testing.assert_allclose(got.sum(axis=0), flux.sum(axis=0), rtol=1e-13)  # regions keep their volume
+
+
 @pytest.mark.parametrize("k", [3, 4])
 def test_the_compiled_clipping_of_mixed_donors_gives_the_numpy_clippings_bits(k):
     """The part of a swept region inside its mixed donor and below the donor's PLIC line,

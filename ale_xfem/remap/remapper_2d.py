@@ -162,15 +162,8 @@ class Remapper2D:
         n_materials, n_cells = len(self.materials), mesh.n_cells
         x, X = state.node_position, self.target(state.node_position)
         # per material dense arrays (n_materials, n_cells): volume, mass, internal energy
-        volume, mass, energy = (np.zeros((n_materials, n_cells)) for _ in range(3))
-        for slot in range(layout.cell_material.shape[0]):
-            # (a material is in one slot of a cell at most: each entry is set once)
-            slot_energy = state.material_mass[slot] * state.material_energy[slot]
-            for m in range(n_materials):
-                here = layout.cell_material[slot] == m
-                np.add(volume[m], state.material_volume[slot], out=volume[m], where=here)
-                np.add(mass[m], state.material_mass[slot], out=mass[m], where=here)
-                np.add(energy[m], slot_energy, out=energy[m], where=here)
+        volume, mass, energy = swept_kernels_2d.by_material(layout.cell_material, state.material_volume,
+                                                            state.material_mass, state.material_energy, n_materials)
         old_cell_mass = mass.sum(axis=0)
         # materials already below TRACE of their cell (the set-up's geometry made them, or an
         # earlier remap kept them): they stay while the remap leaves them as they are (to
@@ -192,7 +185,9 @@ class Remapper2D:
         pure = ~is_mixed[donor]
         if np.any(~pure):  # mixed donors: exact clipping with their PLIC polygons
             self._mixed_donor_volumes(state, layout, mixed, swept, donor, size, flux_volume)
-            self._cap_outflow(volume, donor, size, flux_volume)
+            # swept regions of two edges overlap near a moving node: a small material could be
+            # taken more than once (its other material then fills the region)
+            swept_kernels_2d.cap_outflow(volume, donor, flux_volume)
         # densities and energy densities of the donors, per material, and what the regions carry
         rho, eps, flux_mass, flux_energy = swept_kernels_2d.donor_fluxes(flux_volume, volume, mass, energy, donor)
         if self.order == 2:
@@ -450,12 +445,11 @@ class Remapper2D:
         within such flecks).  ``carried``: more (n_materials, n_cells) quantities that go
         with the mass (each material's momentum, per component)."""
         for _ in range(MAX_TRACE_PASSES):
-            present = (volume > TRACE * area) | (standing & (volume > 0.0))
-            trace = ~present & (mass != 0.0)
-            if not np.any(trace):
+            material, cells = swept_kernels_2d.traces(volume, mass, area, standing, TRACE)
+            if not cells.size:
                 return
-            material, cells = np.nonzero(trace)
-            keeper = np.argmax(np.where(present, volume, -np.inf)[:, cells], axis=0)
+            present = swept_kernels_2d.present_materials(volume[:, cells], area[cells], standing[:, cells], TRACE)
+            keeper = np.argmax(np.where(present, volume[:, cells], -np.inf), axis=0)
             candidates = self.node_neighbours[cells]
             held = np.where(candidates >= 0, volume[material[:, None], candidates], -np.inf)
             best = np.argmax(held, axis=1)
@@ -468,35 +462,13 @@ class Remapper2D:
             for quantity in (mass, energy, *carried):
                 _hand_over(quantity, (material, cells), (material, receiver))
             _hand_over(volume, (material, cells), (keeper, cells))
-        present = (volume > TRACE * area) | (standing & (volume > 0.0))
-        material, cells = np.nonzero(~present & (mass != 0.0))
+        material, cells = swept_kernels_2d.traces(volume, mass, area, standing, TRACE)
         if cells.size:  # flecks: merged into their own cell's largest material
-            keeper = np.argmax(np.where(present, volume, -np.inf)[:, cells], axis=0)
+            present = swept_kernels_2d.present_materials(volume[:, cells], area[cells], standing[:, cells], TRACE)
+            keeper = np.argmax(np.where(present, volume[:, cells], -np.inf), axis=0)
             for quantity in (mass, energy, volume, *carried):
                 _hand_over(quantity, (material, cells), (keeper, cells))
             self.lone_traces += cells.size
-
-    @staticmethod
-    def _cap_outflow(volume, donor, size, flux_volume):
-        """Swept regions of two edges overlap near a moving node: a small material could be
-        taken more than once.  No donor gives more of a material than it holds; the
-        difference is taken from its other material (each region's volume unchanged)."""
-        n_materials, n_cells = volume.shape
-        for m in range(n_materials):
-            out = np.bincount(donor, flux_volume[m], n_cells)
-            over = out > volume[m]
-            if not np.any(over[donor] & (flux_volume[m] > 0)):
-                continue
-            ratio = np.where(over, volume[m] / np.where(over, out, 1.0), 1.0)
-            kept = flux_volume[m] * ratio[donor]
-            moved = flux_volume[m] - kept
-            flux_volume[m] = kept
-            # the rest of each region is of the donor's other material(s)
-            others = [o for o in range(n_materials) if o != m]
-            share = np.maximum(flux_volume[others], 0.0)
-            total = share.sum(axis=0)
-            share = np.where(total > 0, share / np.where(total > 0, total, 1.0), 1.0 / len(others))
-            flux_volume[others] += share * moved
 
     def _mixed_donor_volumes(self, state, layout, mixed, swept, donor, size, flux_volume):
         """Of each swept region whose donor is a mixed cell, the part inside the donor's α

@@ -51,6 +51,100 @@ def fan_centroid(x0, y0, x1, y1, x2, y2, x3, y3, m):  # pragma: no cover (compil
 
 
 @numba.njit(**KERNEL)
+def by_material(cell_material, volume, mass, specific_energy, n_materials):  # pragma: no cover (compiled)
+    """A state's slots (S, n_cells) as dense arrays by material (n_materials, n_cells):
+    volume, mass and internal energy (mass × specific energy), zero where a cell does not
+    hold the material."""
+    n_slots, n_cells = cell_material.shape
+    out_volume = np.zeros((n_materials, n_cells))
+    out_mass = np.zeros((n_materials, n_cells))
+    out_energy = np.zeros((n_materials, n_cells))
+    for slot in range(n_slots):
+        for c in range(n_cells):
+            m = cell_material[slot, c]
+            if m >= 0:  # (a material is in one slot of a cell at most)
+                out_volume[m, c] += volume[slot, c]
+                out_mass[m, c] += mass[slot, c]
+                out_energy[m, c] += mass[slot, c] * specific_energy[slot, c]
+    return out_volume, out_mass, out_energy
+
+
+@numba.njit(**KERNEL)
+def present_materials(volume, area, standing, trace):  # pragma: no cover (compiled)
+    """(n_materials, n): whether each material counts in each of the cells whose areas
+    ``area`` (n,) are given — above ``trace`` of the area, or a ``standing`` trace with
+    volume (remapper_2d.TRACE)."""
+    n_materials, n = volume.shape
+    present = np.empty((n_materials, n), dtype=np.bool_)
+    for m in range(n_materials):
+        for c in range(n):
+            present[m, c] = (volume[m, c] > trace * area[c]) | (standing[m, c] & (volume[m, c] > 0.0))
+    return present
+
+
+@numba.njit(**KERNEL)
+def traces(volume, mass, area, standing, trace):  # pragma: no cover (compiled)
+    """The (material, cell) pairs, in np.nonzero's order, of the materials with mass that
+    do not count in their cells (:func:`present_materials`)."""
+    n_materials, n_cells = volume.shape
+    count = 0
+    for m in range(n_materials):
+        for c in range(n_cells):
+            present = (volume[m, c] > trace * area[c]) | (standing[m, c] & (volume[m, c] > 0.0))
+            count += (not present) & (mass[m, c] != 0.0)
+    material = np.empty(count, dtype=np.int64)
+    cells = np.empty(count, dtype=np.int64)
+    k = 0
+    for m in range(n_materials):
+        for c in range(n_cells):
+            present = (volume[m, c] > trace * area[c]) | (standing[m, c] & (volume[m, c] > 0.0))
+            if (not present) & (mass[m, c] != 0.0):
+                material[k], cells[k] = m, c
+                k += 1
+    return material, cells
+
+
+@numba.njit(**KERNEL)
+def cap_outflow(volume, donor, flux_volume):  # pragma: no cover (compiled)
+    """No donor gives more of a material than it holds (the swept regions of two edges
+    overlap near a moving node): material by material, an overdrawn donor's regions give its volume
+    in proportion, and the rest of each region is of its other materials, shared by what
+    they already have in it (equally where they have none), in place."""
+    n_materials, n_cells = volume.shape
+    n = donor.size
+    out = np.empty(n_cells)
+    for m in range(n_materials):
+        out[:] = 0.0
+        for j in range(n):
+            out[donor[j]] += flux_volume[m, j]
+        overdrawn = False
+        for j in range(n):
+            if (out[donor[j]] > volume[m, donor[j]]) & (flux_volume[m, j] > 0):
+                overdrawn = True
+                break
+        if not overdrawn:
+            continue
+        for j in range(n):
+            d = donor[j]
+            ratio = volume[m, d] / out[d] if out[d] > volume[m, d] else 1.0
+            kept = flux_volume[m, j] * ratio
+            moved = flux_volume[m, j] - kept
+            flux_volume[m, j] = kept
+            total = 0.0
+            first = True
+            for o in range(n_materials):
+                if o != m:
+                    share = maximum(flux_volume[o, j], 0.0)
+                    total = share if first else total + share
+                    first = False
+            for o in range(n_materials):
+                if o != m:
+                    share = maximum(flux_volume[o, j], 0.0)
+                    share = share / total if total > 0 else 1.0 / (n_materials - 1)
+                    flux_volume[o, j] += share * moved
+
+
+@numba.njit(**KERNEL)
 def swept_edges(x, target_a, target_b, a, b, plus, minus, is_mixed, material, n_materials):  # pragma: no cover (compiled)
     """The regions the interior edges sweep from the Lagrangian mesh ``x`` (2, n_nodes) to
     the target mesh (edge ends ``target_a``, ``target_b`` (2, n_edges)): each edge a→b
