@@ -320,3 +320,28 @@ def cap_outflow(volume, donor, flux_volume):
         total = share.sum(axis=0)
         share = np.where(total > 0, share / np.where(total > 0, total, 1.0), 1.0 / len(others))
         flux_volume[others] += share * moved
+
+
+def cut_offsets(vertices, normal, fraction):
+    """PLIC's cut offsets, vectorised over the cells (ale_xfem.model.plic, before it was
+    compiled into geometry.polygon_kernels.cut_offsets)."""
+    from ale_xfem.geometry.shapes import clipped_area, polygon_area
+
+    n, k, _ = vertices.shape
+    projection = np.sort(np.einsum("nmd,nd->nm", vertices, normal), axis=1)
+    total = polygon_area(vertices)
+    target = fraction * total
+    below = clipped_area(np.repeat(vertices, k, axis=0), np.repeat(normal, k, axis=0),
+                         projection.ravel()).reshape(n, k)
+    j = np.clip((below < target[:, None]).sum(axis=1) - 1, 0, k - 2)
+    rows = np.arange(n)
+    lo, hi = projection[rows, j], projection[rows, j + 1]
+    a_lo, a_hi = below[rows, j], below[rows, j + 1]
+    middle = 0.5 * (lo + hi)
+    a_mid = clipped_area(vertices, normal, middle)
+    gamma = 2.0 * (a_hi + a_lo - 2.0 * a_mid)
+    beta = a_hi - a_lo - gamma
+    rhs = np.maximum(target - a_lo, 0.0)
+    denominator = beta + np.sqrt(np.maximum(beta * beta + 4.0 * gamma * rhs, 0.0))
+    t = np.divide(2.0 * rhs, denominator, out=np.zeros_like(rhs), where=denominator > 0)
+    return lo + np.clip(t, 0.0, 1.0) * (hi - lo)

@@ -495,6 +495,30 @@ def test_plic_of_a_disk_matches_its_area_and_circumference(cell_type):
     assert all(abs(L / (2 * np.pi * 0.3) - 1) < 0.015 for L in lengths), lengths
 
 
+@pytest.mark.parametrize("k", [3, 4])
+def test_the_compiled_plic_cut_gives_the_numpy_cuts_bits(k):
+    """PLIC's cut offsets, compiled cell by cell (geometry.polygon_kernels.cut_offsets),
+    against the vectorised numpy code they replaced (tests/oracles.py): the same bits, on
+    convex cells of every shape and size, fractions from 0 to 1 (ends included) and normals
+    in every direction, along an edge included."""
+    from oracles import cut_offsets as numpy_cut_offsets
+
+    from ale_xfem.model.plic import cut_offsets
+
+    rng = np.random.default_rng(17)
+    n = 600
+    angles = np.sort(rng.uniform(0, 2 * np.pi, (n, k)), axis=1)
+    vertices = np.stack([np.cos(angles), np.sin(angles)], axis=-1) * rng.uniform(1e-3, 1e3, (n, 1, 1))
+    vertices += rng.uniform(-1e3, 1e3, (n, 1, 2))
+    direction = rng.uniform(0, 2 * np.pi, n)
+    direction[::5] = np.arctan2(*(vertices[::5, 1] - vertices[::5, 0]).T[::-1]) + np.pi / 2  # along an edge
+    normal = np.stack([np.cos(direction), np.sin(direction)], axis=1)
+    fraction = rng.uniform(0.0, 1.0, n)
+    fraction[::7], fraction[1::7] = 0.0, 1.0
+    got, expected = cut_offsets(vertices, normal, fraction), numpy_cut_offsets(vertices, normal, fraction)
+    np.testing.assert_array_equal(got.view(np.uint64), expected.view(np.uint64))
+
+
 def test_the_remaps_interface_lines_are_those_of_the_full_reconstruction():
     """The remap reads only each mixed cell's line (normal, offset): plic.interface_lines
     gives them without the polygons, the same numbers as reconstruct_state."""

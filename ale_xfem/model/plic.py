@@ -17,8 +17,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ale_xfem.geometry import polygon_kernels
 from ale_xfem.model.mesh import cells_around, node_averaged_gradient
-from ale_xfem.geometry.shapes import clip_half_plane, clipped_area, polygon_area, polygon_centroid
+from ale_xfem.geometry.shapes import clip_half_plane, polygon_area, polygon_centroid
 
 
 @dataclass
@@ -56,30 +57,11 @@ def cut_offsets(vertices: np.ndarray, normal: np.ndarray, fraction: np.ndarray) 
     """s per cell with area({x·n ≤ s} ∩ K) = fraction · area(K), exactly: between two
     consecutive vertex projections the cut's length is linear in s, so the area is
     quadratic; the area at every vertex projection brackets the target, and the quadratic
-    through the bracket's ends and middle is solved in it."""
-    n, k, _ = vertices.shape
-    projection = np.sort(np.einsum("nmd,nd->nm", vertices, normal), axis=1)
-    total = polygon_area(vertices)
-    target = fraction * total
-    # the area below each vertex projection: the k cuts of every cell in one batch
-    below = clipped_area(np.repeat(vertices, k, axis=0), np.repeat(normal, k, axis=0),
-                         projection.ravel()).reshape(n, k)
-    # the bracket [p_j, p_{j+1}] with below_j ≤ target ≤ below_{j+1}
-    j = np.clip((below < target[:, None]).sum(axis=1) - 1, 0, k - 2)
-    rows = np.arange(n)
-    lo, hi = projection[rows, j], projection[rows, j + 1]
-    a_lo, a_hi = below[rows, j], below[rows, j + 1]
-    middle = 0.5 * (lo + hi)
-    a_mid = clipped_area(vertices, normal, middle)
-    # A(lo + t (hi − lo)) = a_lo + β t + γ t², t ∈ [0, 1]
-    gamma = 2.0 * (a_hi + a_lo - 2.0 * a_mid)
-    beta = a_hi - a_lo - gamma
-    rhs = np.maximum(target - a_lo, 0.0)
-    # the root in [0, 1] of γt² + βt = rhs, with β ≥ 0 (the cut's length at lo times the
-    # bracket): t = 2 rhs / (β + √(β² + 4γ rhs)), free of cancellation, and γ = 0 allowed
-    denominator = beta + np.sqrt(np.maximum(beta * beta + 4.0 * gamma * rhs, 0.0))
-    t = np.divide(2.0 * rhs, denominator, out=np.zeros_like(rhs), where=denominator > 0)
-    return lo + np.clip(t, 0.0, 1.0) * (hi - lo)
+    through the bracket's ends and middle is solved in it (compiled, cell by cell:
+    ale_xfem.geometry.polygon_kernels.cut_offsets)."""
+    return polygon_kernels.cut_offsets(np.ascontiguousarray(vertices, dtype=float),
+                                       np.ascontiguousarray(normal, dtype=float),
+                                       np.ascontiguousarray(fraction, dtype=float))
 
 
 def reconstruct(vertices: np.ndarray, normal: np.ndarray, fraction: np.ndarray, cells=None) -> Reconstruction:

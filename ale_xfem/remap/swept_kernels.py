@@ -19,20 +19,7 @@ import math
 import numba
 import numpy as np
 
-# cached on disk, IEEE division (x/0 is ±inf or NaN, as numpy gives); it allocates its results
-KERNEL = {"cache": True, "error_model": "numpy"}
-
-
-@numba.njit(**KERNEL)
-def maximum(a, b):  # pragma: no cover (compiled)
-    """np.maximum of two numbers (NaN if either is; b when they are equal)."""
-    return a if (a != a) | (a > b) else b
-
-
-@numba.njit(**KERNEL)
-def minimum(a, b):  # pragma: no cover (compiled)
-    """np.minimum of two numbers (NaN if either is; b when they are equal)."""
-    return a if (a != a) | (a < b) else b
+from ale_xfem.geometry.polygon_kernels import KERNEL, maximum, minimum
 
 
 @numba.njit(**KERNEL)

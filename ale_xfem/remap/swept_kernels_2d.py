@@ -7,7 +7,7 @@ Each loop computes, per edge, per cell or per node, what the numpy code it repla
 over whole arrays, with the same operations in the same order, so the results are the same
 to the bit (tests/test_remap.py compares them with that code, kept in tests/oracles.py, and
 tests/test_regression.py compares the shipped scenes).  Comparisons follow numpy's
-(``swept_kernels.maximum``/``minimum``).  What crosses Γ — the swept regions of mixed
+(``geometry.polygon_kernels.maximum``/``minimum``).  What crosses Γ — the swept regions of mixed
 donors, clipped by their PLIC polygons — stays in the remapper.
 """
 
@@ -16,38 +16,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ale_xfem.remap.swept_kernels import KERNEL, maximum, minimum
-
-
-@numba.njit(**KERNEL)
-def fan_centroid(x0, y0, x1, y1, x2, y2, x3, y3, m):  # pragma: no cover (compiled)
-    """(area, cx, cy) of a triangle (``m`` = 3: the first three points) or a quadrilateral,
-    as ale_xfem.geometry.shapes.corner_centroid computes it for each polygon of a batch:
-    fanned from vertex 0, coordinates relative to it; a polygon of zero area gets the mean
-    of its vertices.  Straight-line code, so that the loops calling it vectorise."""
-    dx1, dy1 = x1 - x0, y1 - y0
-    dx2, dy2 = x2 - x0, y2 - y0
-    cross = dx1 * dy2
-    cross -= dx2 * dy1
-    area = cross
-    cx = (dx1 + dx2) * cross
-    cy = (dy1 + dy2) * cross
-    sx, sy = dx1 + dx2, dy1 + dy2
-    if m == 4:
-        dx3, dy3 = x3 - x0, y3 - y0
-        cross = dx2 * dy3
-        cross -= dx3 * dy2
-        area += cross
-        cx += (dx2 + dx3) * cross
-        cy += (dy2 + dy3) * cross
-        sx += dx3
-        sy += dy3
-    area *= 0.5
-    empty = area == 0.0
-    scale = 1.0 / (6.0 * (1.0 if empty else area))
-    cx = sx / m if empty else cx * scale
-    cy = sy / m if empty else cy * scale
-    return area, cx + x0, cy + y0
+from ale_xfem.geometry.polygon_kernels import (KERNEL, area_below_line, clip_by_line, fan_centroid, maximum,
+                                               minimum, shoelace)
 
 
 @numba.njit(**KERNEL)
@@ -308,74 +278,6 @@ def second_order(x, cell_nodes, material, is_mixed, rho, eps, gradients, swept, 
 # a swept quadrilateral clipped by a cell's k edges has at most 4 · 2^k vertices (each pass
 # emits at most two points an edge)
 MAX_CLIPPED = 64
-
-
-@numba.njit(**KERNEL)
-def shoelace(px, py, m):  # pragma: no cover (compiled)
-    """Signed area of the polygon of the first ``m`` points (geometry.shapes.polygon_area's
-    order: the closing edge first)."""
-    total = px[m - 1] * py[0] - px[0] * py[m - 1]
-    for i in range(m - 1):
-        total += px[i] * py[i + 1] - px[i + 1] * py[i]
-    return total * 0.5
-
-
-@numba.njit(**KERNEL)
-def clip_by_line(px, py, m, nx, ny, offset, out_x, out_y):  # pragma: no cover (compiled)
-    """One Sutherland–Hodgman pass (geometry.shapes.clip_half_plane): the part of the
-    polygon of the first ``m`` points where x·n ≤ offset into ``out_x``, ``out_y``; returns
-    its number of points (0: empty)."""
-    count = 0
-    for i in range(m):
-        j = (i + 1) % m
-        d0 = px[i] * nx + py[i] * ny - offset
-        d1 = px[j] * nx + py[j] * ny - offset
-        inside0, inside1 = d0 <= 0.0, d1 <= 0.0
-        if inside0:
-            out_x[count], out_y[count] = px[i], py[i]
-            count += 1
-        if inside0 != inside1:
-            t = d0 / (d0 - d1)
-            out_x[count] = (px[j] - px[i]) * t + px[i]
-            out_y[count] = (py[j] - py[i]) * t + py[i]
-            count += 1
-    return count
-
-
-@numba.njit(**KERNEL)
-def area_below_line(px, py, m, nx, ny, offset):  # pragma: no cover (compiled)
-    """Signed area of the part of a polygon where x·n ≤ offset, by Green's theorem, as
-    geometry.shapes.clipped_area computes it."""
-    area = 0.0
-    exit_x = exit_y = first_x = first_y = 0.0
-    pending = first = False
-    for i in range(m):
-        j = (i + 1) % m
-        di = px[i] * nx + py[i] * ny - offset
-        dj = px[j] * nx + py[j] * ny - offset
-        inside_i, inside_j = di <= 0.0, dj <= 0.0
-        t = di / (di - dj) if inside_i != inside_j else 0.0
-        cut_x, cut_y = px[i] + t * (px[j] - px[i]), py[i] + t * (py[j] - py[i])
-        if inside_i | inside_j:
-            qx, qy = (px[j], py[j]) if inside_j else (cut_x, cut_y)
-            ax, ay = (px[i], py[i]) if inside_i else (cut_x, cut_y)
-            area += ax * qy - qx * ay
-        else:
-            area += 0.0
-        entering = (not inside_i) & inside_j
-        joined = entering & pending
-        area += exit_x * cut_y - cut_x * exit_y if joined else 0.0
-        opening = entering & (not pending) & (not first)
-        if opening:
-            first_x, first_y = cut_x, cut_y
-        first |= opening
-        pending &= not joined
-        leaving = inside_i & (not inside_j)
-        if leaving:
-            exit_x, exit_y = cut_x, cut_y
-        pending |= leaving
-    area += exit_x * first_y - first_x * exit_y if pending & first else 0.0
-    return 0.5 * area
 
 
 @numba.njit(**KERNEL)
