@@ -345,3 +345,66 @@ def cut_offsets(vertices, normal, fraction):
     denominator = beta + np.sqrt(np.maximum(beta * beta + 4.0 * gamma * rhs, 0.0))
     t = np.divide(2.0 * rhs, denominator, out=np.zeros_like(rhs), where=denominator > 0)
     return lo + np.clip(t, 0.0, 1.0) * (hi - lo)
+
+
+def material_momentum_fluxes(cell_nodes, corner_mass, node_velocity, node_internal, flux_mass, donor, receiver):
+    """Each material's momentum per cell after the fluxes, the kinetic energy the fluxes
+    bring, and each corner's deviation from its cell's mean velocity (2D enriched cells:
+    ale_xfem.remap.remapper_2d, before it was compiled into
+    swept_kernels_2d.material_momentum_fluxes).  Returns (momentum (2 components, 2
+    materials, n_cells), kinetic_in (2, n_cells), deviation (2, 2, k, n_cells))."""
+    n_cells = cell_nodes.shape[0]
+    cell_mass = corner_mass.sum(axis=1)
+    momentum = [np.zeros((2, n_cells)) for _ in range(2)]
+    kinetic_in = np.zeros((2, n_cells))
+    nodes = cell_nodes.T
+    deviation = np.zeros((2, 2) + nodes.shape)
+    for m in range(2):
+        u = node_velocity[m]
+        cell_velocity = np.empty((2, n_cells))
+        for d in range(2):
+            corner_velocity = u[d][nodes]
+            momentum[d][m] = np.sum(corner_mass[m] * corner_velocity, axis=0)
+            np.divide(momentum[d][m], cell_mass[m], out=cell_velocity[d], where=cell_mass[m] > 0)
+            cell_velocity[d][cell_mass[m] <= 0] = 0.0
+            deviation[m, d] = np.where((cell_mass[m] > 0) & node_internal[m][nodes],
+                                       corner_velocity - cell_velocity[d], 0.0)
+        donor_velocity = cell_velocity.take(donor, axis=1)
+        for d in range(2):
+            flux = flux_mass[m] * donor_velocity[d]
+            momentum[d][m] += np.bincount(receiver, flux, n_cells) - np.bincount(donor, flux, n_cells)
+        kinetic = 0.5 * flux_mass[m] * np.sum(donor_velocity**2, axis=0)
+        kinetic_in[m] = np.bincount(receiver, kinetic, n_cells) - np.bincount(donor, kinetic, n_cells)
+    return np.stack(momentum), kinetic_in, deviation
+
+
+def material_node_velocities(cell_nodes, corner_mass, node_mass, owner, momentum, deviation, old_node_mass,
+                             old_velocity, old_corner_mass, kinetic_in):
+    """Each material's nodal velocities on the remapped mesh, the mesh's velocity (each
+    node's own material's) and the kinetic energy the remap dissipated per node (2D
+    enriched cells: ale_xfem.remap.remapper_2d, before it was compiled into
+    swept_kernels_2d.material_node_velocities)."""
+    n_cells, k = cell_nodes.shape
+    n_nodes = node_mass.shape[1]
+    flat = cell_nodes.T.ravel()
+    cell_mass = corner_mass.sum(axis=1)
+    share = np.divide(corner_mass, cell_mass[:, None, :], out=np.zeros_like(corner_mass),
+                      where=cell_mass[:, None, :] > 0)
+    velocity = np.zeros((2, 2, n_nodes))
+    for m in range(2):
+        for d in range(2):
+            mean = np.divide(momentum[d][m], cell_mass[m], out=np.zeros(n_cells), where=cell_mass[m] > 0)
+            corner_velocity = mean + deviation[m, d] - np.sum(share[m] * deviation[m, d], axis=0)
+            node_momentum = np.bincount(flat, (corner_mass[m] * corner_velocity).ravel(), n_nodes)
+            np.divide(node_momentum, node_mass[m], out=velocity[m, d], where=node_mass[m] > 0)
+    mesh_velocity = velocity[owner, :, np.arange(n_nodes)].T.copy()
+    for m in range(2):
+        velocity[m][:, node_mass[m] <= 0] = mesh_velocity[:, node_mass[m] <= 0]
+    kinetic_before = 0.5 * np.sum(old_node_mass[:, None] * old_velocity**2, axis=(0, 1))
+    old_cell_mass = old_corner_mass.sum(axis=1)
+    old_share = np.divide(old_corner_mass, old_cell_mass[:, None, :], out=np.full_like(old_corner_mass, 1.0 / k),
+                          where=old_cell_mass[:, None, :] > 0)
+    flux_share = np.where(cell_mass[:, None, :] > 0, share, old_share)
+    in_nodes = np.bincount(flat, (flux_share * kinetic_in[:, None, :]).sum(axis=0).ravel(), n_nodes)
+    loss = kinetic_before + in_nodes - 0.5 * np.sum(node_mass[:, None] * velocity**2, axis=(0, 1))
+    return velocity, mesh_velocity, kinetic_before, loss

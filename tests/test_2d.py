@@ -782,6 +782,59 @@ def test_the_compiled_2d_swept_pass_gives_the_numpy_pass_bits(mesh_name, order):
             np.testing.assert_array_equal(bits(b_), bits(a_), err_msg=f"{name}, {case}")
 
 
+@pytest.mark.parametrize("mesh_name", MESHES)
+def test_the_compiled_per_material_momentum_remap_gives_the_numpy_bits(mesh_name):
+    """2D enriched cells' momentum remap, each material on its own, compiled
+    (swept_kernels_2d.material_momentum_fluxes, material_node_velocities) against the numpy
+    code it replaced (tests/oracles.py): the same bits, with cells a material is absent from
+    (zero corner masses) before or after, nodes that carry no mass of a material (they move
+    with the node's own material) and external nodes (no deviation kept)."""
+    from oracles import material_momentum_fluxes as numpy_fluxes
+    from oracles import material_node_velocities as numpy_velocities
+
+    from ale_xfem.model.mesh import mesh_edges
+    from ale_xfem.remap import swept_kernels_2d
+
+    def bits(a):
+        return np.ascontiguousarray(a, dtype=float).view(np.uint64)
+
+    mesh = MESHES[mesh_name]()
+    a, b, plus, minus = mesh_edges(mesh.cell_nodes)
+    inner = np.flatnonzero(minus >= 0)
+    rng = np.random.default_rng(23)
+    k, n_cells, n_nodes = mesh.cell_nodes.shape[1], mesh.n_cells, mesh.n_nodes
+    centre = mesh.cell_centroids()[:, 0]
+    # each material absent from a side of the mesh (and here and there elsewhere)
+    side = np.stack([centre < 0.6, centre > 0.4])[:, None, :]
+    for trial in range(3):
+        corner_mass = rng.uniform(0.1, 1.0, (2, k, n_cells)) * side * (rng.random((2, 1, n_cells)) < 0.9)
+        node_velocity = rng.normal(size=(2, 2, n_nodes))
+        internal = rng.random((2, n_nodes)) < 0.8
+        edges = rng.choice(inner, inner.size // 2, replace=False)
+        forward = rng.random(edges.size) < 0.5
+        donor = np.where(forward, minus[edges], plus[edges])
+        receiver = np.where(forward, plus[edges], minus[edges])
+        flux_mass = rng.uniform(0.0, 0.05, (2, edges.size))
+        expected = numpy_fluxes(mesh.cell_nodes, corner_mass, node_velocity, internal, flux_mass, donor, receiver)
+        got = swept_kernels_2d.material_momentum_fluxes(mesh.cell_nodes, corner_mass, node_velocity, internal,
+                                                        flux_mass, donor, receiver)
+        for name, want, have in zip(("momentum", "kinetic", "deviation"), expected, got):
+            np.testing.assert_array_equal(bits(have), bits(want), err_msg=f"{name}, trial {trial}")
+        momentum, kinetic_in, deviation = got
+        new_corner_mass = rng.uniform(0.1, 1.0, (2, k, n_cells)) * side * (rng.random((2, 1, n_cells)) < 0.9)
+        node_mass = np.stack([np.bincount(mesh.cell_nodes.T.ravel(), new_corner_mass[m].ravel(), n_nodes)
+                              for m in range(2)])
+        owner = np.argmax(node_mass, axis=0)
+        old_node_mass = np.stack([np.bincount(mesh.cell_nodes.T.ravel(), corner_mass[m].ravel(), n_nodes)
+                                  for m in range(2)])
+        args = (mesh.cell_nodes, new_corner_mass, node_mass, owner, momentum, deviation, old_node_mass,
+                node_velocity, corner_mass, kinetic_in)
+        expected, got = numpy_velocities(*args), swept_kernels_2d.material_node_velocities(*args)
+        for name, want, have in zip(("velocity", "mesh velocity", "kinetic before", "loss"), expected, got):
+            np.testing.assert_array_equal(bits(have), bits(want), err_msg=f"{name}, trial {trial}")
+        assert np.any(node_mass == 0.0) and np.any(corner_mass.sum(axis=1) == 0.0)  # not vacuous
+
+
 @pytest.mark.parametrize("n_materials", [2, 3])
 def test_the_compiled_outflow_cap_gives_the_numpy_caps_bits(n_materials):
     """No donor gives more of a material than it holds: the compiled cap

@@ -328,7 +328,7 @@ class Remapper2D:
                              material_node_internal=internal)
 
     def _material_momentum_fluxes(self, state, flux_mass, donor, receiver):
-        """Each material's momentum per cell after the fluxes ([x, y], each (2, n_cells)):
+        """Each material's momentum per cell after the fluxes ((2 components, 2 materials, n_cells)):
         the cell holds Σ_i c_mi u_mi over its corners (c: the material's corner masses,
         condensed in mixed cells), and an edge carries each material's mass flux at the
         donor's mean velocity *of that material* — no tangential momentum crosses Γ inside
@@ -338,31 +338,9 @@ class Remapper2D:
         material's internal nodes only: at its external nodes (nearly massless) its velocity
         is weakly determined by the interface solve (it grew to 4 times the flow's speed in
         a few steps of the spinning disk) and is re-extended from its cells' means."""
-        mesh = self.mesh
-        n_cells = mesh.n_cells
-        corner_mass = state.material_corner_mass  # (2, k, n_cells)
-        cell_mass = corner_mass.sum(axis=1)
-        momentum = [np.zeros((2, n_cells)) for _ in range(2)]
-        kinetic_in = np.zeros((2, n_cells))
-        nodes = mesh.cell_nodes.T  # (k, n_cells)
-        deviation = np.zeros((2, 2) + nodes.shape)
-        for m in range(2):
-            u = state.material_node_velocity[m]
-            cell_velocity = np.empty((2, n_cells))
-            for d in range(2):
-                corner_velocity = u[d][nodes]
-                momentum[d][m] = np.sum(corner_mass[m] * corner_velocity, axis=0)
-                np.divide(momentum[d][m], cell_mass[m], out=cell_velocity[d], where=cell_mass[m] > 0)
-                cell_velocity[d][cell_mass[m] <= 0] = 0.0
-                deviation[m, d] = np.where((cell_mass[m] > 0) & state.material_node_internal[m][nodes],
-                                           corner_velocity - cell_velocity[d], 0.0)
-            donor_velocity = cell_velocity.take(donor, axis=1)
-            for d in range(2):
-                flux = flux_mass[m] * donor_velocity[d]
-                momentum[d][m] += np.bincount(receiver, flux, n_cells) - np.bincount(donor, flux, n_cells)
-            kinetic = 0.5 * flux_mass[m] * np.sum(donor_velocity**2, axis=0)
-            kinetic_in[m] = np.bincount(receiver, kinetic, n_cells) - np.bincount(donor, kinetic, n_cells)
-        return momentum, kinetic_in, deviation
+        return swept_kernels_2d.material_momentum_fluxes(
+            self.mesh.cell_nodes, state.material_corner_mass, state.material_node_velocity,
+            state.material_node_internal, flux_mass, donor, receiver)
 
     def _material_velocities(self, state, X, volume, mass, energy, area, standing, momentum, kinetic_in,
                              deviation):
@@ -378,40 +356,18 @@ class Remapper2D:
         Returns (the mesh's velocity: each node's own material's, the total nodal masses,
         the kinetic energy change, the state's material fields)."""
         mesh = self.mesh
-        n_nodes, n_cells = mesh.n_nodes, mesh.n_cells
         present = (volume > TRACE * area) | (standing & (mass != 0.0))
         cells = np.flatnonzero(present.sum(axis=0) == 2)
         kept_volume, kept_mass = np.where(present, volume, 0.0), np.where(present, mass, 0.0)
         corner_mass, node_mass, owner, internal = self.material_geometry(X, kept_volume, kept_mass, cells)
-        flat = mesh.cell_nodes.T.ravel()
-        cell_mass = corner_mass.sum(axis=1)
-        share = np.divide(corner_mass, cell_mass[:, None, :], out=np.zeros_like(corner_mass),
-                          where=cell_mass[:, None, :] > 0)
-        velocity = np.zeros((2, 2, n_nodes))
-        for m in range(2):
-            for d in range(2):
-                mean = np.divide(momentum[d][m], cell_mass[m], out=np.zeros(n_cells), where=cell_mass[m] > 0)
-                corner_velocity = mean + deviation[m, d] - np.sum(share[m] * deviation[m, d], axis=0)
-                node_momentum = np.bincount(flat, (corner_mass[m] * corner_velocity).ravel(), n_nodes)
-                np.divide(node_momentum, node_mass[m], out=velocity[m, d], where=node_mass[m] > 0)
-        mesh_velocity = velocity[owner, :, np.arange(n_nodes)].T.copy()
-        for m in range(2):  # a material absent from a node moves with the node
-            velocity[m][:, node_mass[m] <= 0] = mesh_velocity[:, node_mass[m] <= 0]
-        old_mass, old_velocity = state.material_node_mass, state.material_node_velocity
-        kinetic_before = 0.5 * np.sum(old_mass[:, None] * old_velocity**2, axis=(0, 1))
-        # the fluxes' kinetic energy by corner shares: the new ones, or, in a cell the material
-        # has left (its outflow counted there, or a trace of it moved away), the old ones —
-        # every cell's share reaches the nodes, so the losses sum to the kinetic energy the
-        # remap changed (by the new shares alone, what left a cell was lost: total energy
-        # drifted by 10⁻⁶ a remap on the sheared tube)
-        old_corner_mass = state.material_corner_mass
-        old_cell_mass = old_corner_mass.sum(axis=1)
-        k = old_corner_mass.shape[1]
-        old_share = np.divide(old_corner_mass, old_cell_mass[:, None, :], out=np.full_like(old_corner_mass, 1.0 / k),
-                              where=old_cell_mass[:, None, :] > 0)
-        flux_share = np.where(cell_mass[:, None, :] > 0, share, old_share)
-        in_nodes = np.bincount(flat, (flux_share * kinetic_in[:, None, :]).sum(axis=0).ravel(), n_nodes)
-        loss = kinetic_before + in_nodes - 0.5 * np.sum(node_mass[:, None] * velocity**2, axis=(0, 1))
+        # the fluxes' kinetic energy goes to the nodes by corner shares: the new ones, or, in a
+        # cell the material has left (its outflow counted there, or a trace of it moved away),
+        # the old ones — every cell's share reaches the nodes, so the losses sum to the kinetic
+        # energy the remap changed (by the new shares alone, what left a cell was lost: total
+        # energy drifted by 10⁻⁶ a remap on the sheared tube)
+        velocity, mesh_velocity, kinetic_before, loss = swept_kernels_2d.material_node_velocities(
+            mesh.cell_nodes, corner_mass, node_mass, owner, momentum, deviation, state.material_node_mass,
+            state.material_node_velocity, state.material_corner_mass, kinetic_in)
         self.wall_impulse, self.wall_work = np.zeros(2), 0.0
         for boundary in self.constraints:
             nodes = boundary.nodes

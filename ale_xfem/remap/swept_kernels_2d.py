@@ -408,6 +408,133 @@ def cell_momentum(u, cell_nodes, old_cell_mass, new_cell_mass, flux_mass, donor,
 
 
 @numba.njit(**KERNEL)
+def material_momentum_fluxes(cell_nodes, corner_mass, node_velocity, node_internal, flux_mass, donor,
+                             receiver):  # pragma: no cover (compiled)
+    """2D enriched cells, each material on its own (remapper_2d's
+    ``_material_momentum_fluxes``): each cell holds Σ_i c_mi u_mi over its corners (c: the
+    material's corner masses (2, k, n_cells)); a swept region carries each material's mass
+    flux at the donor's mean velocity of that material.  Returns (each material's momentum
+    per cell after the fluxes (2 components, 2 materials, n_cells), the kinetic energy the
+    fluxes bring each cell (2, n_cells), each corner's velocity less its cell's mean at the
+    material's internal nodes (2 materials, 2 components, k, n_cells))."""
+    n_cells, k = cell_nodes.shape
+    n = donor.size
+    momentum = np.zeros((2, 2, n_cells))
+    kinetic_in = np.zeros((2, n_cells))
+    deviation = np.zeros((2, 2, k, n_cells))
+    cell_velocity = np.zeros((2, n_cells))
+    into, out = np.empty((3, n_cells)), np.empty((3, n_cells))
+    for m in range(2):
+        for c in range(n_cells):
+            cell_mass = corner_mass[m, 0, c]
+            for i in range(1, k):
+                cell_mass += corner_mass[m, i, c]
+            for d in range(2):
+                total = corner_mass[m, 0, c] * node_velocity[m, d, cell_nodes[c, 0]]
+                for i in range(1, k):
+                    total += corner_mass[m, i, c] * node_velocity[m, d, cell_nodes[c, i]]
+                momentum[d, m, c] = total
+                mean = total / cell_mass if cell_mass > 0 else 0.0
+                cell_velocity[d, c] = mean
+                if cell_mass > 0:
+                    for i in range(k):
+                        node = cell_nodes[c, i]
+                        if node_internal[m, node]:
+                            deviation[m, d, i, c] = node_velocity[m, d, node] - mean
+        into[:] = 0.0
+        out[:] = 0.0
+        for j in range(n):
+            v0, v1 = cell_velocity[0, donor[j]], cell_velocity[1, donor[j]]
+            f0, f1 = flux_mass[m, j] * v0, flux_mass[m, j] * v1
+            kinetic = 0.5 * flux_mass[m, j] * (v0 * v0 + v1 * v1)
+            into[0, receiver[j]] += f0
+            out[0, donor[j]] += f0
+            into[1, receiver[j]] += f1
+            out[1, donor[j]] += f1
+            into[2, receiver[j]] += kinetic
+            out[2, donor[j]] += kinetic
+        for c in range(n_cells):
+            momentum[0, m, c] += into[0, c] - out[0, c]
+            momentum[1, m, c] += into[1, c] - out[1, c]
+            kinetic_in[m, c] = into[2, c] - out[2, c]
+    return momentum, kinetic_in, deviation
+
+
+@numba.njit(**KERNEL)
+def material_node_velocities(cell_nodes, corner_mass, node_mass, owner, momentum, deviation, old_node_mass,
+                             old_velocity, old_corner_mass, kinetic_in):  # pragma: no cover (compiled)
+    """2D enriched cells (remapper_2d's ``_material_velocities``): each corner of a cell
+    takes the cell's new mean velocity of the material plus its old ``deviation`` less the
+    new-mass-weighted mean of the deviations, weighted at the nodes by the material's new
+    corner masses; a material absent from a node moves with it (the node's own material's
+    velocity).  Returns (each material's nodal velocity (2, 2, n_nodes), the mesh's
+    velocity (2, n_nodes), the kinetic energy before per node, and per node the kinetic
+    energy before, plus what the fluxes brought by corner shares — the new ones, or the old
+    ones in a cell the material has left — less the kinetic energy after)."""
+    n_cells, k = cell_nodes.shape
+    n_nodes = node_mass.shape[1]
+    cell_mass = np.empty((2, n_cells))
+    old_cell_mass = np.empty((2, n_cells))
+    for m in range(2):
+        for c in range(n_cells):
+            total, old = corner_mass[m, 0, c], old_corner_mass[m, 0, c]
+            for i in range(1, k):
+                total += corner_mass[m, i, c]
+                old += old_corner_mass[m, i, c]
+            cell_mass[m, c], old_cell_mass[m, c] = total, old
+    velocity = np.zeros((2, 2, n_nodes))
+    node_momentum = np.empty(n_nodes)
+    for m in range(2):
+        for d in range(2):
+            node_momentum[:] = 0.0
+            for i in range(k):
+                for c in range(n_cells):
+                    mass = cell_mass[m, c]
+                    mean = momentum[d, m, c] / mass if mass > 0 else 0.0
+                    spread = 0.0
+                    for r in range(k):
+                        share = corner_mass[m, r, c] / mass if mass > 0 else 0.0
+                        spread = share * deviation[m, d, r, c] if r == 0 else spread + share * deviation[m, d, r, c]
+                    corner_velocity = mean + deviation[m, d, i, c] - spread
+                    node_momentum[cell_nodes[c, i]] += corner_mass[m, i, c] * corner_velocity
+            for node in range(n_nodes):
+                if node_mass[m, node] > 0:
+                    velocity[m, d, node] = node_momentum[node] / node_mass[m, node]
+    mesh_velocity = np.empty((2, n_nodes))
+    for node in range(n_nodes):
+        for d in range(2):
+            mesh_velocity[d, node] = velocity[owner[node], d, node]
+        for m in range(2):
+            if node_mass[m, node] <= 0:
+                velocity[m, 0, node], velocity[m, 1, node] = mesh_velocity[0, node], mesh_velocity[1, node]
+    in_nodes = np.zeros(n_nodes)
+    for i in range(k):
+        for c in range(n_cells):
+            brought = 0.0
+            for m in range(2):
+                if cell_mass[m, c] > 0:
+                    share = corner_mass[m, i, c] / cell_mass[m, c]
+                elif old_cell_mass[m, c] > 0:
+                    share = old_corner_mass[m, i, c] / old_cell_mass[m, c]
+                else:
+                    share = 1.0 / k
+                brought = share * kinetic_in[m, c] if m == 0 else brought + share * kinetic_in[m, c]
+            in_nodes[cell_nodes[c, i]] += brought
+    kinetic_before = np.empty(n_nodes)
+    loss = np.empty(n_nodes)
+    for node in range(n_nodes):
+        before = old_node_mass[0, node] * (old_velocity[0, 0, node] * old_velocity[0, 0, node])
+        after = node_mass[0, node] * (velocity[0, 0, node] * velocity[0, 0, node])
+        for t in range(1, 4):
+            m, d = t // 2, t % 2
+            before += old_node_mass[m, node] * (old_velocity[m, d, node] * old_velocity[m, d, node])
+            after += node_mass[m, node] * (velocity[m, d, node] * velocity[m, d, node])
+        kinetic_before[node] = 0.5 * before
+        loss[node] = kinetic_before[node] + in_nodes[node] - 0.5 * after
+    return velocity, mesh_velocity, kinetic_before, loss
+
+
+@numba.njit(**KERNEL)
 def exchange(quantity, flux, donor, receiver):  # pragma: no cover (compiled)
     """Each cell's ``quantity`` (n_materials, n_cells) plus what the fluxes (n_materials, n)
     bring in less what they take out, in place (the sums over the edges in their order)."""
