@@ -265,6 +265,7 @@ class InterfaceSystem:
         self.geometry_map = np.asarray(geometry_map)
         self.sub_nodes = np.asarray(sub.geometry.dofmaps[0])  # (n_sub, k) submesh geometry nodes
         self.parent_nodes = self.geometry_map[self.sub_nodes]  # (n_sub, k) parent node of each vertex
+        self._vertex_weights_at = None  # (the submesh's vertices, their weights) of the last call
         self.space = dolfinx.fem.functionspace(sub, forms.mixed_element)
         collapsed = [self.space.sub(i).collapse() for i in range(len(forms.blocks))]
         self.maps = [np.asarray(m).ravel() for _, m in collapsed]
@@ -586,8 +587,16 @@ class InterfaceSystem:
     def _vertex_weights(self):
         """(n_sub, k): the vertex rule's weight at each vertex of each cell, in the order of
         its geometry nodes: |K|/2 on an interval, |K|/3 on a triangle, |det J(vertex)|/4 on a
-        quadrilateral."""
+        quadrilateral — kept while the submesh does not move (asked several times a step,
+        for every cell of the band; an Eulerian mesh never moves)."""
         x = self.submesh.geometry.x[self.sub_nodes, :2]
+        last = self._vertex_weights_at
+        if last is None or not np.array_equal(last[0], x):
+            self._vertex_weights_at = (x, self._vertex_weights_of(x))
+        return self._vertex_weights_at[1]
+
+    @staticmethod
+    def _vertex_weights_of(x):
         if x.shape[1] == 2:
             return np.repeat(np.abs(x[:, 1, :1] - x[:, 0, :1]) / 2.0, 2, axis=1)
         if x.shape[1] == 3:

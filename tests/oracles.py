@@ -408,3 +408,25 @@ def material_node_velocities(cell_nodes, corner_mass, node_mass, owner, momentum
     in_nodes = np.bincount(flat, (flux_share * kinetic_in[:, None, :]).sum(axis=0).ravel(), n_nodes)
     loss = kinetic_before + in_nodes - 0.5 * np.sum(node_mass[:, None] * velocity**2, axis=(0, 1))
     return velocity, mesh_velocity, kinetic_before, loss
+
+
+def node_materials(cell_nodes, n_nodes, cell_material, material_volume, material_of_slot):
+    """The material each node lies in, and the nodes with pure cells of two materials
+    around them (ale_xfem.mixed.cut_cells_2d, before it was compiled)."""
+    n_materials = int(material_of_slot.max()) + 1
+    size = n_materials * n_nodes
+    k = cell_nodes.shape[1]
+    pure = cell_material >= 0
+    pure_count = np.bincount(np.repeat(cell_material[pure], k) * n_nodes + cell_nodes[pure].ravel(),
+                             minlength=size).reshape(n_materials, n_nodes)
+    share = np.zeros(size)
+    for slot in range(material_of_slot.shape[0]):
+        present = material_of_slot[slot] >= 0
+        share += np.bincount(np.repeat(material_of_slot[slot, present], k) * n_nodes + cell_nodes[present].ravel(),
+                             np.repeat(material_volume[slot, present], k), minlength=size)
+    share = share.reshape(n_materials, n_nodes)
+    total = share.sum(axis=0)
+    fraction = np.divide(share, total, out=np.zeros_like(share), where=total > 0)
+    owner = np.argmax(pure_count + 0.5 * fraction, axis=0)
+    two_pure = (pure_count > 0).sum(axis=0) > 1
+    return owner, two_pure

@@ -353,3 +353,32 @@ def test_a_sliding_tie_without_a_direction_leaves_the_node_untied():
     case, system, mass, rhs = _kink_system()
     out = system.solve(mass, rhs, case.tied, sliding=case.tied, tie_normal=np.zeros((2, case.mesh.n_nodes)))
     assert all(np.all(np.isfinite(u)) for u in out["velocity"])
+
+
+@pytest.mark.parametrize("cell", ["triangle", "quadrilateral"])
+def test_the_compiled_node_materials_give_the_numpy_bits(cell):
+    """The material each node lies in (ale_xfem.mixed.cut_cells_2d.node_materials, compiled)
+    against the numpy code it replaced (tests/oracles.py): the same owners and two-material
+    flags with pure cells of two and three materials, mixed cells in one slot or two, and
+    ties of pure cells decided by the areas."""
+    from oracles import node_materials as numpy_node_materials
+
+    from ale_xfem.mixed.cut_cells_2d import node_materials
+    from ale_xfem.model.mesh import rectangle_mesh
+
+    mesh = rectangle_mesh([[0.0, 1.0], [0.0, 1.0]], [9, 7], cell)
+    rng = np.random.default_rng(29)
+    for n_materials in (2, 3):
+        cell_material = rng.integers(0, n_materials, mesh.n_cells)
+        mixed = rng.random(mesh.n_cells) < 0.3
+        cell_material[mixed] = -1
+        slots = np.stack([np.where(mixed, rng.integers(0, n_materials, mesh.n_cells), cell_material),
+                          np.where(mixed, -1, -1)])
+        slots[1, mixed] = (slots[0, mixed] + 1) % n_materials
+        for volume in (rng.uniform(0.0, 1.0, (2, mesh.n_cells)) * (slots >= 0), 1.0 * (slots >= 0)):  # and ties
+            args = (mesh.cell_nodes, mesh.n_nodes, cell_material, volume, slots)
+            owner, two = node_materials(*args)
+            expected_owner, expected_two = numpy_node_materials(*args)
+            np.testing.assert_array_equal(owner, expected_owner)
+            np.testing.assert_array_equal(two, expected_two)
+        assert np.any(two) and np.any(~two) and len(np.unique(owner)) == n_materials

@@ -186,26 +186,51 @@ def node_materials(cell_nodes, n_nodes, cell_material, material_volume, material
     flag of the nodes with pure cells of two materials around them.  ``cell_material``:
     each cell's material (−1: mixed); ``material_volume`` (2, n_cells) and
     ``material_of_slot`` (2, n_cells) the materials' areas in each cell."""
-    n_materials = int(material_of_slot.max()) + 1
-    size = n_materials * n_nodes
-    k = cell_nodes.shape[1]
-    pure = cell_material >= 0
-    # sums over (material, node) bins in the order of the cells (as np.add.at, much faster)
-    pure_count = np.bincount(np.repeat(cell_material[pure], k) * n_nodes + cell_nodes[pure].ravel(),
-                             minlength=size).reshape(n_materials, n_nodes)
-    share = np.zeros(size)
+    return _node_materials(cell_nodes, n_nodes, cell_material, material_volume, material_of_slot,
+                           int(material_of_slot.max()) + 1)
+
+
+@numba.njit(cache=True)
+def _node_materials(cell_nodes, n_nodes, cell_material, material_volume, material_of_slot,
+                    n_materials):  # pragma: no cover (compiled)
+    """:func:`node_materials`: the most pure cells around the node, and among equals the
+    larger share of the area around it — a tie of pure cells (frequent on crossed
+    triangles) went to the lower material id, so the run depended on the order the scene
+    lists its materials in.  The areas summed slot by slot, each over the cells in order."""
+    n_cells, k = cell_nodes.shape
+    pure_count = np.zeros((n_materials, n_nodes), dtype=np.int64)
+    for c in range(n_cells):
+        m = cell_material[c]
+        if m >= 0:
+            for i in range(k):
+                pure_count[m, cell_nodes[c, i]] += 1
+    share = np.zeros((n_materials, n_nodes))
+    slot_share = np.empty((n_materials, n_nodes))
     for slot in range(material_of_slot.shape[0]):
-        present = material_of_slot[slot] >= 0
-        share += np.bincount(np.repeat(material_of_slot[slot, present], k) * n_nodes + cell_nodes[present].ravel(),
-                             np.repeat(material_volume[slot, present], k), minlength=size)
-    share = share.reshape(n_materials, n_nodes)
-    # the most pure cells around the node, and among equals the larger area: a tie of pure
-    # cells (frequent on crossed triangles) went to the lower material id, so the run
-    # depended on the order the scene lists its materials in
-    total = share.sum(axis=0)
-    fraction = np.divide(share, total, out=np.zeros_like(share), where=total > 0)
-    owner = np.argmax(pure_count + 0.5 * fraction, axis=0)
-    two_pure = (pure_count > 0).sum(axis=0) > 1
+        slot_share[:] = 0.0
+        for c in range(n_cells):
+            m = material_of_slot[slot, c]
+            if m >= 0:
+                for i in range(k):
+                    slot_share[m, cell_nodes[c, i]] += material_volume[slot, c]
+        for m in range(n_materials):
+            for node in range(n_nodes):
+                share[m, node] += slot_share[m, node]
+    owner = np.zeros(n_nodes, dtype=np.int64)
+    two_pure = np.zeros(n_nodes, dtype=np.bool_)
+    for node in range(n_nodes):
+        total = share[0, node]
+        for m in range(1, n_materials):
+            total += share[m, node]
+        best = -np.inf
+        touching = 0
+        for m in range(n_materials):
+            fraction = share[m, node] / total if total > 0 else 0.0
+            score = pure_count[m, node] + 0.5 * fraction
+            if score > best:
+                best, owner[node] = score, m
+            touching += pure_count[m, node] > 0
+        two_pure[node] = touching > 1
     return owner, two_pure
 
 
