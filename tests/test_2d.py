@@ -750,7 +750,7 @@ def test_the_compiled_2d_swept_pass_gives_the_numpy_pass_bits(mesh_name, order):
         expected_cells = [q.copy() for q in (volume, mass, energy)]
         expected = swept_pass_2d(mesh, x, target_a, target_b, edges, is_mixed, material, *expected_cells, order)
         got_cells = [q.copy() for q in (volume, mass, energy)]
-        _, donor, receiver, size, swept, flux_volume = swept_kernels_2d.swept_edges(
+        donor, receiver, size, swept, flux_volume = swept_kernels_2d.swept_edges(
             x, target_a, target_b, a, b, plus, minus, is_mixed, material, n_materials)
         rho, eps, flux_mass, flux_energy = swept_kernels_2d.donor_fluxes(flux_volume, *got_cells, donor)
         if order == 2:

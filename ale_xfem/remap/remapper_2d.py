@@ -180,7 +180,7 @@ class Remapper2D:
             is_mixed[mixed.cells] = True
         # each moving edge's donor, receiver, |S|, quadrilateral (x_a, X_a, X_b, x_b) and the
         # volume of each material in it from pure donors
-        _, donor, receiver, size, swept, flux_volume = swept_kernels_2d.swept_edges(
+        donor, receiver, size, swept, flux_volume = swept_kernels_2d.swept_edges(
             x, Xa, Xb, self.a, self.b, self.plus, self.minus, is_mixed, layout.cell_material[0], n_materials)
         pure = ~is_mixed[donor]
         if np.any(~pure):  # mixed donors: exact clipping with their PLIC polygons

@@ -121,7 +121,7 @@ def swept_edges(x, target_a, target_b, a, b, plus, minus, is_mixed, material, n_
     sweeps the quadrilateral (x_a, X_a, X_b, x_b) of signed area
     S = ½ (X_b − x_a) × (x_b − X_a), from the cell on its other side into the cell on its left
     (``plus``) where S > 0, the other way where S < 0.  Returns, over the edges that move
-    (S ≠ 0): their indices, donors, receivers, |S|, their quadrilaterals (2, 4, n) and each
+    (S ≠ 0): their donors, receivers, |S|, their quadrilaterals (2, 4, n) and each
     material's volume in them (n_materials, n) — a pure donor's material's |S|, zero from mixed
     donors (``is_mixed``: their share is clipped by their polygons; ``material``: each cell's
     first material)."""
@@ -135,7 +135,6 @@ def swept_edges(x, target_a, target_b, a, b, plus, minus, is_mixed, material, n_
         area[j] = s
         if (s != 0.0) & (minus[j] >= 0):
             count += 1
-    edges = np.empty(count, dtype=np.int64)
     donor = np.empty(count, dtype=np.int64)
     receiver = np.empty(count, dtype=np.int64)
     size = np.empty(count)
@@ -146,7 +145,6 @@ def swept_edges(x, target_a, target_b, a, b, plus, minus, is_mixed, material, n_
         s = area[j]
         if not ((s != 0.0) & (minus[j] >= 0)):
             continue
-        edges[k] = j
         if s > 0:
             donor[k], receiver[k] = minus[j], plus[j]
         else:
@@ -160,7 +158,7 @@ def swept_edges(x, target_a, target_b, a, b, plus, minus, is_mixed, material, n_
         if not is_mixed[donor[k]]:
             flux_volume[material[donor[k]], k] = size[k]
         k += 1
-    return edges, donor, receiver, size, swept, flux_volume
+    return donor, receiver, size, swept, flux_volume
 
 
 @numba.njit(**KERNEL)
