@@ -430,3 +430,30 @@ def node_materials(cell_nodes, n_nodes, cell_material, material_volume, material
     owner = np.argmax(pure_count + 0.5 * fraction, axis=0)
     two_pure = (pure_count > 0).sum(axis=0) > 1
     return owner, two_pure
+
+
+def node_averaged_gradient(mesh, node_position, values):
+    """The gradient in every cell of cell fields averaged to the nodes by area
+    (ale_xfem.model.mesh.node_averaged_gradient over the whole mesh, before it was compiled
+    into cell_kernels.node_averaged_gradients): the mesh's own corner gathers and scatters
+    (grid views on a structured quadrilateral mesh).  ``values`` (m, n_cells) → (m, n_cells, 2)."""
+    from ale_xfem.model.mesh import QuadGradient
+
+    corners = mesh.corners
+    k = mesh.cell_type.nodes_per_cell
+    area, gradient = mesh.cell_geometry(node_position)
+    weight = corners.scatter([area] * k)
+    grad = np.empty((values.shape[0], mesh.n_cells, 2))
+    for f, field in enumerate(values):
+        nodal = corners.scatter([field * area] * k) / weight
+        if isinstance(gradient, QuadGradient):
+            diagonals = corners.quad_corners(nodal[None], hourglass=False)
+            across02, across13 = diagonals.across02[0], diagonals.across13[0]
+            (g0x, g0y), (g1x, g1y) = gradient.independent
+            gx, gy = g0x * across02 + g1x * across13, g0y * across02 + g1y * across13
+        else:
+            corner_values = [nodal[mesh.cell_nodes[:, i]] for i in range(k)]
+            gx = sum(v * g[0] for v, g in zip(corner_values, gradient))
+            gy = sum(v * g[1] for v, g in zip(corner_values, gradient))
+        grad[f, :, 0], grad[f, :, 1] = gx / area, gy / area
+    return grad

@@ -132,6 +132,75 @@ def cell_shape(cell_type, x, cell_nodes, at, k, hourglass):  # pragma: no cover 
     return (px * ry - py * rx) * 0.5, (px, py, rx, ry, hx, hy)
 
 
+def distinct_corners(cell_nodes) -> bool:
+    """Whether no node is the same corner of two cells (a structured grid's quadrilaterals;
+    not DOLFINx's triangles): :func:`corner_sums` then adds each cell's value to its nodes
+    directly."""
+    return all(np.unique(column).size == column.size for column in np.asarray(cell_nodes).T)
+
+
+@numba.njit(**LOOP)
+def corner_sums(cell_nodes, values, out, part, distinct):  # pragma: no cover (compiled)
+    """``out`` (n_nodes,) = Σ over corners of each cell's ``values`` (n_cells,) onto the
+    nodes, corner by corner: each corner's sum over the cells in order (in ``part``, scratch
+    of n_nodes), then added — the order of ale_xfem.model.mesh.Corners.scatter.  Where no
+    node is the same corner of two cells (``distinct``: :func:`distinct_corners`) a corner's
+    sum at a node is its one value, added directly: the same bits (a sum that starts at +0
+    is never −0)."""
+    n_cells, k = cell_nodes.shape
+    out[:] = 0.0
+    if distinct:
+        for i in range(k):
+            for c in range(n_cells):
+                out[cell_nodes[c, i]] += values[c]
+        return
+    for i in range(k):
+        part[:] = 0.0
+        for c in range(n_cells):
+            part[cell_nodes[c, i]] += values[c]
+        for node_index in range(out.size):
+            out[node_index] += part[node_index]
+
+
+@numba.njit(**LOOP)
+def node_averaged_gradients(cell_type, x, cell_nodes, values, gradient, area, shape, weight, nodal, part,
+                            distinct):  # pragma: no cover (compiled)
+    """``gradient`` (m, n_cells, 2): the gradient in every triangle or quadrilateral of cell
+    fields ``values`` (m, n_cells) averaged to the nodes by area: ∇v_K = (1/A_K) Σ_i v̄_i
+    ∂A_K/∂x_i with v̄_i = Σ_K A_K v_K / Σ_K A_K over the cells around node i —
+    ale_xfem.model.mesh.node_averaged_gradient over the whole mesh, in its order of
+    operations.  Scratch: ``area`` (n_cells,), ``shape`` (6, n_cells), ``weight``,
+    ``nodal``, ``part`` (n_nodes,) each; ``distinct``: as :func:`corner_sums`."""
+    n_cells, k = cell_nodes.shape
+    at = (False, (0, 0, 0, 0))  # the nodes read through cell_nodes (node_access's form)
+    for c in range(n_cells):
+        area[c], (shape[0, c], shape[1, c], shape[2, c], shape[3, c], shape[4, c], shape[5, c]) = cell_shape(
+            cell_type, x, cell_nodes, at, c, False)
+    corner_sums(cell_nodes, area, weight, part, distinct)
+    for f in range(values.shape[0]):
+        for c in range(n_cells):  # (the gradient's rows hold the weighted values meanwhile)
+            gradient[f, c, 0] = values[f, c] * area[c]
+        corner_sums(cell_nodes, gradient[f, :, 0], nodal, part, distinct)
+        for node_index in range(nodal.size):
+            nodal[node_index] /= weight[node_index]
+        for c in range(n_cells):
+            if cell_type == QUADRILATERAL:  # g_0 (v̄_0 − v̄_2) + g_1 (v̄_1 − v̄_3)
+                across02 = nodal[cell_nodes[c, 0]] - nodal[cell_nodes[c, 2]]
+                across13 = nodal[cell_nodes[c, 1]] - nodal[cell_nodes[c, 3]]
+                px, py, rx, ry = shape[0, c], shape[1, c], shape[2, c], shape[3, c]
+                gx = 0.5 * ry * across02 + -0.5 * py * across13
+                gy = -0.5 * rx * across02 + 0.5 * px * across13
+            else:
+                gx = 0.0
+                gy = 0.0
+                for i in range(k):
+                    v = nodal[cell_nodes[c, i]]
+                    gx += v * shape[2 * i, c]
+                    gy += v * shape[2 * i + 1, c]
+            gradient[f, c, 0] = gx / area[c]
+            gradient[f, c, 1] = gy / area[c]
+
+
 @numba.njit(**LOOP)
 def store_shape(cell_type, s, hourglass, shape, k):  # pragma: no cover (compiled)
     """A cell's shape (:func:`cell_shape`) into shape[:, :, k] (quadrilaterals' h only with

@@ -215,48 +215,39 @@ def node_neighbour_cells(cell_nodes: np.ndarray, n_nodes: int) -> np.ndarray:
 
 
 def node_averaged_gradient(mesh, node_position, values, cells=None, around=None) -> np.ndarray:
-    """The gradient in each cell (or in ``cells``) of cell fields averaged to the nodes by
-    area: ∇v_K = (1/A_K) Σ_i v̄_i ∂A_K/∂x_i with v̄_i = Σ_K A_K v_K / Σ_K A_K over the cells
-    around node i (exact for a linear field; Youngs' normals and the remap's slopes).
-    ``values`` (n_cells,) or (m, n_cells) → gradients (…, n, 2), the geometry done once.
-    With ``cells``, only the cells around their nodes are read (``around``: those cells,
-    cells_around(mesh, cells), when known): the same sums in the same order."""
-    corners = mesh.corners
-    k = mesh.cell_type.nodes_per_cell
+    """The gradient in each cell (or in ``cells``) of a 2D mesh of cell fields averaged to
+    the nodes by area: ∇v_K = (1/A_K) Σ_i v̄_i ∂A_K/∂x_i with v̄_i = Σ_K A_K v_K / Σ_K A_K over
+    the cells around node i (exact for a linear field; Youngs' normals and the remap's
+    slopes).  ``values`` (n_cells,) or (m, n_cells) → gradients (…, n, 2), the geometry done
+    once.  Every cell: a compiled loop (cell_kernels.node_averaged_gradients).  With
+    ``cells``, only the cells around their nodes are read (``around``: those cells,
+    cells_around(mesh, cells), when known)."""
     values = np.asarray(values)
-    fields = values.reshape(-1, values.shape[-1])
+    fields = np.ascontiguousarray(values.reshape(-1, values.shape[-1]), dtype=float)
     if cells is None:
-        area, gradient = mesh.cell_geometry(node_position)
-        weight = corners.scatter([area] * k)
-        nodes, area_here = mesh.cell_nodes, area
-
-        def nodal_average(field):
-            return corners.scatter([field * area] * k) / weight
-    else:
-        around = cells_around(mesh, cells) if around is None else around
-        index = np.ascontiguousarray(mesh.cell_nodes[around].T).ravel()  # corner by corner
-        area = mesh.cell_geometry(node_position, around)[0]
-        weight = np.bincount(index, np.tile(area, k), mesh.n_nodes)
-        weight[weight == 0.0] = 1.0  # nodes of no cell around: not read
-
-        def nodal_average(field):
-            return np.bincount(index, np.tile(field[around] * area, k), mesh.n_nodes) / weight
-        nodes = mesh.cell_nodes[cells]
-        area_here, gradient = mesh.cell_geometry(node_position, cells)
+        grad = np.empty((fields.shape[0], mesh.n_cells, 2))
+        cell_kernels.node_averaged_gradients(cell_kernels.CELL_TYPE_CODES[mesh.cell_type.name],
+                                             np.ascontiguousarray(node_position, dtype=float), mesh.compiled_cell_nodes,
+                                             fields, grad, np.empty(mesh.n_cells), np.empty((6, mesh.n_cells)),
+                                             *(np.empty(mesh.n_nodes) for _ in range(3)), mesh.distinct_corners)
+        return grad.reshape(values.shape[:-1] + grad.shape[1:])
+    k = mesh.cell_type.nodes_per_cell
+    around = cells_around(mesh, cells) if around is None else around
+    index = np.ascontiguousarray(mesh.cell_nodes[around].T).ravel()  # corner by corner
+    area = mesh.cell_geometry(node_position, around)[0]
+    weight = np.bincount(index, np.tile(area, k), mesh.n_nodes)
+    weight[weight == 0.0] = 1.0  # nodes of no cell around: not read
+    nodes = mesh.cell_nodes[cells]
+    area_here, gradient = mesh.cell_geometry(node_position, cells)
     grad = np.empty((fields.shape[0], nodes.shape[0], 2))
     for f, field in enumerate(fields):
-        nodal = nodal_average(field)
+        nodal = np.bincount(index, np.tile(field[around] * area, k), mesh.n_nodes) / weight
+        corner_values = [nodal[nodes[:, i]] for i in range(k)]
         if isinstance(gradient, QuadGradient):  # Σ_i v̄_i g_i = g_0 (v̄_0 − v̄_2) + g_1 (v̄_1 − v̄_3)
-            if cells is None:  # every cell: the mesh's own corner combinations (grid views)
-                diagonals = corners.quad_corners(nodal[None], hourglass=False)
-                across02, across13 = diagonals.across02[0], diagonals.across13[0]
-            else:
-                v = [nodal[nodes[:, i]] for i in range(k)]
-                across02, across13 = v[0] - v[2], v[1] - v[3]
+            across02, across13 = corner_values[0] - corner_values[2], corner_values[1] - corner_values[3]
             (g0x, g0y), (g1x, g1y) = gradient.independent
             gx, gy = g0x * across02 + g1x * across13, g0y * across02 + g1y * across13
         else:
-            corner_values = [nodal[nodes[:, i]] for i in range(k)]
             gx = sum(v * g[0] for v, g in zip(corner_values, gradient))
             gy = sum(v * g[1] for v, g in zip(corner_values, gradient))
         grad[f, :, 0], grad[f, :, 1] = gx / area_here, gy / area_here
@@ -410,6 +401,7 @@ class MeshArrays:
         # what the compiled loops take (ale_xfem.model.cell_kernels)
         self.compiled_cell_nodes = np.ascontiguousarray(self.cell_nodes, dtype=np.int64)
         self.corner_runs = cell_kernels.corner_runs(self.compiled_cell_nodes)
+        self.distinct_corners = cell_kernels.distinct_corners(self.compiled_cell_nodes)
 
     @property
     def n_nodes(self) -> int:

@@ -214,7 +214,7 @@ class Remapper2D:
         # -- nodal momentum through the cells (compiled) -------------------------------------
         u = state.node_velocity
         velocity, node_mass, kinetic_before, loss = swept_kernels_2d.cell_momentum(
-            u, mesh.cell_nodes, old_cell_mass, mass.sum(axis=0), flux_mass, donor, receiver)
+            u, mesh.cell_nodes, old_cell_mass, mass.sum(axis=0), flux_mass, donor, receiver, mesh.distinct_corners)
         if np.any(node_mass <= 0):
             raise RemapFailure("a node lost all its mass in the remap")
         # walls take the normal velocity (that kinetic energy is heat too); pistons impose

@@ -18,6 +18,7 @@ import numpy as np
 
 from ale_xfem.geometry.polygon_kernels import (KERNEL, area_below_line, clip_by_line, fan_centroid, maximum,
                                                minimum, shoelace)
+from ale_xfem.model.cell_kernels import corner_sums
 
 
 @numba.njit(**KERNEL)
@@ -329,33 +330,20 @@ def mixed_donor_parts(swept, edges, x, cell_nodes, donor, size, normal, offset, 
 
 
 @numba.njit(**KERNEL)
-def corner_sums(cell_nodes, values, n_nodes):  # pragma: no cover (compiled)
-    """Σ over corners of each cell's ``values`` (n_cells,) onto the nodes, corner by corner
-    (each corner's sum over the cells in order, then added: ale_xfem.model.mesh.Corners.scatter's
-    order)."""
-    n_cells, k = cell_nodes.shape
-    out = np.zeros(n_nodes)
-    part = np.empty(n_nodes)
-    for i in range(k):
-        part[:] = 0.0
-        for c in range(n_cells):
-            part[cell_nodes[c, i]] += values[c]
-        for node in range(n_nodes):
-            out[node] += part[node]
-    return out
-
-
-@numba.njit(**KERNEL)
-def cell_momentum(u, cell_nodes, old_cell_mass, new_cell_mass, flux_mass, donor, receiver):  # pragma: no cover (compiled)
+def cell_momentum(u, cell_nodes, old_cell_mass, new_cell_mass, flux_mass, donor, receiver,
+                  distinct):  # pragma: no cover (compiled)
     """Nodal momentum through the cells (remapper_2d's module docstring), one velocity field
     ``u`` (dim, n_nodes): each cell holds the momentum of its corners at m_K/k each, the
     swept regions carry their mass at the donor cell's mean velocity, each node receives its
     cells' change by corner share.  Returns (velocity (dim, n_nodes), node masses, and per
     node the kinetic energy before and what the remap dissipated: that, plus what the
-    fluxes brought, less the kinetic energy after)."""
+    fluxes brought, less the kinetic energy after).  ``distinct``: no node is the same
+    corner of two cells (cell_kernels.corner_sums)."""
     n_cells, k = cell_nodes.shape
     dim, n_nodes = u.shape
-    old_node_mass = corner_sums(cell_nodes, old_cell_mass / k, n_nodes)
+    part = np.empty(n_nodes)
+    old_node_mass = np.empty(n_nodes)
+    corner_sums(cell_nodes, old_cell_mass / k, old_node_mass, part, distinct)
     cell_velocity = np.zeros((dim, n_cells))
     for d in range(dim):
         for c in range(n_cells):
@@ -385,13 +373,16 @@ def cell_momentum(u, cell_nodes, old_cell_mass, new_cell_mass, flux_mass, donor,
         for d in range(dim):
             change[d, c] = (into[d, c] - out[d, c]) / k
         kinetic_change[c] = (into[dim, c] - out[dim, c]) / k
-    node_mass = corner_sums(cell_nodes, new_cell_mass / k, n_nodes)
+    node_mass = np.empty(n_nodes)
+    corner_sums(cell_nodes, new_cell_mass / k, node_mass, part, distinct)
     velocity = np.empty((dim, n_nodes))
     for d in range(dim):
-        moved = corner_sums(cell_nodes, change[d], n_nodes)
+        moved = np.empty(n_nodes)
+        corner_sums(cell_nodes, change[d], moved, part, distinct)
         for node in range(n_nodes):
             velocity[d, node] = (u[d, node] * old_node_mass[node] + moved[node]) / node_mass[node]
-    kinetic_in = corner_sums(cell_nodes, kinetic_change, n_nodes)
+    kinetic_in = np.empty(n_nodes)
+    corner_sums(cell_nodes, kinetic_change, kinetic_in, part, distinct)
     kinetic_before = np.empty(n_nodes)
     loss = np.empty(n_nodes)
     for node in range(n_nodes):
