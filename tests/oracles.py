@@ -457,3 +457,28 @@ def node_averaged_gradient(mesh, node_position, values):
             gy = sum(v * g[1] for v, g in zip(corner_values, gradient))
         grad[f, :, 0], grad[f, :, 1] = gx / area, gy / area
     return grad
+
+
+def material_slots(volume, mass, energy, area, standing, trace):
+    """The remapped cells' materials back in slots (ale_xfem.remap.remapper_2d._new_state,
+    before it was compiled into swept_kernels_2d.material_slots)."""
+    from ale_xfem.model.state import ranked_materials
+
+    n_materials, n_cells = volume.shape
+    present = (volume > trace * area) | (standing & (mass != 0.0))
+    count = present.sum(axis=0)
+    slots = 2 if np.any(count == 2) else 1
+    cell_material = np.full((slots, n_cells), -1, dtype=np.int64)
+    ranked = ranked_materials(np.where(present, volume, -1.0), slots)
+    cell_material[0] = ranked[0]
+    if slots == 2:
+        cell_material[1] = np.where(count == 2, ranked[1], -1)
+    slot_mass, slot_energy, slot_volume = (np.zeros((slots, n_cells)) for _ in range(3))
+    for slot in range(slots):
+        for m in range(n_materials):
+            here = cell_material[slot] == m
+            np.copyto(slot_mass[slot], mass[m], where=here)
+            np.copyto(slot_volume[slot], volume[m], where=here)
+            np.copyto(slot_energy[slot], energy[m], where=here)
+        np.divide(slot_energy[slot], slot_mass[slot], out=slot_energy[slot], where=cell_material[slot] >= 0)
+    return count, cell_material, slot_mass, slot_volume, slot_energy

@@ -857,6 +857,41 @@ def test_the_compiled_per_material_momentum_remap_gives_the_numpy_bits(mesh_name
 
 
 @pytest.mark.parametrize("n_materials", [2, 3])
+def test_the_compiled_slots_of_the_remapped_cells_give_the_numpy_bits(n_materials):
+    """The remapped cells' materials back in slots, compiled (swept_kernels_2d.material_slots)
+    against the numpy code it replaced (tests/oracles.py): the same counts, materials and
+    bits of the slots' masses, volumes and specific energies, with pure and mixed cells,
+    traces that do not count and standing ones that do, equal volumes (the lower material
+    first), and a mesh with no mixed cell (one slot)."""
+    from oracles import material_slots as numpy_material_slots
+
+    from ale_xfem.remap.swept_kernels_2d import material_slots
+
+    rng = np.random.default_rng(37)
+    n_cells, trace = 400, 1e-4
+    area = rng.uniform(0.5, 1.5, n_cells)
+    for case in ("mixed", "pure"):
+        owner = rng.integers(0, n_materials, n_cells)
+        volume = np.zeros((n_materials, n_cells))
+        volume[owner, np.arange(n_cells)] = area
+        if case == "mixed":
+            other = (owner + 1) % n_materials
+            share = rng.choice([0.0, 0.5, 0.3, 1e-6], n_cells)  # none, a tie, a part, a trace
+            volume[other, np.arange(n_cells)] = share * area
+            volume[owner, np.arange(n_cells)] -= share * area
+        mass = volume * rng.uniform(0.5, 2.0, volume.shape)
+        energy = mass * rng.uniform(-1.0, 3.0, volume.shape)
+        standing = (volume > 0) & (volume <= trace * area) & (rng.random(volume.shape) < 0.5)
+        got = material_slots(volume, mass, energy, area, standing, trace)
+        expected = numpy_material_slots(volume, mass, energy, area, standing, trace)
+        for name, want, have in zip(("count", "materials", "mass", "volume", "energy"), expected, got):
+            assert have.shape == want.shape, (name, case)
+            np.testing.assert_array_equal(have.view(np.uint64) if have.dtype == float else have,
+                                          want.view(np.uint64) if want.dtype == float else want, err_msg=f"{name}, {case}")
+        assert (got[1].shape[0] == 2) == (case == "mixed")
+
+
+@pytest.mark.parametrize("n_materials", [2, 3])
 def test_the_compiled_outflow_cap_gives_the_numpy_caps_bits(n_materials):
     """No donor gives more of a material than it holds: the compiled cap
     (swept_kernels_2d.cap_outflow) against the numpy code it replaced (tests/oracles.py),

@@ -49,7 +49,7 @@ from ale_xfem.model.mixed_cells import MixedCells
 from ale_xfem.remap import swept_kernels_2d
 from ale_xfem.remap.failure import RemapFailure
 from ale_xfem.remap.kinetic_energy import losses_only, made_kinetic_energy_factor
-from ale_xfem.model.state import density_of, ranked_materials, thermodynamics
+from ale_xfem.model.state import density_of, thermodynamics
 
 # A material that falls below this fraction of its cell's area in a remap leaves the cell (its mass and energy go
 # to a neighbour holding more of it: Remapper2D._move_traces).  Measured on the shock on a
@@ -241,29 +241,14 @@ class Remapper2D:
                    kinetic_change, material_fields=None):
         """The remapped state from each material's (n_materials, n_cells) volume, mass and
         internal energy, back in slots; returns what :meth:`apply` returns."""
-        n_materials, n_cells = len(self.materials), self.mesh.n_cells
-        present = (volume > TRACE * area) | (standing & (mass != 0.0))
-        count = present.sum(axis=0)
+        count, cell_material, slot_mass, slot_volume, slot_energy = swept_kernels_2d.material_slots(
+            volume, mass, energy, area, standing, TRACE)
         if np.any(count > 2):
             c = int(np.flatnonzero(count > 2)[0])
             raise RemapFailure(f"cell {c}: three materials meet in one cell; refine the mesh")
         if np.any(count == 0):
             raise RemapFailure(f"cell {int(np.flatnonzero(count == 0)[0])}: no material left after the remap")
         mixed_cells = np.flatnonzero(count == 2)
-        slots = 2 if mixed_cells.size else 1
-        cell_material = np.full((slots, n_cells), -1, dtype=np.int64)
-        ranked = ranked_materials(np.where(present, volume, -1.0), slots)
-        cell_material[0] = ranked[0]  # the larger material
-        if slots == 2:
-            cell_material[1] = np.where(count == 2, ranked[1], -1)
-        slot_mass, slot_energy, slot_volume = (np.zeros((slots, n_cells)) for _ in range(3))
-        for slot in range(slots):
-            for m in range(n_materials):
-                here = cell_material[slot] == m
-                np.copyto(slot_mass[slot], mass[m], where=here)
-                np.copyto(slot_volume[slot], volume[m], where=here)
-                np.copyto(slot_energy[slot], energy[m], where=here)
-            np.divide(slot_energy[slot], slot_mass[slot], out=slot_energy[slot], where=cell_material[slot] >= 0)
         if np.any(slot_mass[cell_material >= 0] <= 0):
             raise RemapFailure("a material's mass became ≤ 0 in the remap (a node moved too far)")
         new_layout = layout.updated(cell_material)

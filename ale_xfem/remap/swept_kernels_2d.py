@@ -41,6 +41,47 @@ def by_material(cell_material, volume, mass, specific_energy, n_materials):  # p
 
 
 @numba.njit(**KERNEL)
+def material_slots(volume, mass, energy, area, standing, trace):  # pragma: no cover (compiled)
+    """The remapped cells' materials back in slots: the materials that count in each cell
+    (above ``trace`` of its ``area``, or a ``standing`` trace with mass), slot 0 the one of
+    largest volume, slot 1 (when some cell holds two) the next, of equal volumes the lower
+    material first (model.state.ranked_materials).  Returns (how many materials count in
+    each cell (n_cells,), the slots' materials (S, n_cells) (−1: none), and their masses,
+    volumes and specific internal energies (S, n_cells))."""
+    n_materials, n_cells = volume.shape
+    count = np.zeros(n_cells, dtype=np.int64)
+    values = np.empty((n_materials, n_cells))
+    for m in range(n_materials):
+        for c in range(n_cells):
+            present = (volume[m, c] > trace * area[c]) | (standing[m, c] & (mass[m, c] != 0.0))
+            values[m, c] = volume[m, c] if present else -1.0
+            count[c] += present
+    slots = 1
+    for c in range(n_cells):
+        if count[c] == 2:
+            slots = 2
+            break
+    cell_material = np.full((slots, n_cells), -1, dtype=np.int64)
+    slot_mass = np.zeros((slots, n_cells))
+    slot_volume = np.zeros((slots, n_cells))
+    slot_energy = np.zeros((slots, n_cells))
+    for c in range(n_cells):
+        for rank in range(slots):
+            best, chosen = values[0, c], 0
+            for m in range(1, n_materials):
+                if values[m, c] > best:
+                    chosen = m
+                best = maximum(best, values[m, c])
+            if rank == 0 or count[c] == 2:
+                cell_material[rank, c] = chosen
+                slot_mass[rank, c] = mass[chosen, c]
+                slot_volume[rank, c] = volume[chosen, c]
+                slot_energy[rank, c] = energy[chosen, c] / mass[chosen, c]
+            values[chosen, c] = -np.inf
+    return count, cell_material, slot_mass, slot_volume, slot_energy
+
+
+@numba.njit(**KERNEL)
 def present_materials(volume, area, standing, trace):  # pragma: no cover (compiled)
     """(n_materials, n): whether each material counts in each of the cells whose areas
     ``area`` (n,) are given — above ``trace`` of the area, or a ``standing`` trace with
