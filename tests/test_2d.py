@@ -887,7 +887,8 @@ def test_the_compiled_slots_of_the_remapped_cells_give_the_numpy_bits(n_material
         for name, want, have in zip(("count", "materials", "mass", "volume", "energy"), expected, got):
             assert have.shape == want.shape, (name, case)
             np.testing.assert_array_equal(have.view(np.uint64) if have.dtype == float else have,
-                                          want.view(np.uint64) if want.dtype == float else want, err_msg=f"{name}, {case}")
+                                          want.view(np.uint64) if want.dtype == float else want,
+                                          err_msg=f"{name}, {case}")
         assert (got[1].shape[0] == 2) == (case == "mixed")
 
 

@@ -157,7 +157,8 @@ def cap_outflow(volume, donor, flux_volume):  # pragma: no cover (compiled)
 
 
 @numba.njit(**KERNEL)
-def swept_edges(x, target_a, target_b, a, b, plus, minus, is_mixed, material, n_materials):  # pragma: no cover (compiled)
+def swept_edges(x, target_a, target_b, a, b, plus, minus, is_mixed, material,
+                n_materials):  # pragma: no cover (compiled)
     """The regions the interior edges sweep from the Lagrangian mesh ``x`` (2, n_nodes) to
     the target mesh (edge ends ``target_a``, ``target_b`` (2, n_edges)): each edge a→b
     sweeps the quadrilateral (x_a, X_a, X_b, x_b) of signed area
