@@ -592,7 +592,9 @@ class InterfaceSystem:
         x = self.submesh.geometry.x[self.sub_nodes, :2]
         last = self._vertex_weights_at
         if last is None or not np.array_equal(last[0], x):
-            self._vertex_weights_at = (x, self._vertex_weights_of(x))
+            weights = self._vertex_weights_of(x)
+            weights.flags.writeable = False  # kept: callers read it
+            self._vertex_weights_at = (x, weights)
         return self._vertex_weights_at[1]
 
     @staticmethod

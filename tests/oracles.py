@@ -189,6 +189,17 @@ def pure_kernel(x, X, mass, specific_energy, corner, u, order, slots=1, heat=Tru
     return new_mass, new_energy, corner_new, node_mass, momentum, kinetic_before, kinetic, far_nodes
 
 
+def _node_extremes(mesh, cell_values, low_start, high_start):
+    """The least and greatest of ``cell_values`` (n_cells,) over the cells around each node
+    (ale_xfem.model.mesh.Corners.node_extremes, which the remap's numpy pass used)."""
+    low = np.full(mesh.n_nodes, low_start, dtype=cell_values.dtype)
+    high = np.full(mesh.n_nodes, high_start, dtype=cell_values.dtype)
+    for index in mesh.cell_nodes.T:
+        np.minimum.at(low, index, cell_values)
+        np.maximum.at(high, index, cell_values)
+    return low, high
+
+
 def swept_pass_2d(mesh, x, target_a, target_b, edges, is_mixed, material, volume, mass, energy, order):
     """The 2D remap's whole-mesh pass over pure donors (ale_xfem.remap.remapper_2d, before it
     was compiled into ale_xfem.remap.swept_kernels_2d): the regions the interior edges
@@ -199,7 +210,6 @@ def swept_pass_2d(mesh, x, target_a, target_b, edges, is_mixed, material, volume
     (a, b, plus, minus) of mesh_edges.  Returns (donor, receiver, size, swept, flux_volume,
     flux_mass, flux_energy, rho, eps)."""
     from ale_xfem.geometry.shapes import corner_centroid
-    from ale_xfem.model.mesh import node_averaged_gradient
 
     a, b, plus, minus = edges
     n_materials, n_cells = volume.shape
@@ -235,7 +245,7 @@ def swept_pass_2d(mesh, x, target_a, target_b, edges, is_mixed, material, volume
         corner_y = [c[0] for c in corners.gather(x[1:])]
         _, centre_x, centre_y = corner_centroid(corner_x, corner_y)
         tag = np.where(is_mixed, -1, material)
-        low_tag, high_tag = corners.node_extremes(tag, np.iinfo(np.int64).max, -2)
+        low_tag, high_tag = _node_extremes(mesh, tag, np.iinfo(np.int64).max, -2)
         inside = ~is_mixed
         for low_i, high_i in zip(corners.gather(low_tag[None]), corners.gather(high_tag[None])):
             inside &= (low_i[0] == tag) & (high_i[0] == tag)
@@ -243,7 +253,7 @@ def swept_pass_2d(mesh, x, target_a, target_b, edges, is_mixed, material, volume
         slopes = []
         gradients = node_averaged_gradient(mesh, x, np.stack([cell_rho, cell_eps]))
         for value, grad in zip((cell_rho, cell_eps), gradients):
-            low, high = corners.node_extremes(value, np.inf, -np.inf)
+            low, high = _node_extremes(mesh, value, np.inf, -np.inf)
             gx, gy = np.ascontiguousarray(grad[:, 0]), np.ascontiguousarray(grad[:, 1])
             limiter = np.ones(n_cells)
             corner_low, corner_high = corners.gather(low[None]), corners.gather(high[None])

@@ -3,9 +3,10 @@ the remap and the interface reconstruction: area, centroid, one clipping pass by
 half-plane, the area below a line, and PLIC's cut (the offset of the line that leaves a
 given area below it).
 
-Each computes what the vectorised numpy functions of ale_xfem.geometry.shapes and
-ale_xfem.model.plic compute for a batch, with the same operations in the same order, so
-the results are the same to the bit (tests compare them).  ``maximum`` and ``minimum``
+Each computes what the vectorised numpy functions of ale_xfem.geometry.shapes compute for a
+batch (and PLIC's cut what model/plic.py computed before, kept in tests/oracles.py), with
+the same operations in the same order, so the results are the same to the bit (tests
+compare them).  ``maximum`` and ``minimum``
 are numpy's np.maximum and np.minimum of two numbers.
 """
 
@@ -127,8 +128,6 @@ def area_below_line(px, py, m, nx, ny, offset):  # pragma: no cover (compiled)
         pending |= leaving
     area += exit_x * first_y - first_x * exit_y if pending & first else 0.0
     return 0.5 * area
-
-
 
 
 @numba.njit(**KERNEL)

@@ -167,9 +167,9 @@ def node_averaged_gradients(cell_type, x, cell_nodes, values, gradient, area, sh
                             distinct):  # pragma: no cover (compiled)
     """``gradient`` (m, n_cells, 2): the gradient in every triangle or quadrilateral of cell
     fields ``values`` (m, n_cells) averaged to the nodes by area: ∇v_K = (1/A_K) Σ_i v̄_i
-    ∂A_K/∂x_i with v̄_i = Σ_K A_K v_K / Σ_K A_K over the cells around node i —
-    ale_xfem.model.mesh.node_averaged_gradient over the whole mesh, in its order of
-    operations.  Scratch: ``area`` (n_cells,), ``shape`` (6, n_cells), ``weight``,
+    ∂A_K/∂x_i with v̄_i = Σ_K A_K v_K / Σ_K A_K over the cells around node i — what
+    ale_xfem.model.mesh.node_averaged_gradient computed over the whole mesh in numpy (kept
+    in tests/oracles.py), in its order of operations.  Scratch: ``area`` (n_cells,), ``shape`` (6, n_cells), ``weight``,
     ``nodal``, ``part`` (n_nodes,) each; ``distinct``: as :func:`corner_sums`."""
     n_cells, k = cell_nodes.shape
     at = (False, (0, 0, 0, 0))  # the nodes read through cell_nodes (node_access's form)

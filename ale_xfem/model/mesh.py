@@ -112,23 +112,6 @@ class Corners:
                 sums.append(real_cells())
         return QuadCorners(across02, across13, sums if hourglass else None)
 
-    def node_extremes(self, cell_values, low_start, high_start):
-        """The least and greatest of ``cell_values`` (n_cells,) over the cells around each
-        node (nodes of no cell keep the start values)."""
-        low = np.full(self.n_nodes, low_start, dtype=cell_values.dtype)
-        high = np.full(self.n_nodes, high_start, dtype=cell_values.dtype)
-        if self.grid is not None:
-            nx, ny = self.grid
-            values = cell_values.reshape(ny, nx)
-            for low_view, high_view in zip(self._views(low), self._views(high)):
-                np.minimum(low_view, values, out=low_view)
-                np.maximum(high_view, values, out=high_view)
-            return low, high
-        for index in self.index:
-            np.minimum.at(low, index, cell_values)
-            np.maximum.at(high, index, cell_values)
-        return low, high
-
     def scatter(self, corner_values) -> np.ndarray:
         """Sum per-corner values (a sequence over corners of (n_cells,) arrays) onto nodes."""
         return self.scatter_scaled(list(corner_values), None)
@@ -222,6 +205,8 @@ def node_averaged_gradient(mesh, node_position, values, cells=None, around=None)
     once.  Every cell: a compiled loop (cell_kernels.node_averaged_gradients).  With
     ``cells``, only the cells around their nodes are read (``around``: those cells,
     cells_around(mesh, cells), when known)."""
+    if mesh.cell_type.name not in ("triangle", "quadrilateral"):
+        raise ValueError(f"node_averaged_gradient: a 2D mesh, not {mesh.cell_type.name}s")
     values = np.asarray(values)
     fields = np.ascontiguousarray(values.reshape(-1, values.shape[-1]), dtype=float)
     if cells is None:

@@ -6,8 +6,8 @@
 it replaced, written per cell and per node in the same order of operations, so the results
 are the same to the bit (tests/test_remap.py compares it with that code, kept there as the
 oracle, and tests/test_regression.py compares the shipped scenes byte by byte).  Comparisons
-follow numpy's: ``np.maximum(a, b)`` and the bounds of ``np.clip`` give a unless a > b (or a
-is NaN), which fixes the sign of a zero when a = ±0 = b.  The two tests are combined with
+follow numpy's: ``np.maximum(a, b)`` gives b unless a > b (or a is NaN), and np.clip with
+array bounds clips the same way, which fixes the sign of a zero when a = ±0 = b.  The two tests are combined with
 ``|``, not ``or``: ``or`` branches, and a minmod written with it took three times as long
 (0.8 ms against 0.3 ms over 10⁵ values).
 """

@@ -1,14 +1,17 @@
 """Compiled kernels of the 2D remap's whole-mesh pass (ale_xfem.remap.remapper_2d): the
-swept region of every edge, the volumes pure donors give, each material's density and
-energy density in the donors and the fluxes at order 1, the limited linear reconstruction
-of order 2, and the exchange of the fluxes between the cells.
+per-material arrays of the state's slots, the swept region of every edge and the volumes
+pure donors give, the mixed donors' regions clipped by their cells and PLIC lines, the
+outflow cap, each material's density and energy density in the donors and the fluxes at
+order 1, the limited linear reconstruction of order 2, the exchange of the fluxes between
+the cells, one velocity field's momentum through the cells or (2D enriched cells) each
+material's, the trace search, and the remapped cells' slots.
 
 Each loop computes, per edge, per cell or per node, what the numpy code it replaced computed
 over whole arrays, with the same operations in the same order, so the results are the same
-to the bit (tests/test_remap.py compares them with that code, kept in tests/oracles.py, and
+to the bit (tests/test_2d.py compares them with that code, kept in tests/oracles.py, and
 tests/test_regression.py compares the shipped scenes).  Comparisons follow numpy's
-(``geometry.polygon_kernels.maximum``/``minimum``).  What crosses Γ — the swept regions of mixed
-donors, clipped by their PLIC polygons — stays in the remapper.
+(``geometry.polygon_kernels.maximum``/``minimum``; ``clip_unit`` for np.clip with scalar
+bounds, which keeps a −0).
 """
 
 from __future__ import annotations
@@ -19,6 +22,13 @@ import numpy as np
 from ale_xfem.geometry.polygon_kernels import (KERNEL, area_below_line, clip_by_line, fan_centroid, maximum,
                                                minimum, shoelace)
 from ale_xfem.model.cell_kernels import corner_sums
+
+
+@numba.njit(**KERNEL)
+def clip_unit(x):  # pragma: no cover (compiled)
+    """np.clip(x, 0.0, 1.0) of one number, as numpy clips with scalar bounds (NaN stays NaN,
+    −0 stays −0)."""
+    return 0.0 if x < 0.0 else (1.0 if x > 1.0 else x)
 
 
 @numba.njit(**KERNEL)
@@ -273,7 +283,10 @@ def second_order(x, cell_nodes, material, is_mixed, rho, eps, gradients, swept, 
         for i in range(k):
             node = cell_nodes[c, i]
             inside &= (low_tag[node] == tag) & (high_tag[node] == tag)
-        if not inside:
+        if not inside:  # no slope (numpy's zero limiter: a non-finite gradient gives NaN)
+            for f in range(2):
+                slope[f, 0, c] = gradients[f, c, 0] * 0.0
+                slope[f, 1, c] = gradients[f, c, 1] * 0.0
             continue
         for f in range(2):
             gx, gy = gradients[f, c, 0], gradients[f, c, 1]
@@ -285,9 +298,9 @@ def second_order(x, cell_nodes, material, is_mixed, rho, eps, gradients, swept, 
                 # room ≥ 0 where δ = 0 (a cell's range holds its value): the bound is +∞ or
                 # NaN there, and NaN sets no bound
                 room = (high[f, node] if delta >= 0 else low[f, node]) - value[f, c]
-                bound = minimum(maximum(room / delta, 0.0), 1.0)
-                if not (bound != bound):
-                    limiter = min(limiter, bound)
+                bound = clip_unit(room / delta)
+                if not (bound != bound):  # np.fmin: NaN sets no bound, of equals the bound
+                    limiter = limiter if limiter < bound else bound
             slope[f, 0, c] = gx * limiter
             slope[f, 1, c] = gy * limiter
     # the swept regions' centroids (every region's, in a loop that vectorises), then the
@@ -499,9 +512,9 @@ def material_node_velocities(cell_nodes, corner_mass, node_mass, owner, momentum
     new-mass-weighted mean of the deviations, weighted at the nodes by the material's new
     corner masses; a material absent from a node moves with it (the node's own material's
     velocity).  Returns (each material's nodal velocity (2, 2, n_nodes), the mesh's
-    velocity (2, n_nodes), the kinetic energy before per node, and per node the kinetic
-    energy before, plus what the fluxes brought by corner shares — the new ones, or the old
-    ones in a cell the material has left — less the kinetic energy after)."""
+    velocity (2, n_nodes), the kinetic energy before per node, and per node what the remap
+    dissipated: that kinetic energy, plus what the fluxes brought by corner shares — the new
+    ones, or the old ones in a cell the material has left — less the kinetic energy after)."""
     n_cells, k = cell_nodes.shape
     n_nodes = node_mass.shape[1]
     cell_mass = np.empty((2, n_cells))
