@@ -856,6 +856,42 @@ def test_the_compiled_per_material_momentum_remap_gives_the_numpy_bits(mesh_name
         assert np.any(node_mass == 0.0) and np.any(corner_mass.sum(axis=1) == 0.0)  # not vacuous
 
 
+def test_the_compiled_per_material_arrays_and_trace_search_give_the_numpy_results():
+    """The slots as dense arrays by material (swept_kernels_2d.by_material) and the trace
+    search (traces, present_materials) against the numpy expressions the remap used: the
+    same bits, the same (material, cell) pairs in np.nonzero's order."""
+    from ale_xfem.remap.swept_kernels_2d import by_material, present_materials, traces
+
+    rng = np.random.default_rng(41)
+    n_cells, n_materials, trace = 300, 3, 1e-4
+    cell_material = np.stack([rng.integers(0, n_materials, n_cells), rng.integers(-1, n_materials, n_cells)])
+    cell_material[1, cell_material[1] == cell_material[0]] = -1
+    volume, mass, specific = (rng.uniform(0.0, 2.0, (2, n_cells)) for _ in range(3))
+    expected = [np.zeros((n_materials, n_cells)) for _ in range(3)]
+    for slot in range(2):
+        slot_energy = mass[slot] * specific[slot]
+        for m in range(n_materials):
+            here = cell_material[slot] == m
+            for quantity, value in zip(expected, (volume[slot], mass[slot], slot_energy)):
+                np.add(quantity[m], value, out=quantity[m], where=here)
+    for name, want, have in zip(("volume", "mass", "energy"), expected,
+                                by_material(cell_material, volume, mass, specific, n_materials)):
+        np.testing.assert_array_equal(have.view(np.uint64), want.view(np.uint64), err_msg=name)
+    area = rng.uniform(0.5, 1.5, n_cells)
+    dense_volume = expected[0] * rng.choice([1.0, 1e-6, 0.0], (n_materials, n_cells))
+    dense_mass = expected[1]
+    standing = (dense_volume > 0) & (rng.random((n_materials, n_cells)) < 0.5)
+    present = (dense_volume > trace * area) | (standing & (dense_volume > 0.0))
+    want_material, want_cells = np.nonzero(~present & (dense_mass != 0.0))
+    got_material, got_cells = traces(dense_volume, dense_mass, area, standing, trace)
+    np.testing.assert_array_equal(got_material, want_material)
+    np.testing.assert_array_equal(got_cells, want_cells)
+    assert want_cells.size > 0
+    some = np.unique(want_cells)
+    np.testing.assert_array_equal(present_materials(dense_volume[:, some], area[some], standing[:, some], trace),
+                                  present[:, some])
+
+
 @pytest.mark.parametrize("n_materials", [2, 3])
 def test_the_compiled_slots_of_the_remapped_cells_give_the_numpy_bits(n_materials):
     """The remapped cells' materials back in slots, compiled (swept_kernels_2d.material_slots)
