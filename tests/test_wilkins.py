@@ -123,6 +123,33 @@ def test_the_compiled_steps_are_the_step_by_step_loop_to_the_bit(scene, override
     assert chunked.conservation == stepwise.conservation
 
 
+@pytest.mark.parametrize("overrides, steps, diagnostic", [
+    (["numerics.max_steps=344"], 344, "numerics.max_steps = 344 reached"),
+    (["t_end=20", "numerics.max_steps=5000"], 999, "the time step collapsed"),
+], ids=["max-steps", "stalled"])
+def test_a_run_too_short_for_t_end_stops_alike_in_compiled_chunks_and_step_by_step(overrides, steps, diagnostic):
+    """numerics.max_steps too few to reach t_end: the compiled chunks (one gas: the
+    three-stage steps) give back each step the stall watch flags, and the loop stops the
+    run as a run watched step by step does — same steps, diagnostic and last state.  Sod on
+    200 cells takes 374 steps to t = 0.2: with 344 allowed the watch flags the fifth step
+    (the time step still grows from its first value), so a chunk stops in its middle and
+    the run ends at max_steps; to t = 20 with 5000 allowed every step is flagged, and the
+    run stops when 1000 steps in a row were too small (run.STALLED_STEPS), which only the
+    loop counts."""
+    from ale_xfem.problem import build_problem
+    from ale_xfem.run import simulate
+    from ale_xfem.scene import load_scene, resolve_scene_path
+
+    runs = [simulate(build_problem(load_scene(resolve_scene_path("sod"), ["mesh.cells=200", *overrides])),
+                     observe=observe) for observe in (None, lambda state, problem: None)]
+    chunked, stepwise = runs
+    assert chunked.status == stepwise.status == "failed"
+    assert chunked.steps == stepwise.steps == steps
+    assert chunked.diagnostic == stepwise.diagnostic and diagnostic in chunked.diagnostic
+    for name in ("node_position", "node_velocity", "material_energy", "material_density", "time"):
+        np.testing.assert_array_equal(getattr(chunked.state, name), getattr(stepwise.state, name))
+
+
 @pytest.mark.parametrize("scene, overrides", [
     ("sod", ["mesh.cells=150"]),  # one ideal gas between walls
     ("sod", ["mesh.cells=2", "t_end=20.0"]),  # each end's cell is the other's
