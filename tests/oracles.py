@@ -335,8 +335,6 @@ def cap_outflow(volume, donor, flux_volume):
 def cut_offsets(vertices, normal, fraction):
     """PLIC's cut offsets, vectorised over the cells (ale_xfem.model.plic, before it was
     compiled into geometry.polygon_kernels.cut_offsets)."""
-    from ale_xfem.geometry.shapes import clipped_area, polygon_area
-
     n, k, _ = vertices.shape
     projection = np.sort(np.einsum("nmd,nd->nm", vertices, normal), axis=1)
     total = polygon_area(vertices)
@@ -492,3 +490,121 @@ def material_slots(volume, mass, energy, area, standing, trace):
             np.copyto(slot_energy[slot], energy[m], where=here)
         np.divide(slot_energy[slot], slot_mass[slot], out=slot_energy[slot], where=cell_material[slot] >= 0)
     return count, cell_material, slot_mass, slot_volume, slot_energy
+
+
+# -- the vectorised numpy polygon geometry of ale_xfem.geometry.shapes, before its functions
+# called the compiled one-polygon kernels of ale_xfem.geometry.polygon_kernels
+
+
+def polygon_area(vertices: np.ndarray) -> np.ndarray:
+    """Signed (shoelace) areas of polygons (n, m, 2): > 0 counter-clockwise."""
+    x, y = vertices[..., 0], vertices[..., 1]
+    m = vertices.shape[-2]
+    total = x[..., m - 1] * y[..., 0] - x[..., 0] * y[..., m - 1]
+    for i in range(m - 1):  # a loop over the polygon's vertices, vectorised over polygons
+        total += x[..., i] * y[..., i + 1] - x[..., i + 1] * y[..., i]
+    total *= 0.5
+    return total
+
+
+def clip_half_plane(vertices: np.ndarray, normal: np.ndarray, offset: np.ndarray) -> np.ndarray:
+    """The part of each polygon (n, m, 2) where x·normal ≤ offset (normal (n, 2) or (2,),
+    offset (n,) or scalar): one Sutherland–Hodgman pass.  Returns (n, m', 2), padded with
+    each polygon's last point; an empty result is m' copies of the origin (zero area).
+
+    Points are handled as complex numbers x + iy, a view of the same bytes: a point then
+    moves as one element in numpy's fancy indexing, several times faster than a row of two
+    floats.  The cut points a + t (b − a), t real, come out as component by component: the
+    zero imaginary part of t only adds zeros to each product (checked bit for bit against
+    the real-arithmetic version)."""
+    n, m, _ = vertices.shape
+    vertices = np.ascontiguousarray(vertices, dtype=float)
+    normal = np.broadcast_to(np.asarray(normal, dtype=float), (n, 2))
+    offset = np.broadcast_to(np.asarray(offset, dtype=float), (n,))
+    distance = np.einsum("nmd,nd->nm", vertices, normal) - offset[:, None]
+    inside = distance <= 0.0
+    following = (np.arange(m) + 1) % m  # the next vertex
+    d0, d1 = distance, distance[:, following]
+    crossing = inside != inside[:, following]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        t = np.where(crossing, d0 / (d0 - d1), 0.0)
+    z = vertices.view(np.complex128)[..., 0]
+    cut = z[:, following] - z
+    cut *= t
+    cut += z
+    # each edge emits its start if inside, then the crossing point if it crosses
+    points = np.stack([z, cut], axis=2).reshape(n, 2 * m)
+    emitted = np.stack([inside, crossing], axis=2).reshape(n, 2 * m)
+    # the emitted points packed to the front of each row, in order (np.nonzero goes row by
+    # row), the rest of the row filled with the polygon's last point
+    row, column = np.nonzero(emitted)
+    count = np.bincount(row, minlength=n)
+    width = max(int(count.max(initial=0)), 1)
+    start = np.cumsum(count)
+    last = start - 1  # where each row's last point is in (row, column)
+    start -= count
+    result = np.zeros((n, width), dtype=np.complex128)
+    some = count > 0
+    result[some] = points[row[last[some]], column[last[some]]][:, None]
+    result[row, np.arange(row.size) - start[row]] = points[row, column]
+    return result.view(np.float64).reshape(n, width, 2)
+
+
+def clipped_area(vertices: np.ndarray, normal: np.ndarray, offset: np.ndarray) -> np.ndarray:
+    """Signed area of clip_half_plane(vertices, normal, offset) without building the
+    polygon (Green's theorem, A = ½ ∮ x × dx): each edge contributes ½ P × Q for its
+    piece [P, Q] inside the half-plane, and each exit point E, joined along the line to the
+    next entry point N (cyclically, as Sutherland–Hodgman joins them), ½ E × N."""
+    n, m, _ = vertices.shape
+    normal = np.broadcast_to(np.asarray(normal, dtype=float), (n, 2))
+    offset = np.broadcast_to(np.asarray(offset, dtype=float), (n,))
+    x, y = [vertices[:, i, 0] for i in range(m)], [vertices[:, i, 1] for i in range(m)]
+    distance = [x[i] * normal[:, 0] + y[i] * normal[:, 1] - offset for i in range(m)]
+    inside = [d <= 0.0 for d in distance]
+    area = np.zeros(n)
+    exit_x, exit_y, first_x, first_y = (np.zeros(n) for _ in range(4))
+    pending, first = np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
+    for i in range(m):
+        j = (i + 1) % m
+        crossing = inside[i] != inside[j]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            t = np.where(crossing, distance[i] / (distance[i] - distance[j]), 0.0)
+        cut_x, cut_y = x[i] + t * (x[j] - x[i]), y[i] + t * (y[j] - y[i])
+        px, py = np.where(inside[i], x[i], cut_x), np.where(inside[i], y[i], cut_y)
+        qx, qy = np.where(inside[j], x[j], cut_x), np.where(inside[j], y[j], cut_y)
+        area += np.where(inside[i] | inside[j], px * qy - qx * py, 0.0)
+        entering = ~inside[i] & inside[j]
+        joined = entering & pending  # the chord from the pending exit to this entry
+        area += np.where(joined, exit_x * cut_y - cut_x * exit_y, 0.0)
+        opening = entering & ~pending & ~first  # an entry before any exit: joined at the end
+        first_x, first_y = np.where(opening, cut_x, first_x), np.where(opening, cut_y, first_y)
+        first |= opening
+        pending &= ~joined
+        leaving = inside[i] & ~inside[j]
+        exit_x, exit_y = np.where(leaving, cut_x, exit_x), np.where(leaving, cut_y, exit_y)
+        pending |= leaving
+    area += np.where(pending & first, exit_x * first_y - first_x * exit_y, 0.0)
+    return 0.5 * area
+
+
+def edge_half_planes(clip: np.ndarray, i: int):
+    """The outward unit normal and offset of edge i of convex counter-clockwise polygons
+    (a zero-length edge: offset ∞, it clips nothing)."""
+    k = clip.shape[1]
+    a, b = clip[:, i], clip[:, (i + 1) % k]
+    edge = b - a
+    outward = np.stack([edge[:, 1], -edge[:, 0]], axis=1)  # right of a ccw edge
+    length = np.linalg.norm(outward, axis=1)
+    degenerate = length == 0.0
+    outward = outward / np.where(degenerate, 1.0, length)[:, None]
+    offset = np.einsum("nd,nd->n", outward, a)
+    return outward, np.where(degenerate, np.inf, offset)
+
+
+def clip_convex(subject: np.ndarray, clip: np.ndarray) -> np.ndarray:
+    """subject (n, m, 2) polygons (any shape) clipped by convex counter-clockwise polygons
+    clip (n, k, 2): their intersection, exact."""
+    result = subject
+    for i in range(clip.shape[1]):  # one pass per edge of the clipping polygon
+        result = clip_half_plane(result, *edge_half_planes(clip, i))
+    return result

@@ -958,14 +958,40 @@ def test_the_compiled_outflow_cap_gives_the_numpy_caps_bits(n_materials):
         np.testing.assert_allclose(got.sum(axis=0), flux.sum(axis=0), rtol=1e-13)  # regions keep their volume
 
 
+def test_the_compiled_polygon_geometry_gives_the_vectorised_numpy_bits():
+    """geometry.shapes' polygon areas, clipping pass and area below a line, compiled polygon
+    by polygon, against the vectorised numpy functions they replaced (tests/oracles.py):
+    the same bits (and the same padding: each part's last point, an empty part's origins)
+    on random polygons of either orientation, self-crossing ones, padded ones, and lines
+    that keep all, part or none of them."""
+    import oracles
+
+    rng = np.random.default_rng(43)
+    n = 500
+    polygons = rng.uniform(-1.0, 1.0, (n, 5, 2))
+    polygons[::4, 4] = polygons[::4, 3]  # padded with their last point
+    normal = rng.normal(size=(n, 2))
+    normal /= np.linalg.norm(normal, axis=1)[:, None]
+    offset = rng.uniform(-2.0, 2.0, n)  # beyond ±√2: all or nothing kept
+    pairs = ((shapes.polygon_area(polygons), oracles.polygon_area(polygons)),
+             (shapes.clip_half_plane(polygons, normal, offset), oracles.clip_half_plane(polygons, normal, offset)),
+             (shapes.clipped_area(polygons, normal, offset), oracles.clipped_area(polygons, normal, offset)))
+    for got, expected in pairs:
+        assert got.shape == expected.shape
+        np.testing.assert_array_equal(got.view(np.uint64), expected.view(np.uint64))
+    areas = pairs[2][0]
+    assert np.any(areas == 0.0) and np.any(np.abs(areas - pairs[0][0]) == 0.0)  # none kept, all kept
+
+
 @pytest.mark.parametrize("k", [3, 4])
 def test_the_compiled_clipping_of_mixed_donors_gives_the_numpy_clippings_bits(k):
     """The part of a swept region inside its mixed donor and below the donor's PLIC line,
     compiled (swept_kernels_2d.mixed_donor_parts), against the vectorised numpy polygon
-    clipping the remap used before (geometry.shapes): the same bits, for regions of either
+    clipping the remap used before (tests/oracles.py): the same bits, for regions of either
     orientation and self-crossing ones, inside, across and outside their cells, cells of
     either orientation, lines through and beside them."""
-    from ale_xfem.geometry.shapes import clip_convex, clipped_area, polygon_area
+    from oracles import clip_convex, clipped_area, polygon_area
+
     from ale_xfem.remap.swept_kernels_2d import mixed_donor_parts
 
     def bits(a):

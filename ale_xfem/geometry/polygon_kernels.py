@@ -166,3 +166,55 @@ def cut_offsets(vertices, normal, fraction):  # pragma: no cover (compiled)
         t = 2.0 * rhs / denominator if denominator > 0 else 0.0
         offset[c] = lo + minimum(maximum(t, 0.0), 1.0) * (hi - lo)
     return offset
+
+
+@numba.njit(**KERNEL)
+def polygon_areas(vertices):  # pragma: no cover (compiled)
+    """Signed areas (n,) of polygons (n, m, 2) (:func:`shoelace` each)."""
+    n, m = vertices.shape[0], vertices.shape[1]
+    area = np.empty(n)
+    px, py = np.empty(m), np.empty(m)
+    for p in range(n):
+        for i in range(m):
+            px[i], py[i] = vertices[p, i, 0], vertices[p, i, 1]
+        area[p] = shoelace(px, py, m)
+    return area
+
+
+@numba.njit(**KERNEL)
+def areas_below_lines(vertices, normal, offset):  # pragma: no cover (compiled)
+    """Signed areas (n,) of the parts of polygons (n, m, 2) where x·normal ≤ offset
+    (:func:`area_below_line` each; ``normal`` (n, 2), ``offset`` (n,))."""
+    n, m = vertices.shape[0], vertices.shape[1]
+    area = np.empty(n)
+    px, py = np.empty(m), np.empty(m)
+    for p in range(n):
+        for i in range(m):
+            px[i], py[i] = vertices[p, i, 0], vertices[p, i, 1]
+        area[p] = area_below_line(px, py, m, normal[p, 0], normal[p, 1], offset[p])
+    return area
+
+
+@numba.njit(**KERNEL)
+def clip_polygons(vertices, normal, offset):  # pragma: no cover (compiled)
+    """The parts of polygons (n, m, 2) where x·normal ≤ offset (:func:`clip_by_line` each):
+    (n, w, 2), w the most points a part has (at least 1), each part padded with its last
+    point, an empty part w copies of the origin (zero area)."""
+    n, m = vertices.shape[0], vertices.shape[1]
+    px, py = np.empty(m), np.empty(m)
+    out_x, out_y = np.empty((n, 2 * m)), np.empty((n, 2 * m))
+    count = np.empty(n, dtype=np.int64)
+    width = 1
+    for p in range(n):
+        for i in range(m):
+            px[i], py[i] = vertices[p, i, 0], vertices[p, i, 1]
+        count[p] = clip_by_line(px, py, m, normal[p, 0], normal[p, 1], offset[p], out_x[p], out_y[p])
+        width = max(width, count[p])
+    result = np.zeros((n, width, 2))
+    for p in range(n):
+        c = count[p]
+        for i in range(width):
+            j = min(i, c - 1)
+            if c > 0:
+                result[p, i, 0], result[p, i, 1] = out_x[p, j], out_y[p, j]
+    return result

@@ -12,8 +12,10 @@ area of their intersection:
   by edge (triangle where the edge is inside the circle, circular sector where outside).
 
 Polygons in batches are (n, m, 2) arrays of vertices in order, padded by repeating the last
-vertex (a zero-length edge changes no area); every loop here runs over the few vertices of
-a polygon, never over cells.
+vertex (a zero-length edge changes no area).  Areas, the area below a line and one
+clipping pass are compiled loops over the polygons (ale_xfem.geometry.polygon_kernels, which
+the remap and PLIC call polygon by polygon); the other loops here run over the few vertices
+of a polygon, never over cells.
 """
 
 from __future__ import annotations
@@ -22,16 +24,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ale_xfem.geometry import polygon_kernels
+
 
 def polygon_area(vertices: np.ndarray) -> np.ndarray:
-    """Signed (shoelace) areas of polygons (n, m, 2): > 0 counter-clockwise."""
-    x, y = vertices[..., 0], vertices[..., 1]
+    """Signed (shoelace) areas of polygons (..., m, 2): > 0 counter-clockwise (compiled, one
+    polygon at a time: polygon_kernels.shoelace)."""
+    vertices = np.asarray(vertices, dtype=float)
     m = vertices.shape[-2]
-    total = x[..., m - 1] * y[..., 0] - x[..., 0] * y[..., m - 1]
-    for i in range(m - 1):  # a loop over the polygon's vertices, vectorised over polygons
-        total += x[..., i] * y[..., i + 1] - x[..., i + 1] * y[..., i]
-    total *= 0.5
-    return total
+    flat = np.ascontiguousarray(vertices.reshape(-1, m, 2))
+    return polygon_kernels.polygon_areas(flat).reshape(vertices.shape[:-2])
 
 
 def corner_centroid(xs, ys):
@@ -79,82 +81,29 @@ def polygon_centroid(vertices: np.ndarray) -> np.ndarray:
 
 def clip_half_plane(vertices: np.ndarray, normal: np.ndarray, offset: np.ndarray) -> np.ndarray:
     """The part of each polygon (n, m, 2) where x·normal ≤ offset (normal (n, 2) or (2,),
-    offset (n,) or scalar): one Sutherland–Hodgman pass.  Returns (n, m', 2), padded with
-    each polygon's last point; an empty result is m' copies of the origin (zero area).
-
-    Points are handled as complex numbers x + iy, a view of the same bytes: a point then
-    moves as one element in numpy's fancy indexing, several times faster than a row of two
-    floats.  The cut points a + t (b − a), t real, come out as component by component: the
-    zero imaginary part of t only adds zeros to each product (checked bit for bit against
-    the real-arithmetic version)."""
-    n, m, _ = vertices.shape
-    vertices = np.ascontiguousarray(vertices, dtype=float)
-    normal = np.broadcast_to(np.asarray(normal, dtype=float), (n, 2))
-    offset = np.broadcast_to(np.asarray(offset, dtype=float), (n,))
-    distance = np.einsum("nmd,nd->nm", vertices, normal) - offset[:, None]
-    inside = distance <= 0.0
-    following = (np.arange(m) + 1) % m  # the next vertex
-    d0, d1 = distance, distance[:, following]
-    crossing = inside != inside[:, following]
-    with np.errstate(invalid="ignore", divide="ignore"):
-        t = np.where(crossing, d0 / (d0 - d1), 0.0)
-    z = vertices.view(np.complex128)[..., 0]
-    cut = z[:, following] - z
-    cut *= t
-    cut += z
-    # each edge emits its start if inside, then the crossing point if it crosses
-    points = np.stack([z, cut], axis=2).reshape(n, 2 * m)
-    emitted = np.stack([inside, crossing], axis=2).reshape(n, 2 * m)
-    # the emitted points packed to the front of each row, in order (np.nonzero goes row by
-    # row), the rest of the row filled with the polygon's last point
-    row, column = np.nonzero(emitted)
-    count = np.bincount(row, minlength=n)
-    width = max(int(count.max(initial=0)), 1)
-    start = np.cumsum(count)
-    last = start - 1  # where each row's last point is in (row, column)
-    start -= count
-    result = np.zeros((n, width), dtype=np.complex128)
-    some = count > 0
-    result[some] = points[row[last[some]], column[last[some]]][:, None]
-    result[row, np.arange(row.size) - start[row]] = points[row, column]
-    return result.view(np.float64).reshape(n, width, 2)
+    offset (n,) or scalar): one Sutherland–Hodgman pass (compiled, one polygon at a time:
+    polygon_kernels.clip_by_line).  Returns (n, m', 2), padded with each polygon's last
+    point; an empty result is m' copies of the origin (zero area)."""
+    vertices, normal, offset = _batch(vertices, normal, offset)
+    return polygon_kernels.clip_polygons(vertices, normal, offset)
 
 
 def clipped_area(vertices: np.ndarray, normal: np.ndarray, offset: np.ndarray) -> np.ndarray:
     """Signed area of clip_half_plane(vertices, normal, offset) without building the
     polygon (Green's theorem, A = ½ ∮ x × dx): each edge contributes ½ P × Q for its
     piece [P, Q] inside the half-plane, and each exit point E, joined along the line to the
-    next entry point N (cyclically, as Sutherland–Hodgman joins them), ½ E × N."""
-    n, m, _ = vertices.shape
-    normal = np.broadcast_to(np.asarray(normal, dtype=float), (n, 2))
-    offset = np.broadcast_to(np.asarray(offset, dtype=float), (n,))
-    x, y = [vertices[:, i, 0] for i in range(m)], [vertices[:, i, 1] for i in range(m)]
-    distance = [x[i] * normal[:, 0] + y[i] * normal[:, 1] - offset for i in range(m)]
-    inside = [d <= 0.0 for d in distance]
-    area = np.zeros(n)
-    exit_x, exit_y, first_x, first_y = (np.zeros(n) for _ in range(4))
-    pending, first = np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
-    for i in range(m):
-        j = (i + 1) % m
-        crossing = inside[i] != inside[j]
-        with np.errstate(invalid="ignore", divide="ignore"):
-            t = np.where(crossing, distance[i] / (distance[i] - distance[j]), 0.0)
-        cut_x, cut_y = x[i] + t * (x[j] - x[i]), y[i] + t * (y[j] - y[i])
-        px, py = np.where(inside[i], x[i], cut_x), np.where(inside[i], y[i], cut_y)
-        qx, qy = np.where(inside[j], x[j], cut_x), np.where(inside[j], y[j], cut_y)
-        area += np.where(inside[i] | inside[j], px * qy - qx * py, 0.0)
-        entering = ~inside[i] & inside[j]
-        joined = entering & pending  # the chord from the pending exit to this entry
-        area += np.where(joined, exit_x * cut_y - cut_x * exit_y, 0.0)
-        opening = entering & ~pending & ~first  # an entry before any exit: joined at the end
-        first_x, first_y = np.where(opening, cut_x, first_x), np.where(opening, cut_y, first_y)
-        first |= opening
-        pending &= ~joined
-        leaving = inside[i] & ~inside[j]
-        exit_x, exit_y = np.where(leaving, cut_x, exit_x), np.where(leaving, cut_y, exit_y)
-        pending |= leaving
-    area += np.where(pending & first, exit_x * first_y - first_x * exit_y, 0.0)
-    return 0.5 * area
+    next entry point N (cyclically, as Sutherland–Hodgman joins them), ½ E × N (compiled,
+    one polygon at a time: polygon_kernels.area_below_line)."""
+    return polygon_kernels.areas_below_lines(*_batch(vertices, normal, offset))
+
+
+def _batch(vertices, normal, offset):
+    """Polygons (n, m, 2), normals (n, 2) and offsets (n,) as the compiled kernels take them."""
+    vertices = np.ascontiguousarray(vertices, dtype=float)
+    n = vertices.shape[0]
+    normal = np.ascontiguousarray(np.broadcast_to(np.asarray(normal, dtype=float), (n, 2)))
+    offset = np.ascontiguousarray(np.broadcast_to(np.asarray(offset, dtype=float), (n,)))
+    return vertices, normal, offset
 
 
 def _edge_half_planes(clip: np.ndarray, i: int):
