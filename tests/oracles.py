@@ -608,3 +608,86 @@ def clip_convex(subject: np.ndarray, clip: np.ndarray) -> np.ndarray:
     for i in range(clip.shape[1]):  # one pass per edge of the clipping polygon
         result = clip_half_plane(result, *edge_half_planes(clip, i))
     return result
+
+
+def eos_state(eos, rho, e):
+    """(p, ∂p/∂ρ|_e, ∂p/∂e|_ρ, c²) of an equation of state of ale_xfem.eos, in numpy (the
+    models' ``state`` before ale_xfem.eos.kernels.state_derivatives)."""
+    from ale_xfem.eos import Linear, MieGruneisen, StiffenedGas
+
+    if isinstance(eos, StiffenedGas):
+        g1 = eos.gamma - 1.0
+        p = g1 * rho * e - eos.gamma * eos.p_inf
+        return p, g1 * e, g1 * rho, eos.gamma * g1 * (e - eos.p_inf / rho)
+    if isinstance(eos, MieGruneisen):
+        eta = 1.0 - eos.rho0 / rho
+        denom = 1.0 - eos.s * eta
+        p_h = eos.rho0 * eos.c0**2 * eta / denom**2
+        dp_h_deta = eos.rho0 * eos.c0**2 * (1.0 + eos.s * eta) / denom**3
+        e_h = p_h * eta / (2.0 * eos.rho0)
+        de_h_deta = (p_h + eta * dp_h_deta) / (2.0 * eos.rho0)
+        k = eos.gamma0 * eos.rho0
+        p = p_h + k * (e - e_h)
+        dp_drho = (dp_h_deta - k * de_h_deta) * eos.rho0 / rho**2
+        dp_de = np.full_like(np.asarray(rho, dtype=float), k)
+        return p, dp_drho, dp_de, dp_drho + p / rho**2 * k
+    assert isinstance(eos, Linear)
+    ones = np.ones_like(np.asarray(rho, dtype=float))
+    return eos.pressure(rho, e), eos.c0**2 * ones, 0.0 * ones, eos.c0**2 * ones
+
+
+def _relaxed_pressure(mixed, groups, mass, volume, energy0, volume0):
+    rho = mass / volume
+    p0, _, dp_de, _ = groups.eos_values(mixed.materials, rho, energy0)
+    coupling = dp_de * (volume0 - volume) / mass  # S
+    keep = 1.0 - coupling
+    admissible = keep > 0.0
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        keep = np.where(admissible, keep, 1.0)
+        pi = np.where(admissible, p0 / keep, np.inf)
+        work = np.where(admissible, pi, 0.0)
+        dp_drho = groups.eos_values(mixed.materials, rho, energy0 - work * (volume - volume0) / mass)[1]
+        slope = np.where(admissible, -(dp_drho * rho + dp_de * work / mass * volume) / (volume * keep), 0.0)
+    return pi, slope, coupling
+
+
+def relax(mixed, volume, state0):
+    """The pressure relaxation's root over all mixed cells at once, in numpy
+    (ale_xfem.mixed.equilibrium.relax_cells): (status, cell, V_α, V_β, p*), status 0
+    relaxed, 1 a volume that cannot hold both materials, 2 not converged."""
+    with np.errstate(invalid="ignore"):  # the tests give it NaN states too
+        return _relax(mixed, volume, state0)
+
+
+def _relax(mixed, volume, state0):
+    m_a, m_b, va0, vb0, ea0, eb0 = state0
+    total = volume
+    lo = np.maximum(1e-12 * total, m_a / mixed.max_density_left * (1 + 1e-9)) - va0
+    hi = vb0 - np.maximum(1e-12 * total, m_b / mixed.max_density_right * (1 + 1e-9))
+    if (lo >= hi).any():
+        return 1, int(np.flatnonzero(lo >= hi)[0]), None, None, None
+    delta = np.minimum(np.maximum(0.0, lo), hi)
+    finished = False
+    for _ in range(200):
+        va, vb = va0 + delta, vb0 - delta
+        pi_a, slope_a, coupling_a = _relaxed_pressure(mixed, mixed.left_groups, m_a, va, ea0, va0)
+        pi_b, slope_b, coupling_b = _relaxed_pressure(mixed, mixed.right_groups, m_b, vb, eb0, vb0)
+        h = pi_a - pi_b
+        scale = np.maximum(np.maximum(np.abs(pi_a), np.abs(pi_b)),
+                           np.minimum(np.abs(slope_a) * va, np.abs(slope_b) * vb))
+        balanced = np.isfinite(h) & (np.abs(h) <= 1e-3 * mixed.tolerance * scale)
+        if finished or balanced.all():
+            break
+        lo = np.where(h > 0, delta, lo)
+        hi = np.where(h <= 0, delta, hi)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            newton = delta - h / (slope_a + slope_b)
+        inside = np.isfinite(newton) & (newton > lo) & (newton < hi)
+        new_delta = np.where(balanced, delta, np.where(inside, newton, 0.5 * (lo + hi)))
+        resolution = 4e-16 * np.minimum(va, vb)
+        finished = bool((balanced | (np.abs(new_delta - delta) <= resolution) | (hi - lo <= resolution)).all())
+        delta = new_delta
+    else:
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return 2, int(np.argmax(np.abs(h) / scale)), None, None, None
+    return 0, 0, va, vb, np.where(np.abs(coupling_a) >= np.abs(coupling_b), pi_a, pi_b)

@@ -22,7 +22,7 @@ MAY_IMPORT = {
     "scene": {"eos", "geometry"},
     "model": {"eos", "geometry"},
     "lagrange": {"model", "eos"},
-    "mixed": {"model", "lagrange", "forms", "geometry"},
+    "mixed": {"model", "lagrange", "forms", "geometry", "eos"},
     "problem": {"scene", "model", "exact", "geometry", "eos", "mixed"},
     "remap": {"model", "geometry"},
     "run": {"problem", "model", "lagrange", "mixed", "remap"},

@@ -10,9 +10,10 @@ pressure p and gives what an explicit step and an implicit solve need:
 - ``state(rho, e)``: (p, ∂p/∂ρ, ∂p/∂e, c²) at once, for implicit solves
 - ``admissible(rho, p)``: which initial states the model allows, with the reason
 
-``pressure`` and ``sound_speed_squared`` are the compiled formulas the per-step loops use
-(``ale_xfem.eos.kernels``); ``state`` writes p and c² again in numpy beside the
-derivatives the implicit solves need, and tests/test_eos.py holds the two equal to 10⁻¹³.
+``pressure``, ``sound_speed_squared`` and ``state`` are compiled formulas
+(``ale_xfem.eos.kernels``: the per-step loops call them one state at a time); ``state``
+writes p and c² again beside the derivatives the implicit solves need, and
+tests/test_eos.py holds the two equal to 10⁻¹³.
 
 Models: ideal gas, stiffened gas (γ, p∞), Mie–Grüneisen with a linear Us–up Hugoniot
 reference (ρ0, c0, s, Γ0; Γρ = Γ0ρ0 constant), linear (dp = c0² dρ, i.e. dp = ρc² dρ/ρ).
@@ -25,8 +26,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ale_xfem.eos.kernels import (LINEAR, MIE_GRUNEISEN, PARAMETERS, STIFFENED_GAS,
-                                  fill_pressure_sound_speed_squared)
+from ale_xfem.eos.kernels import (LINEAR, MIE_GRUNEISEN, PARAMETERS, STIFFENED_GAS, fill_pressure_sound_speed_squared,
+                                  fill_state)
 
 
 class CompiledModel:
@@ -34,16 +35,28 @@ class CompiledModel:
     (ale_xfem.eos.kernels.pressure_sound_speed_squared: the one place they are written),
     for numbers or arrays of any shape."""
 
-    def pressure_and_sound_speed_squared(self, rho, e):
+    def _kernel_arguments(self, rho, e):
         rho, e = (np.array(a, dtype=float) for a in np.broadcast_arrays(np.asarray(rho, dtype=float),
                                                                           np.asarray(e, dtype=float)))
-        pressure, sound_speed_squared = np.empty(rho.shape), np.empty(rho.shape)
         row = np.zeros((1, PARAMETERS))
         values = self.kernel_parameters()
         row[0, :len(values)] = values
+        return rho, e, row
+
+    def pressure_and_sound_speed_squared(self, rho, e):
+        rho, e, row = self._kernel_arguments(rho, e)
+        pressure, sound_speed_squared = np.empty(rho.shape), np.empty(rho.shape)
         fill_pressure_sound_speed_squared(self.KIND, row, rho.reshape(-1), e.reshape(-1), pressure.reshape(-1),
                                           sound_speed_squared.reshape(-1))
         return pressure[()], sound_speed_squared[()]
+
+    def state(self, rho, e):
+        """(p, ∂p/∂ρ|_e, ∂p/∂e|_ρ, c²) at once, for the implicit solves
+        (ale_xfem.eos.kernels.state_derivatives, where each model writes them)."""
+        rho, e, row = self._kernel_arguments(rho, e)
+        values = tuple(np.empty(rho.shape) for _ in range(4))
+        fill_state(self.KIND, row, rho.reshape(-1), e.reshape(-1), *(v.reshape(-1) for v in values))
+        return tuple(v[()] for v in values)
 
     def pressure(self, rho, e):
         return self.pressure_and_sound_speed_squared(rho, e)[0]
@@ -73,11 +86,6 @@ class StiffenedGas(CompiledModel):
 
     def energy(self, rho, p):
         return (p + self.gamma * self.p_inf) / ((self.gamma - 1.0) * rho)
-
-    def state(self, rho, e):
-        g1 = self.gamma - 1.0
-        p = g1 * rho * e - self.gamma * self.p_inf
-        return p, g1 * e, g1 * rho, self.gamma * g1 * (e - self.p_inf / rho)
 
     max_density = float("inf")  # no compression limit
 
@@ -134,14 +142,6 @@ class MieGruneisen(CompiledModel):
         _, p_h, _, e_h, _ = self._hugoniot(rho)
         return e_h + (p - p_h) / (self.gamma0 * self.rho0)
 
-    def state(self, rho, e):
-        _, p_h, dp_h_deta, e_h, de_h_deta = self._hugoniot(rho)
-        k = self.gamma0 * self.rho0
-        p = p_h + k * (e - e_h)
-        dp_drho = (dp_h_deta - k * de_h_deta) * self.rho0 / rho**2
-        dp_de = np.full_like(np.asarray(rho, dtype=float), k)
-        return p, dp_drho, dp_de, dp_drho + p / rho**2 * k
-
     @property
     def max_density(self) -> float:
         """The reference Hugoniot is singular at η = 1/s, i.e. ρ = ρ0 s/(s − 1)."""
@@ -177,10 +177,6 @@ class Linear(CompiledModel):
     def energy(self, rho, p):
         # e plays no part in the pressure; it still carries the work of compression.
         return np.zeros_like(np.asarray(rho, dtype=float))
-
-    def state(self, rho, e):
-        ones = np.ones_like(np.asarray(rho, dtype=float))
-        return self.pressure(rho, e), self.c0**2 * ones, 0.0 * ones, self.c0**2 * ones
 
     max_density = float("inf")
 

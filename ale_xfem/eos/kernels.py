@@ -1,10 +1,12 @@
 """Compiled pressure and sound speed of every equation of state, for the per-step loops.
 
 Each model of ``ale_xfem.eos`` has a code (``KIND``) and a row of parameters
-(``kernel_parameters``); :func:`pressure_sound_speed` is the one place that dispatches on
-the code, so a new model adds its code, its row and one branch here, and no loop that
-calls it changes.  The formulas are those of the models' numpy methods, written in the
-same order of operations: the results are the same to the bit.
+(``kernel_parameters``).  Two functions dispatch on the code, and no others:
+:func:`pressure_sound_speed_squared` (p and c², for the explicit loops) and
+:func:`state_derivatives` (p, ∂p/∂ρ, ∂p/∂e and c², for the implicit solves of the mixed
+cells).  A new model adds its code, its row and one branch to each, and no loop that calls
+them changes.  The two write p and c² in their own orders of operations, as the models'
+numpy methods did (tests/test_eos.py holds them equal to 10⁻¹³).
 """
 
 from __future__ import annotations
@@ -92,3 +94,40 @@ def fill_pressure_sound_speed(kinds, parameters, cell_material, density, energy,
             else:
                 pressure[slot, cell], sound_speed[slot, cell] = pressure_sound_speed(
                     kinds[material], parameters, material, density[slot, cell], energy[slot, cell])
+
+
+@numba.njit(**LOOP)
+def state_derivatives(kind, parameters, material, rho, e):  # pragma: no cover (compiled)
+    """(p, ∂p/∂ρ|_e, ∂p/∂e|_ρ, c²) of one state of the material of row ``material`` of
+    ``parameters``: what the implicit solves linearise (every model's ``state``)."""
+    if kind == STIFFENED_GAS:  # p = (γ − 1) ρ e − γ p∞
+        gamma, p_inf = parameters[material, 0], parameters[material, 1]
+        g1 = gamma - 1.0
+        p = g1 * rho * e - gamma * p_inf
+        return p, g1 * e, g1 * rho, gamma * g1 * (e - p_inf / rho)
+    if kind == MIE_GRUNEISEN:  # p = p_H + Γ0 ρ0 (e − e_H) about the linear Us–up Hugoniot
+        rho0, c0, s, gamma0 = (parameters[material, 0], parameters[material, 1], parameters[material, 2],
+                               parameters[material, 3])
+        eta = 1.0 - rho0 / rho
+        denom = 1.0 - s * eta
+        stiffness = rho0 * c0 ** 2.0
+        p_h = stiffness * eta / (denom * denom)
+        dp_h_deta = stiffness * (1.0 + s * eta) / denom ** 3.0
+        e_h = p_h * eta / (2.0 * rho0)
+        de_h_deta = (p_h + eta * dp_h_deta) / (2.0 * rho0)
+        k = gamma0 * rho0
+        p = p_h + k * (e - e_h)
+        dp_drho = (dp_h_deta - k * de_h_deta) * rho0 / (rho * rho)
+        return p, dp_drho, k, dp_drho + p / (rho * rho) * k
+    # LINEAR: p = p0 + c0² (ρ − ρ0)
+    p, c2 = pressure_sound_speed_squared(kind, parameters, material, rho, e)
+    return p, c2, 0.0, c2
+
+
+@numba.njit(**LOOP)
+def fill_state(kind, parameters, rho, e, pressure, dp_drho, dp_de, sound_speed_squared):  # pragma: no cover
+    """:func:`state_derivatives` of one model (row 0 of ``parameters``) at every entry of
+    flat arrays."""
+    for i in range(rho.size):
+        pressure[i], dp_drho[i], dp_de[i], sound_speed_squared[i] = state_derivatives(kind, parameters, 0, rho[i],
+                                                                                      e[i])

@@ -33,13 +33,18 @@ A mixed cell K = [x_a, x_b] holds material α on the left (volume V_α) and β o
 - **Pressure relaxation** at the start of a step: the same solve at fixed cell volume
   (B = 0) with the energy exchange dE_α = −p* dV_α, p* the final common pressure.
 
-Everything is vectorised over all mixed cells at once.
+Everything is vectorised over all mixed cells at once; the relaxation's iterations are a
+compiled loop over them (:func:`relax_cells`).
 """
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 
+from ale_xfem.eos import kernel_tables
+from ale_xfem.eos.kernels import state_derivatives
+from ale_xfem.geometry.polygon_kernels import KERNEL, maximum, minimum
 from ale_xfem.model.mixed_cells import MixedCells
 
 # an iterate that moves by less than this (relative) has stopped moving: round-off
@@ -61,6 +66,102 @@ def start_values(state, cells):
     return (state.material_mass[0, cells], state.material_mass[1, cells],
             state.material_volume[0, cells], state.material_volume[1, cells],
             state.material_energy[0, cells], state.material_energy[1, cells])
+
+
+RELAXED, CANNOT_HOLD, NOT_CONVERGED = 0, 1, 2  # what relax_cells returns as its status
+
+
+@numba.njit(**KERNEL)
+def relaxed_pressure(kind, parameters, material, mass, volume, energy0, volume0):  # pragma: no cover (compiled)
+    """π(V) of one material at volume V when its energy follows e = e0 − π (V − V0)/m, with
+    dπ/dV and S = −∂p/∂e (V − V0)/m (:meth:`PressureEquilibrium.relax`): π = p(ρ, e0)/(1 − S)
+    where 1 − S > 0, else π = +∞ and dπ/dV = 0.  (∂p/∂V)_W is taken at the energy of
+    W = π: at e0 it missed how a trace's ∂p/∂ρ changes with its energy, and Newton, its
+    slope half the true one, swung about the root without converging.)"""
+    rho = mass / volume
+    p0, _, dp_de, _ = state_derivatives(kind, parameters, material, rho, energy0)
+    coupling = dp_de * (volume0 - volume) / mass
+    keep = 1.0 - coupling
+    if not keep > 0.0:
+        return np.inf, 0.0, coupling
+    pi = p0 / keep
+    dp_drho = state_derivatives(kind, parameters, material, rho, energy0 - pi * (volume - volume0) / mass)[1]
+    return pi, -(dp_drho * rho + dp_de * pi / mass * volume) / (volume * keep), coupling
+
+
+@numba.njit(**KERNEL)
+def relax_cells(kinds, parameters, left, right, m_a, m_b, va0, vb0, ea0, eb0, total, max_density_left,
+                max_density_right, balance):  # pragma: no cover (compiled)
+    """The pressure relaxation's root in every mixed cell (:meth:`PressureEquilibrium.relax`):
+    the volume δ that α (material ``left``) takes from β (``right``), Newton bracketed by
+    bisection, all cells iterated together until every one is balanced (|π_α − π_β| ≤
+    ``balance`` × its scale) or stopped by round-off, then evaluated once more.  Returns
+    (status, cell, V_α, V_β, p*, π_α, π_β): status RELAXED, or CANNOT_HOLD (the cell's
+    volume cannot hold both materials below their compression limits) or NOT_CONVERGED
+    (the cell farthest from balance) with that cell."""
+    n = total.size
+    lo, hi, delta = np.empty(n), np.empty(n), np.empty(n)
+    va, vb, pressure = np.empty(n), np.empty(n), np.empty(n)
+    pi_a, slope_a, coupling_a = np.empty(n), np.empty(n), np.empty(n)
+    pi_b, slope_b, coupling_b = np.empty(n), np.empty(n), np.empty(n)
+    h, scale, balanced = np.empty(n), np.empty(n), np.empty(n, dtype=np.bool_)
+    for i in range(n):
+        lo[i] = maximum(1e-12 * total[i], m_a[i] / max_density_left[i] * (1 + 1e-9)) - va0[i]
+        hi[i] = vb0[i] - maximum(1e-12 * total[i], m_b[i] / max_density_right[i] * (1 + 1e-9))
+    for i in range(n):
+        if lo[i] >= hi[i]:
+            return CANNOT_HOLD, i, va, vb, pressure, pi_a, pi_b
+    for i in range(n):
+        delta[i] = minimum(maximum(0.0, lo[i]), hi[i])
+    finished, done = False, False
+    for _ in range(200):
+        all_balanced = True
+        for i in range(n):
+            va[i], vb[i] = va0[i] + delta[i], vb0[i] - delta[i]
+            a, b = left[i], right[i]
+            pi_a[i], slope_a[i], coupling_a[i] = relaxed_pressure(kinds[a], parameters, a, m_a[i], va[i], ea0[i],
+                                                                  va0[i])
+            pi_b[i], slope_b[i], coupling_b[i] = relaxed_pressure(kinds[b], parameters, b, m_b[i], vb[i], eb0[i],
+                                                                  vb0[i])
+            h[i] = pi_a[i] - pi_b[i]  # decreasing in δ
+            # the pressures' scale: the larger of them, or the softer material's bulk modulus
+            scale[i] = maximum(maximum(abs(pi_a[i]), abs(pi_b[i])),
+                               minimum(abs(slope_a[i]) * va[i], abs(slope_b[i]) * vb[i]))
+            balanced[i] = np.isfinite(h[i]) and abs(h[i]) <= balance * scale[i]
+            all_balanced &= balanced[i]
+        if finished or all_balanced:  # the values just computed are those of the result
+            done = True
+            break
+        finished = True
+        for i in range(n):
+            if h[i] > 0:
+                lo[i] = delta[i]
+            if h[i] <= 0:
+                hi[i] = delta[i]
+            newton = delta[i] - h[i] / (slope_a[i] + slope_b[i])
+            inside = np.isfinite(newton) and newton > lo[i] and newton < hi[i]
+            new_delta = delta[i] if balanced[i] else (newton if inside else 0.5 * (lo[i] + hi[i]))
+            # or round-off bounds what can still change (a few ulps of the smaller volume)
+            resolution = 4e-16 * minimum(va[i], vb[i])
+            finished &= balanced[i] or abs(new_delta - delta[i]) <= resolution or hi[i] - lo[i] <= resolution
+            delta[i] = new_delta
+    if not done:  # the cell farthest from balance (np.argmax: the first NaN, else the first largest)
+        worst, largest = 0, -1.0
+        for i in range(n):
+            distance = abs(h[i]) / scale[i]
+            if distance != distance:
+                worst = i
+                break
+            if distance > largest:
+                worst, largest = i, distance
+        return NOT_CONVERGED, worst, va, vb, pressure, pi_a, pi_b
+    # p* is the root of the material whose pressure depends most on it (|S| the larger):
+    # its state is then exactly its own balance, the other's pressure within the
+    # tolerance.  (The mean of the two left a near-vacuum trace of air in a cavity,
+    # 10⁻¹⁹ of mass, at a negative energy: p_α = π_α + S_α (p* − π_α) with S_α ~ 1.)
+    for i in range(n):
+        pressure[i] = pi_a[i] if abs(coupling_a[i]) >= abs(coupling_b[i]) else pi_b[i]
+    return RELAXED, 0, va, vb, pressure, pi_a, pi_b
 
 
 class PressureEquilibrium:
@@ -242,69 +343,24 @@ class PressureEquilibrium:
         against water in tension, to a spurious root of compressed air at negative energy:
         a water–air tube at 30° on an Eulerian mesh, the air squeezed to 10⁻¹² of its cell.)"""
         self.mixed.stats["relaxations"] += 1
-        m_a, m_b, va0, vb0, ea0, eb0 = state0
-        total = volume  # = V_α^0 + V_β^0
+        mixed = self.mixed
+        kinds, parameters = kernel_tables(tuple(material.eos for material in mixed.materials))
         # The unknown is the volume δ that α takes from β, V_α = V_α^0 + δ, V_β = V_β^0 − δ:
         # each volume then keeps its own precision (a trace's V_β is not the round-off of
         # V − V_α, which left 5e-11 between the pressures of a cell with a trace at rest).
-        lo = np.maximum(1e-12 * total, m_a / self.mixed.max_density_left * (1 + 1e-9)) - va0
-        hi = vb0 - np.maximum(1e-12 * total, m_b / self.mixed.max_density_right * (1 + 1e-9))
-        if (lo >= hi).any():
-            bad = int(np.flatnonzero(lo >= hi)[0])
-            raise MixedCellFailure(self.mixed.cells, bad, f"volume {total[bad]:.6g} cannot hold both materials "
+        status, cell, va, vb, pressure, pi_a, pi_b = relax_cells(
+            kinds, parameters, mixed.material_left.astype(np.int64), mixed.material_right.astype(np.int64),
+            *(np.ascontiguousarray(np.broadcast_to(value, np.shape(volume)), dtype=float) for value in (*state0, volume)),
+            mixed.max_density_left,
+            mixed.max_density_right, 1e-3 * mixed.tolerance)
+        if status == CANNOT_HOLD:
+            raise MixedCellFailure(mixed.cells, cell, f"volume {volume[cell]:.6g} cannot hold both materials "
                                    "below their compression limits")
-        delta = np.minimum(np.maximum(0.0, lo), hi)
-        finished = False
-        for _ in range(200):
-            va, vb = va0 + delta, vb0 - delta
-            pi_a, slope_a, coupling_a = self._relaxed_pressure(self.mixed.left_groups, m_a, va, ea0, va0)
-            pi_b, slope_b, coupling_b = self._relaxed_pressure(self.mixed.right_groups, m_b, vb, eb0, vb0)
-            h = pi_a - pi_b  # decreasing in δ
-            # the pressures' scale: the larger of them, or the softer material's bulk modulus
-            scale = np.maximum(np.maximum(np.abs(pi_a), np.abs(pi_b)),
-                               np.minimum(np.abs(slope_a) * va, np.abs(slope_b) * vb))
-            balanced = np.isfinite(h) & (np.abs(h) <= 1e-3 * self.mixed.tolerance * scale)
-            if finished or balanced.all():  # the values just computed are those of the result
-                break
-            lo = np.where(h > 0, delta, lo)
-            hi = np.where(h <= 0, delta, hi)
-            with np.errstate(invalid="ignore", divide="ignore"):
-                newton = delta - h / (slope_a + slope_b)
-            inside = np.isfinite(newton) & (newton > lo) & (newton < hi)
-            new_delta = np.where(balanced, delta, np.where(inside, newton, 0.5 * (lo + hi)))
-            # or round-off bounds what can still change (a few ulps of the smaller volume)
-            resolution = 4e-16 * np.minimum(va, vb)
-            finished = bool((balanced | (np.abs(new_delta - delta) <= resolution) | (hi - lo <= resolution)).all())
-            delta = new_delta
-        else:
-            worst = int(np.argmax(np.abs(h) / scale))
-            raise MixedCellFailure(self.mixed.cells, worst, f"pressure relaxation not converged (pressures "
-                                   f"{pi_a[worst]:.6g} and {pi_b[worst]:.6g})")
-        # p* is the root of the material whose pressure depends most on it (|S| the larger):
-        # its state is then exactly its own balance, the other's pressure within the
-        # tolerance.  (The mean of the two left a near-vacuum trace of air in a cavity,
-        # 10⁻¹⁹ of mass, at a negative energy: p_α = π_α + S_α (p* − π_α) with S_α ~ 1.)
-        pressure = np.where(np.abs(coupling_a) >= np.abs(coupling_b), pi_a, pi_b)
+        if status == NOT_CONVERGED:
+            raise MixedCellFailure(mixed.cells, cell, f"pressure relaxation not converged (pressures "
+                                   f"{pi_a[cell]:.6g} and {pi_b[cell]:.6g})")
         if not np.isfinite(pressure).all():
             bad = int(np.flatnonzero(~np.isfinite(pressure))[0])
-            raise MixedCellFailure(self.mixed.cells, bad, f"pressure relaxation = {pressure[bad]:.6g}")
+            raise MixedCellFailure(mixed.cells, bad, f"pressure relaxation = {pressure[bad]:.6g}")
         details = self._state_at(state0, va, vb, pressure)
         return pressure, va, vb, details
-
-    def _relaxed_pressure(self, groups, mass, volume, energy0, volume0):
-        """π(V) of one material (see :meth:`relax`), dπ/dV = (∂p/∂V)_W / (1 − S) and S = ∂p/∂W
-        (π = +∞, dπ/dV = 0 where 1 − S ≤ 0).  (∂p/∂V)_W is taken at the energy of W = π:
-        at e^0 it missed how a trace's ∂p/∂ρ changes with its energy, and Newton, its slope
-        half the true one, swung about the root without converging.)"""
-        rho = mass / volume
-        p0, _, dp_de, _ = groups.eos_values(self.mixed.materials, rho, energy0)
-        coupling = dp_de * (volume0 - volume) / mass  # S
-        keep = 1.0 - coupling
-        admissible = keep > 0.0
-        with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-            keep = np.where(admissible, keep, 1.0)
-            pi = np.where(admissible, p0 / keep, np.inf)
-            work = np.where(admissible, pi, 0.0)
-            dp_drho = groups.eos_values(self.mixed.materials, rho, energy0 - work * (volume - volume0) / mass)[1]
-            slope = np.where(admissible, -(dp_drho * rho + dp_de * work / mass * volume) / (volume * keep), 0.0)
-        return pi, slope, coupling
