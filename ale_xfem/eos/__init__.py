@@ -30,18 +30,28 @@ from ale_xfem.eos.kernels import (LINEAR, MIE_GRUNEISEN, PARAMETERS, STIFFENED_G
                                   fill_state)
 
 
+@functools.lru_cache(maxsize=64)
+def _parameter_row(model) -> np.ndarray:
+    """A model's parameters as the one row (1, PARAMETERS) the compiled loops take."""
+    row = np.zeros((1, PARAMETERS))
+    values = model.kernel_parameters()
+    row[0, :len(values)] = values
+    row.flags.writeable = False
+    return row
+
+
 class CompiledModel:
     """p(ρ, e) and c²(ρ, e) of a model, from its compiled formulas
     (ale_xfem.eos.kernels.pressure_sound_speed_squared: the one place they are written),
     for numbers or arrays of any shape."""
 
     def _kernel_arguments(self, rho, e):
-        rho, e = (np.array(a, dtype=float) for a in np.broadcast_arrays(np.asarray(rho, dtype=float),
-                                                                          np.asarray(e, dtype=float)))
-        row = np.zeros((1, PARAMETERS))
-        values = self.kernel_parameters()
-        row[0, :len(values)] = values
-        return rho, e, row
+        """ρ and e as contiguous arrays of one shape, and the model's row of parameters."""
+        rho, e = np.asarray(rho, dtype=float), np.asarray(e, dtype=float)
+        if rho.shape != e.shape:
+            rho, e = np.broadcast_arrays(rho, e)
+        contiguous = [a if a.flags.c_contiguous else a.copy() for a in (rho, e)]  # (0-d arrays stay 0-d)
+        return contiguous[0], contiguous[1], _parameter_row(self)
 
     def pressure_and_sound_speed_squared(self, rho, e):
         rho, e, row = self._kernel_arguments(rho, e)
