@@ -8,12 +8,18 @@ from __future__ import annotations
 
 import itertools
 
+import numpy as np
+
 import dolfinx_solver  # noqa: F401  (before dolfinx: it loads MPI and PETSc)
 import dolfinx
 import dolfinx.fem.petsc
 from petsc4py import PETSc
 
 REFINEMENTS = 3  # rounds of iterative refinement after the direct solve
+# solve_with_diagonal: a diagonal that moved by at most REUSE_CHANGE (relative) is solved on
+# the last factors, refined until the residual is within REUSE_RESIDUAL of the right side
+# (what the direct solve and its refinement reach), in at most REUSE_ROUNDS rounds
+REUSE_CHANGE, REUSE_RESIDUAL, REUSE_ROUNDS = 0.02, 1e-15, 12
 _PREFIXES = itertools.count()  # each system's own options prefix
 
 
@@ -110,8 +116,11 @@ class BoundSystem:
         if constraint is None:
             self._solve(self.matrix, self.vector, self.solution, self.residual, self.correction, what)
             return self.solution.getArray()
+        change = None
         if constraint is self._constraint:
+            before = self._reduced[0].getDiagonal()
             self.matrix.PtAP(constraint, result=self._reduced[0])
+            change = self._diagonal_change(before, self._reduced[0])
         else:
             self._forget_reduced()
             reduced = self.matrix.PtAP(constraint)
@@ -120,9 +129,88 @@ class BoundSystem:
             self._constraint = constraint
         reduced, right, solution, residual, correction = self._reduced
         constraint.multTranspose(self.vector, right)
-        self._solve(reduced, right, solution, residual, correction, what)
+        # the same unknowns as the last solve's, the operator barely changed (the corrector's
+        # last iterations): refined on the last factors, if that converges
+        if not (change is not None and change <= REUSE_CHANGE
+                and self._refined_on_factors(reduced, right, solution, residual, correction)):
+            self._solve(reduced, right, solution, residual, correction, what)
         constraint.mult(solution, self.solution)
         return self.solution.getArray()
+
+    @staticmethod
+    def _diagonal_change(before, operator) -> float:
+        """The largest relative change of ``operator``'s diagonal from ``before`` (a Vec,
+        destroyed here)."""
+        after = operator.getDiagonal()
+        old, new = before.array, after.array
+        with np.errstate(divide="ignore", invalid="ignore"):  # (zero stays zero on multiplier rows)
+            change = np.where(old == new, 0.0, np.abs(new / old - 1.0))
+        before.destroy()
+        after.destroy()
+        return float(np.max(change, initial=0.0))
+
+    def solve_with_diagonal(self, right_side, what: str, constraint, rows, diagonal):
+        """Solve again the operator of the last :meth:`solve` (the same ``constraint``) with
+        its diagonal entries at ``rows`` — unknowns of the full system that the constraint
+        keeps as they are (a column of their own, coefficient 1) — set to ``diagonal``, and
+        the right side ``right_side`` (full): neither assembled nor reduced again, the
+        factorisation's analysis kept.  Returns the solution's array."""
+        if constraint is not None and constraint is not self._constraint:
+            raise RuntimeError(f"{what}: solve_with_diagonal needs the constraint of the last solve")
+        self.vector.setArray(right_side)
+        if constraint is None:
+            operator, right, solution, residual, correction = (self.matrix, self.vector, self.solution,
+                                                              self.residual, self.correction)
+        else:
+            operator, right, solution, residual, correction = self._reduced
+            pointer, columns, _ = constraint.getValuesCSR()
+            rows = columns[pointer[rows]]  # their columns of C: their unknowns in the reduced system
+        entries = operator.getDiagonal()
+        before = entries.copy()
+        entries.array[rows] = diagonal
+        operator.setDiagonal(entries)
+        entries.destroy()
+        change = self._diagonal_change(before, operator)
+        if constraint is not None:
+            constraint.multTranspose(self.vector, right)
+        if not (change <= REUSE_CHANGE and self._refined_on_factors(operator, right, solution, residual, correction)):
+            self._solve(operator, right, solution, residual, correction, what)
+        if constraint is None:
+            return self.solution.getArray()
+        constraint.mult(solution, self.solution)
+        return self.solution.getArray()
+
+    def _refined_on_factors(self, operator, right, solution, residual, correction) -> bool:
+        """Solve ``operator`` by iterative refinement on the factors of the last operator
+        factorised (of the same size and pattern); False if REUSE_ROUNDS rounds do not bring
+        the residual within REUSE_RESIDUAL of the right side."""
+        if self._operator is not operator:
+            return False
+        target = REUSE_RESIDUAL * right.norm()
+        preconditioner = self.solver.getPC()
+        preconditioner.setReusePreconditioner(True)  # the operator changed: keep its old factors
+        try:
+            solution.set(0.0)
+            residual.setArray(right.getArray(readonly=True))
+            for _ in range(REUSE_ROUNDS):
+                self.solver.solve(residual, correction)
+                solution.axpy(1.0, correction)
+                operator.mult(solution, residual)
+                residual.aypx(-1.0, right)
+                if residual.norm() <= target:
+                    break
+            else:
+                return False
+            # then the rounds the direct solve is refined by: its rows of small scale (the
+            # pressures' beside the velocities' 4M/dt) come to their round-off too
+            for _ in range(REFINEMENTS):
+                self.solver.solve(residual, correction)
+                solution.axpy(1.0, correction)
+                operator.mult(solution, residual)
+                residual.aypx(-1.0, right)
+            return True
+        finally:
+            preconditioner.setReusePreconditioner(False)
 
     def _forget_reduced(self) -> None:
         for thing in self._reduced:

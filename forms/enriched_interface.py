@@ -357,6 +357,7 @@ class InterfaceSystem:
         self._active_parent = self.velocity_parent[np.unique(self._velocity_cells[self.active])]
         self._vertex_permutation = None
         self._unknowns = None
+        self._assembled = None  # (what resolve needs of the last solve)
 
     @property
     def nodes(self) -> np.ndarray:
@@ -386,6 +387,7 @@ class InterfaceSystem:
             values[self._dg1v[active].ravel()] = (flux / weights[..., None]).reshape(-1, gdim)
         self.functions["normal"].x.array.reshape(-1, gdim)[self._dg0v[active]] = normal[take]
         self._unknowns = None  # (a sliding tie follows the normals)
+        self._assembled = None
 
     def vertex_order(self, parent_cell_nodes) -> None:
         """The parent nodes of each mixed cell (n, k) in the order per-vertex inputs use;
@@ -439,11 +441,48 @@ class InterfaceSystem:
             if self._unknowns is not None and self._unknowns[1] is not None:
                 self._unknowns[1].destroy()
             self._unknowns = (key, self._constraint(tied, sliding, tie_normal))
-        values = self.system.solve(array, "interface system", self._unknowns[1])
+        # what :meth:`resolve` changes: the pressure rows' diagonal −∫_{K_m} g_m and right
+        # side −∫_{K_m} g_m c_m, both proportional to the compliance g_m (a DG0 pressure's
+        # row is one cell's)
+        self._assembled = (array.copy(), self.system.matrix.getDiagonal().array[self._active_pressure_dofs()],
+                           self._active_compliance(), np.shape(rhs[0]))
+        return self._unpacked(self.system.solve(array, "interface system", self._unknowns[1]), np.shape(rhs[0]))
+
+    def resolve(self, compliance, offset):
+        """:meth:`solve` again after :meth:`solve`, with new compliances and offsets (as
+        :meth:`set_materials`; not for Nitsche, whose weights change with them): the only
+        entries that change are the pressure rows' diagonal and right side, each
+        proportional to its compliance, set here without assembling the matrix or reducing
+        it again (the factorisation redone, or refined on when the change is small:
+        :meth:`forms.bound_system.BoundSystem.solve_with_diagonal`)."""
+        if self.forms.stabilisation == "nitsche":
+            raise ValueError("resolve: the Nitsche system's weights and penalty change with the compliances; "
+                             "set_materials and solve")
+        if self._assembled is None:
+            raise RuntimeError("resolve: solve first, on this geometry and these cells")
+        right, diagonal, assembled_compliance, velocity_shape = self._assembled
+        self.set_materials(compliance, offset)
+        dofs = self._active_pressure_dofs()
+        new_diagonal = diagonal * (self._active_compliance() / assembled_compliance)
+        right = right.copy()
+        right[dofs] = new_diagonal * np.concatenate([self.functions[f"offset_{side}"].x.array[self._dg0[self.active]]
+                                                     for side in "ab"])
+        values = self.system.solve_with_diagonal(right, "interface system", self._unknowns[1], dofs, new_diagonal)
+        return self._unpacked(values, velocity_shape)
+
+    def _active_pressure_dofs(self):
+        return np.concatenate([self.pressure_dofs[m][self.active] for m in range(2)])
+
+    def _active_compliance(self):
+        return np.concatenate([self.functions[f"compliance_{side}"].x.array[self._dg0[self.active]]
+                               for side in "ab"])
+
+    def _unpacked(self, values, velocity_shape):
+        """The solution's arrays (:meth:`solve`'s dict) from the system's values."""
         n = self.input_index.size
         out = {"velocity": [], "pressure": np.empty((2, n))}
         for m in range(2):
-            velocity = np.zeros_like(rhs[m])
+            velocity = np.zeros(velocity_shape)
             velocity[:, self.block_parent[m]] = values[self.velocity_block[m]].T
             out["velocity"].append(velocity)
             out["pressure"][m, self.input_index] = values[self.pressure_dofs[m][self.active]]

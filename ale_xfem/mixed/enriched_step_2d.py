@@ -103,8 +103,11 @@ class EnrichedStep2D:
             if self.nitsche:  # κ_m = ρ_m c_m² dt (module docstring of forms/enriched_interface.py)
                 weight, penalty = nitsche_weights(v0, nitsche_stiffness(rho, c2, v0.sum(axis=0), dt),
                                                   self.interface_length, self.nitsche_penalty)
-            self.system.set_materials(compliance, offset, weight, penalty)
-            out = self.system.solve(mass, rhs, tied, sliding)
+            if iteration == 1 or self.nitsche:
+                self.system.set_materials(compliance, offset, weight, penalty)
+                out = self.system.solve(mass, rhs, tied, sliding)
+            else:  # the same system but for the compliances: not assembled again
+                out = self.system.resolve(compliance, offset)
             linearised = out["pressure"]
             volume_change = (linearised - offset) / slope
             volume = v0 + volume_change
