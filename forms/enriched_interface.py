@@ -331,6 +331,7 @@ class InterfaceSystem:
             self.multiplier_dofs = block.reshape(-1, 2)[self._dg0v] if forms.slip == "stick" else block[self._dg0]
         self.vertex_area = None
         self._vertex_permutation = None
+        self._last_constraint = None  # C of the last solve, kept across steps (_kept_constraint)
         self.activate(cells)
 
     def _subdomains(self, active):
@@ -438,9 +439,7 @@ class InterfaceSystem:
         key = (None if tied is None else tied.tobytes(), None if sliding is None else sliding.tobytes(),
                None if tie_normal is None else tie_normal.tobytes())
         if self._unknowns is None or self._unknowns[0] != key:
-            if self._unknowns is not None and self._unknowns[1] is not None:
-                self._unknowns[1].destroy()
-            self._unknowns = (key, self._constraint(tied, sliding, tie_normal))
+            self._unknowns = (key, self._kept_constraint(self._constraint(tied, sliding, tie_normal)))
         # what :meth:`resolve` changes: the pressure rows' diagonal −∫_{K_m} g_m and right
         # side −∫_{K_m} g_m c_m, both proportional to the compliance g_m (a DG0 pressure's
         # row is one cell's)
@@ -608,6 +607,27 @@ class InterfaceSystem:
         np.cumsum(np.bincount(rows, minlength=size), out=pointer[1:])
         return PETSc.Mat().createAIJ(size=(size, column), csr=(pointer, columns.astype(PETSc.IntType), values),
                                      comm=self.system.matrix.getComm())
+
+    def _kept_constraint(self, constraint):
+        """``constraint``, or the last one made if it has the same pattern (the same unknowns
+        joined the same way: a steady interface, step after step), its values refreshed — the
+        reduced matrix and its factorisation's analysis are then kept
+        (:meth:`forms.bound_system.BoundSystem.solve`)."""
+        last, self._last_constraint = self._last_constraint, constraint
+        if last is None or constraint is None or last.getSize() != constraint.getSize():
+            if last is not None:
+                last.destroy()
+            return constraint
+        pointer, columns, values = constraint.getValuesCSR()
+        last_pointer, last_columns, _ = last.getValuesCSR()
+        if not (np.array_equal(pointer, last_pointer) and np.array_equal(columns, last_columns)):
+            last.destroy()
+            return constraint
+        last.setValuesCSR(pointer, columns, values)
+        last.assemble()
+        constraint.destroy()
+        self._last_constraint = last
+        return last
 
     def _mean_normals(self):
         """(n_parent_nodes, 2): the unit mean of the normals of the active cells around each

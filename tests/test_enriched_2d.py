@@ -428,3 +428,27 @@ def test_resolving_with_new_compliances_equals_assembling_them(stabilisation):
     with pytest.raises(ValueError, match="Nitsche"):
         nitsche = InterfaceSystem(case.dolfinx_mesh, case.mixed, interface_forms("nitsche", "free", case.cell))
         nitsche.resolve(compliance, offset)
+
+
+def test_the_same_unknowns_step_after_step_keep_the_reduced_system():
+    """A steady interface gives the same tied unknowns step after step: after set_geometry
+    the constraint C is rebuilt, found to have the last one's pattern, and the last one is
+    kept with its values refreshed — the reduced matrix (and so the factorisation's
+    analysis) is kept, and the solution is the same as the first."""
+    case, system, mass, rhs = _kink_system()
+    assert case.tied.any()
+    first = system.solve(mass, rhs, case.tied)
+    reduced, constraint = system.system._reduced[0], system._unknowns[1]
+    reconstruction = case.cut.reconstruction
+    system.set_geometry((reconstruction.alpha, reconstruction.beta), reconstruction.start, reconstruction.end,
+                        case.cut.edge_flux, case.cut.normal)
+    again = system.solve(mass, rhs, case.tied)
+    assert system._unknowns[1] is constraint and system.system._reduced[0] is reduced
+    for m in range(2):
+        assert np.allclose(again["velocity"][m], first["velocity"][m], rtol=0,
+                           atol=1e-13 * np.abs(first["velocity"][m]).max())
+    # other unknowns (one more node tied): a new C and a new reduced system
+    more = case.tied.copy()
+    more[system.nodes[~more[system.nodes]][0]] = True
+    system.solve(mass, rhs, more)
+    assert system._unknowns[1] is not constraint and system.system._reduced[0] is not reduced
