@@ -33,12 +33,14 @@ def petsc_reason(error) -> str:
 class BoundSystem:
     """``compiled_bilinear`` and ``compiled_linear`` (dolfinx.fem.compile_form) bound to
     ``space`` on ``mesh`` with ``coefficient_map`` (abstract coefficient → Function); a
-    direct LU solve (``factor_solver``: PETSc's own when None) whose KSP options can be
-    overridden by ``petsc_options``."""
+    direct solve (``factor_solver``: PETSc's own when None), LU or, for ``symmetric`` forms,
+    LDLᵀ, whose KSP options can be overridden by ``petsc_options``."""
 
     def __init__(self, compiled_bilinear, compiled_linear, space, mesh, coefficient_map,
-                 factor_solver: str | None = None, petsc_options: dict | None = None, subdomains=None):
+                 factor_solver: str | None = None, petsc_options: dict | None = None, subdomains=None,
+                 symmetric: bool = False):
         self._compiled = (compiled_bilinear, compiled_linear)
+        self._symmetric = symmetric
         self._space, self._mesh, self._coefficients = space, mesh, coefficient_map
         self.integrate_over(subdomains or {})
         self.matrix = dolfinx.fem.petsc.create_matrix(self.bilinear)
@@ -47,6 +49,7 @@ class BoundSystem:
         # forms' values do not matter, only where they are)
         dolfinx.fem.petsc.assemble_matrix(self.matrix, self.bilinear)
         self.matrix.assemble()
+        self._mark_symmetric(self.matrix)
         self.vector = dolfinx.fem.petsc.create_vector(space)
         self.solution = self.matrix.createVecRight()
         self.residual = self.matrix.createVecRight()
@@ -64,7 +67,9 @@ class BoundSystem:
         self.solver = PETSc.KSP().create(self._mesh.comm)
         self.solver.setOperators(self.matrix)
         self.solver.setType("preonly")
-        self.solver.getPC().setType("lu")
+        # a symmetric operator (symmetric forms, and C^T A C of them): LDL^T (MUMPS pivots
+        # the indefinite rows in 2 x 2 blocks), half the factors of LU
+        self.solver.getPC().setType("cholesky" if self._symmetric else "lu")
         if self._factor_solver is not None:
             self.solver.getPC().setFactorSolverType(self._factor_solver)
         # the options stay in PETSc's database until this KSP's first solve has read them (its
@@ -124,6 +129,7 @@ class BoundSystem:
         else:
             self._forget_reduced()
             reduced = self.matrix.PtAP(constraint)
+            self._mark_symmetric(reduced)
             right = constraint.createVecRight()
             self._reduced = (reduced, right, right.duplicate(), right.duplicate(), right.duplicate())
             self._constraint = constraint
@@ -211,6 +217,13 @@ class BoundSystem:
             return True
         finally:
             preconditioner.setReusePreconditioner(False)
+
+    def _mark_symmetric(self, operator) -> None:
+        """Tell PETSc that ``operator`` is symmetric, for as long as it lives (its values are
+        refilled by symmetric forms), when the system's forms are."""
+        if self._symmetric:
+            operator.setOption(PETSc.Mat.Option.SYMMETRIC, True)
+            operator.setOption(PETSc.Mat.Option.SYMMETRY_ETERNAL, True)
 
     def _forget_reduced(self) -> None:
         for thing in self._reduced:

@@ -298,10 +298,11 @@ class InterfaceSystem:
         self._DG0 = DG0
         self.work_forms = []
         # MUMPS: it pivots where the multiplier rows have no diagonal (PETSc's own LU does not);
-        # the matrix's pattern is the whole band's
+        # the forms are symmetric (tests/test_enriched_2d.py checks it), so LDLᵀ; the matrix's
+        # pattern is the whole band's
         self.system = BoundSystem(forms.bilinear, forms.linear, self.space, sub, coefficient_map,
                                   factor_solver="mumps", petsc_options=petsc_options,
-                                  subdomains=self._subdomains(np.arange(n_sub)))
+                                  subdomains=self._subdomains(np.arange(n_sub)), symmetric=True)
         # the parent node of each velocity block (submesh vertex) of the collapsed P1 spaces,
         # and the cell dofs of the DG spaces, in submesh cell order
         V1_cells = np.asarray(V1.dofmap.list)

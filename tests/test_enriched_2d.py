@@ -452,3 +452,35 @@ def test_the_same_unknowns_step_after_step_keep_the_reduced_system():
     more[system.nodes[~more[system.nodes]][0]] = True
     system.solve(mass, rhs, more)
     assert system._unknowns[1] is not constraint and system.system._reduced[0] is not reduced
+
+
+@pytest.mark.parametrize("cell", ["triangle", "quadrilateral"])
+@pytest.mark.parametrize("stabilisation,slip", [("none", "free"), ("bubble", "free"), ("bubble", "stick"),
+                                                ("nitsche", "free"), ("nitsche", "stick")])
+def test_the_interface_system_is_symmetric(stabilisation, slip, cell):
+    """The system is solved by LDLᵀ (forms.bound_system, ``symmetric``), which reads one
+    triangle of the matrix: every form must be symmetric — the assembled matrix of a disk
+    with a ghost viscosity, Nitsche's weights and a moving state equals its transpose to
+    round-off (a term written on one side only, such as the ghost viscosity's weight on the
+    test function alone with another on the trial, would show here)."""
+    from ale_xfem.studies.interface import BULK
+    from forms.enriched_interface import nitsche_weights
+    from petsc4py import PETSc
+
+    case = InterfaceCase(8, "disk", cell=cell)
+    system = case.bind(stabilisation, slip)
+    n = case.mixed.size
+    generator = np.random.default_rng(5)
+    bulk = np.array(BULK)[:, None] * generator.uniform(0.5, 2.0, (2, n))
+    weight, gamma = nitsche_weights(case.cut.volume, bulk * DT, case.cut.reconstruction.length, 1.0)
+    system.set_materials(1.0 / (bulk * DT), np.full((2, n), PRESSURE), weight, gamma)
+    system.set_ghost(generator.uniform(0.0, 1.0, (2, n)))
+    mass, _ = case.inertia_and_rhs()
+    system._set_mass(mass)
+    system.system.assemble()
+    matrix = system.system.matrix
+    difference = matrix.copy()
+    difference.axpy(-1.0, matrix.transpose(PETSc.Mat()))
+    assert difference.norm(PETSc.NormType.INFINITY) <= 1e-14 * matrix.norm(PETSc.NormType.INFINITY)
+    factor = system.system.solver.getPC()
+    assert factor.getType() == "cholesky"
