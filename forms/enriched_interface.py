@@ -247,7 +247,7 @@ class InterfaceSystem:
     matrix and vectors are created here once and refilled at every solve, the forms are
     re-created (not compiled) at each activation, the KSP for each new set of unknowns.  Per-cell inputs and outputs are over
     the active cells in the order given to :meth:`activate`.  ``petsc_options``: the KSP and
-    PC settings (default: a direct LU solve by MUMPS)."""
+    PC settings (default: a direct LDLᵀ solve by MUMPS, the forms being symmetric)."""
 
     def __init__(self, mesh, cells, forms: InterfaceForms, petsc_options: dict | None = None):
         self.forms = forms

@@ -599,7 +599,8 @@ def _validate_interface(table: Any, dimension: int) -> InterfaceSpec:
 def _petsc_options(value: Any) -> tuple:
     """``[interface] petsc_options``: PETSc options of the interface system's KSP and PC
     (names without the leading '-', e.g. ``{ksp_type = "gmres", pc_type = "ilu"}``; default
-    empty: a direct LU solve by MUMPS).  Returned as sorted (name, value) pairs."""
+    empty: a direct LDLᵀ solve by MUMPS, the system being symmetric).  Returned as sorted
+    (name, value) pairs."""
     if not isinstance(value, dict):
         raise SceneError("interface.petsc_options", value, "a table of PETSc options, e.g. "
                          "{ksp_type = \"preonly\", pc_type = \"lu\"}")
@@ -617,8 +618,8 @@ def _petsc_options(value: Any) -> tuple:
 
 
 def _check_petsc_options(options: tuple) -> None:
-    """Let PETSc read the options on a solver set up as the interface system's is (direct LU
-    by MUMPS) on a small matrix: a value it does not know, or an option it does not read
+    """Let PETSc read the options on a solver set up as the interface system's is (direct
+    LDLᵀ by MUMPS, the matrix marked symmetric) on a small matrix: a value it does not know, or an option it does not read
     for that solver (a misspelt name), is an error at load, not in the middle of a run."""
     import dolfinx_solver  # noqa: F401  (before petsc4py: it loads MPI and PETSc)
     from petsc4py import PETSc
@@ -631,11 +632,12 @@ def _check_petsc_options(options: tuple) -> None:
     matrix.setValue(0, 0, 1.0)
     matrix.setValue(1, 1, 1.0)
     matrix.assemble()
+    matrix.setOption(PETSc.Mat.Option.SYMMETRIC, True)
     ksp = PETSc.KSP().create(PETSc.COMM_SELF)
     try:
         ksp.setOperators(matrix)
         ksp.setType("preonly")
-        ksp.getPC().setType("lu")
+        ksp.getPC().setType("cholesky")
         ksp.getPC().setFactorSolverType("mumps")
         ksp.setOptionsPrefix(prefix)
         ksp.setFromOptions()
