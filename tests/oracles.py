@@ -691,3 +691,50 @@ def _relax(mixed, volume, state0):
         with np.errstate(invalid="ignore", divide="ignore"):
             return 2, int(np.argmax(np.abs(h) / scale)), None, None, None
     return 0, 0, va, vb, np.where(np.abs(coupling_a) >= np.abs(coupling_b), pi_a, pi_b)
+
+
+def adiabat(mixed, groups, mass, volume, energy0, volume0, work_pressure):
+    """p, dp/dV, e, ρ, c², ∂p/∂W of one side's materials on their trapezoidal adiabats, in
+    numpy (ale_xfem.mixed.equilibrium.adiabat)."""
+    specific_change = (volume - volume0) / mass
+    energy = energy0 - work_pressure * specific_change
+    rho = mass / volume
+    p, dp_drho, dp_de, c2 = groups.eos_values(mixed.materials, rho, energy)
+    dp_dv = -dp_drho * rho / volume - dp_de * work_pressure / mass
+    dp_dwork = -dp_de * specific_change
+    return p, dp_dv, energy, rho, c2, dp_dwork
+
+
+def split(mixed, total, state0, work_pressure, guess):
+    """The corrector's balance of every mixed cell at once, in numpy
+    (ale_xfem.mixed.equilibrium.split_cells): (the cell that cannot hold its materials or
+    −1, the iterations, V_α, and each side's p, dp/dV, e, ρ, c², ∂p/∂W)."""
+    m_a, m_b, va0, vb0, ea0, eb0 = state0
+    limit_a = m_a / mixed.max_density_left
+    limit_b = m_b / mixed.max_density_right
+    lo = np.maximum(1e-12 * total, limit_a * (1 + 1e-9))
+    hi = np.minimum((1 - 1e-12) * total, total - limit_b * (1 + 1e-9))
+    if (lo >= hi).any():
+        return int(np.flatnonzero(lo >= hi)[0]), 0, None, None
+    v = np.minimum(np.maximum(guess, lo), hi)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        for iteration in range(1, 101):
+            a = adiabat(mixed, mixed.left_groups, m_a, v, ea0, va0, work_pressure)
+            b = adiabat(mixed, mixed.right_groups, m_b, total - v, eb0, vb0, work_pressure)
+            h = a[0] - b[0]
+            slope = a[1] + b[1]
+            balanced = np.abs(h) <= 1e-3 * mixed.tolerance * np.abs(slope) * total
+            if balanced.all():
+                return -1, iteration, v, (a, b)
+            lo = np.where(h > 0, v, lo)
+            hi = np.where(h <= 0, v, hi)
+            newton = v - h / slope
+            inside = np.isfinite(newton) & (newton > lo) & (newton < hi)
+            v_new = np.where(balanced, v, np.where(inside, newton, 0.5 * (lo + hi)))
+            change = np.abs(v_new - v)
+            v = v_new
+            if (balanced | (change <= 8e-16 * total) | (hi - lo <= 8e-16 * total)).all():
+                break
+        a = adiabat(mixed, mixed.left_groups, m_a, v, ea0, va0, work_pressure)
+        b = adiabat(mixed, mixed.right_groups, m_b, total - v, eb0, vb0, work_pressure)
+    return -1, iteration, v, (a, b)

@@ -437,6 +437,65 @@ def test_the_compiled_relaxation_is_the_numpy_one_to_the_bit():
     assert compiled(spoiled, va0 + vb0) == numpy_relax(spoiled, va0 + vb0) == (2, 7)
 
 
+
+def test_the_compiled_corrector_is_the_numpy_one_to_the_bit():
+    """ale_xfem.mixed.equilibrium.split_cells (the corrector: both materials' pressures
+    balanced on their trapezoidal adiabats at a given cell volume), all cells iterated
+    together in compiled code, against the numpy iteration it replaced (tests/oracles.py):
+    the cells of the relaxation's test (five materials, eight ordered pairs, fractions 10⁻⁹
+    to 1 − 10⁻⁹) each squeezed or stretched by up to 10 % with a work pressure near its
+    pressures — the same iterations, volumes and states to the bit; a cell that cannot hold
+    its materials alike."""
+    from ale_xfem.eos import Linear, MieGruneisen, StiffenedGas, kernel_tables
+    from ale_xfem.mixed.equilibrium import split_cells
+    from ale_xfem.model.mixed_cells import MixedCells
+    from ale_xfem.model.state import Material
+    from tests.oracles import split
+
+    materials = [Material("water", "stiffened_gas", StiffenedGas(4.4, 6e8)),
+                 Material("air", "ideal_gas", StiffenedGas(1.4, 0.0)),
+                 Material("helium", "ideal_gas", StiffenedGas(5.0 / 3.0, 0.0)),
+                 Material("copper", "mie_gruneisen", MieGruneisen(8930.0, 3940.0, 1.49, 2.0)),
+                 Material("liquid", "linear", Linear(1000.0, 1500.0, 1.0e5))]
+    density = np.array([1000.0, 1.2, 0.17, 8930.0, 1000.0])
+    pressure = np.array([1e5, 1e5, 1e5, 1e9, 1e5])
+    pairs = np.array([(0, 1), (1, 2), (3, 1), (4, 1), (1, 0), (2, 1), (1, 3), (1, 4)])
+    generator = np.random.default_rng(13)
+    n = 600
+    pair = pairs[generator.integers(0, len(pairs), n)]
+    left, right = pair[:, 0], pair[:, 1]
+    mixed = MixedCells(np.arange(n), None, None, left, right, materials)
+    volume = generator.uniform(0.5, 2.0, n)
+    fraction = 10.0 ** generator.uniform(-9, 0, n) * np.where(generator.random(n) < 0.5, 1, -1)
+    fraction = np.where(fraction > 0, fraction, 1 + fraction)
+    va0, vb0 = volume * fraction, volume * (1 - fraction)
+    rho_a = density[left] * generator.uniform(0.9, 1.1, n)
+    rho_b = density[right] * generator.uniform(0.9, 1.1, n)
+    p_a, p_b = pressure[left], pressure[right]
+    energy = lambda ids, rho, p: np.array([materials[m].eos.energy(r, q) for m, r, q in zip(ids, rho, p)])  # noqa
+    start = (rho_a * va0, rho_b * vb0, va0, vb0, energy(left, rho_a, p_a), energy(right, rho_b, p_b))
+    total = volume * generator.uniform(0.9, 1.1, n)
+    work = 0.5 * (p_a + p_b) * generator.uniform(0.5, 1.5, n)
+    guess = va0 * total / volume
+    kinds, parameters = kernel_tables(tuple(m.eos for m in materials))
+
+    def compiled(start, total):
+        return split_cells(kinds, parameters, left, right, total, *start, work, guess, mixed.max_density_left,
+                           mixed.max_density_right, 1e-3 * mixed.tolerance)
+
+    bad, iterations, v, values = compiled(start, total)
+    theirs = split(mixed, total, start, work, guess)
+    assert (bad, iterations) == theirs[:2] and bad == -1 and iterations > 2
+    assert np.array_equal(v, theirs[2])
+    for side in range(2):
+        for k in range(6):
+            assert np.array_equal(values[k, side], theirs[3][side][k], equal_nan=True)
+    crushed = (start[0].copy(), *start[1:])
+    cell = int(np.flatnonzero(left == 3)[1])
+    crushed[0][cell] = 2.0 * mixed.max_density_left[cell] * total[cell]
+    assert compiled(crushed, total)[0] == split(mixed, total, crushed, work, guess)[0] == cell
+
+
 def test_a_failed_initial_relaxation_is_reported_as_a_breakdown(tmp_path, monkeypatch):
     """If the mixed cells cannot be equilibrated at t = 0, nothing steps: status failed,
     a one-line diagnostic, the initial state written, exit code 3."""

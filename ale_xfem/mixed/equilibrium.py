@@ -33,8 +33,9 @@ A mixed cell K = [x_a, x_b] holds material α on the left (volume V_α) and β o
 - **Pressure relaxation** at the start of a step: the same solve at fixed cell volume
   (B = 0) with the energy exchange dE_α = −p* dV_α, p* the final common pressure.
 
-Everything is vectorised over all mixed cells at once; the relaxation's iterations are a
-compiled loop over them (:func:`relax_cells`).
+Everything is vectorised over all mixed cells at once; the materials' adiabats, the
+corrector's iterations and the relaxation's are compiled loops over them (:func:`adiabats`,
+:func:`split_cells`, :func:`relax_cells`), the predictor's outer iteration numpy.
 """
 
 from __future__ import annotations
@@ -68,7 +69,111 @@ def start_values(state, cells):
             state.material_energy[0, cells], state.material_energy[1, cells])
 
 
+@numba.njit(**KERNEL)
+def adiabat(kind, parameters, material, mass, volume, energy0, volume0, work_pressure):  # pragma: no cover
+    """One material at volume V when its energy follows e = e0 − W (V − V0)/m (W: the work
+    pressure of the step): (p, dp/dV, e, ρ, c², ∂p/∂W at fixed V)."""
+    specific_change = (volume - volume0) / mass
+    energy = energy0 - work_pressure * specific_change
+    rho = mass / volume
+    p, dp_drho, dp_de, c2 = state_derivatives(kind, parameters, material, rho, energy)
+    dp_dv = -dp_drho * rho / volume - dp_de * work_pressure / mass
+    return p, dp_dv, energy, rho, c2, -dp_de * specific_change
+
+
+@numba.njit(**KERNEL)
+def adiabats(kinds, parameters, materials, mass, volume, energy0, volume0, work_pressure):  # pragma: no cover
+    """:func:`adiabat` of every entry: (6, n) p, dp/dV, e, ρ, c², ∂p/∂W."""
+    out = np.empty((6, volume.size))
+    for i in range(volume.size):
+        m = materials[i]
+        out[0, i], out[1, i], out[2, i], out[3, i], out[4, i], out[5, i] = adiabat(
+            kinds[m], parameters, m, mass[i], volume[i], energy0[i], volume0[i], work_pressure[i])
+    return out
+
+
+@numba.njit(**KERNEL)
+def split_cells(kinds, parameters, left, right, total, m_a, m_b, va0, vb0, ea0, eb0, work_pressure, guess,
+                max_density_left, max_density_right, balance):  # pragma: no cover (compiled)
+    """The corrector of every mixed cell (:meth:`PressureEquilibrium._split`): the volume
+    V_α ∈ (0, total) at which both materials' pressures balance on their trapezoidal
+    adiabats, Newton bracketed by bisection, all cells iterated together until every one is
+    balanced (|p_α − p_β| ≤ ``balance`` |dp/dV| V) or stopped by round-off.  Returns (the
+    cell whose volume cannot hold both materials below their compression limits, or −1;
+    the iterations; V_α; and at V_α per material (2, n): p, dp/dV, e, ρ, c², ∂p/∂W)."""
+    n = total.size
+    lo, hi, v = np.empty(n), np.empty(n), np.empty(n)
+    values = np.empty((6, 2, n))  # p, dp/dV, e, ρ, c², ∂p/∂W of α (0) and β (1)
+    balanced = np.empty(n, dtype=np.bool_)
+    for i in range(n):
+        lo[i] = maximum(1e-12 * total[i], m_a[i] / max_density_left[i] * (1 + 1e-9))
+        hi[i] = minimum((1 - 1e-12) * total[i], total[i] - m_b[i] / max_density_right[i] * (1 + 1e-9))
+    for i in range(n):
+        if lo[i] >= hi[i]:
+            return i, 0, v, values
+    for i in range(n):
+        v[i] = minimum(maximum(guess[i], lo[i]), hi[i])
+    iteration = 0
+    for iteration in range(1, 101):
+        all_balanced = True
+        for i in range(n):
+            a, b = left[i], right[i]
+            (values[0, 0, i], values[1, 0, i], values[2, 0, i], values[3, 0, i], values[4, 0, i],
+             values[5, 0, i]) = adiabat(kinds[a], parameters, a, m_a[i], v[i], ea0[i], va0[i], work_pressure[i])
+            (values[0, 1, i], values[1, 1, i], values[2, 1, i], values[3, 1, i], values[4, 1, i],
+             values[5, 1, i]) = adiabat(kinds[b], parameters, b, m_b[i], total[i] - v[i], eb0[i], vb0[i],
+                                        work_pressure[i])
+            h = values[0, 0, i] - values[0, 1, i]  # decreasing in V_α
+            slope = values[1, 0, i] + values[1, 1, i]
+            # balanced: the pressures agree far below the solver tolerance (|slope|·V is the
+            # cell's bulk modulus); such cells keep their volume
+            balanced[i] = abs(h) <= balance * abs(slope) * total[i]
+            all_balanced &= balanced[i]
+        if all_balanced:  # the values just computed are those of the result
+            return -1, iteration, v, values
+        stopped = True
+        for i in range(n):
+            h = values[0, 0, i] - values[0, 1, i]
+            slope = values[1, 0, i] + values[1, 1, i]
+            if h > 0:
+                lo[i] = v[i]
+            if h <= 0:
+                hi[i] = v[i]
+            newton = v[i] - h / slope
+            inside = np.isfinite(newton) and newton > lo[i] and newton < hi[i]
+            new = v[i] if balanced[i] else (newton if inside else 0.5 * (lo[i] + hi[i]))
+            change = abs(new - v[i])
+            v[i] = new
+            # or round-off bounds what Newton can still change (a few ulps of the volume)
+            stopped &= balanced[i] or change <= 8e-16 * total[i] or hi[i] - lo[i] <= 8e-16 * total[i]
+        if stopped:
+            break
+    for i in range(n):
+        a, b = left[i], right[i]
+        (values[0, 0, i], values[1, 0, i], values[2, 0, i], values[3, 0, i], values[4, 0, i],
+         values[5, 0, i]) = adiabat(kinds[a], parameters, a, m_a[i], v[i], ea0[i], va0[i], work_pressure[i])
+        (values[0, 1, i], values[1, 1, i], values[2, 1, i], values[3, 1, i], values[4, 1, i],
+         values[5, 1, i]) = adiabat(kinds[b], parameters, b, m_b[i], total[i] - v[i], eb0[i], vb0[i],
+                                    work_pressure[i])
+    return -1, iteration, v, values
+
+
 RELAXED, CANNOT_HOLD, NOT_CONVERGED = 0, 1, 2  # what relax_cells returns as its status
+
+
+def cell_arrays(shape, *values):
+    """``values`` as contiguous float arrays of ``shape`` (numbers spread over it), as the
+    compiled loops take them — cheaply: a set of mixed cells is often one cell, and
+    np.broadcast_to alone took 11 µs a call."""
+    out = []
+    for value in values:
+        array = np.asarray(value, dtype=float)
+        if array.shape != shape:
+            array = np.full(shape, array)
+        elif not array.flags.c_contiguous:
+            array = np.ascontiguousarray(array)
+        out.append(array)
+    return out
 
 
 @numba.njit(**KERNEL)
@@ -170,19 +275,20 @@ class PressureEquilibrium:
 
     def __init__(self, mixed: MixedCells):
         self.mixed = mixed
+        # what the compiled loops take: the equations of state's codes and parameters, and
+        # each side's material ids
+        self._tables = kernel_tables(tuple(material.eos for material in mixed.materials))
+        self._sides = tuple(np.ascontiguousarray(ids, dtype=np.int64)
+                            for ids in (mixed.material_left, mixed.material_right))
 
     # -- thermodynamics along a trapezoidal adiabat ---------------------------------------
 
-    def _adiabat(self, groups, mass, volume, energy0, volume0, work_pressure):
-        """Pressure p, dp/dV and ∂p/∂W (at fixed V) of one material at volume V when its
-        energy follows e = e0 − W (V − V0)/m (W: the work pressure of the step)."""
-        specific_change = (volume - volume0) / mass
-        energy = energy0 - work_pressure * specific_change
-        rho = mass / volume
-        p, dp_drho, dp_de, c2 = groups.eos_values(self.mixed.materials, rho, energy)
-        dp_dv = -dp_drho * rho / volume - dp_de * work_pressure / mass
-        dp_dwork = -dp_de * specific_change
-        return p, dp_dv, energy, rho, c2, dp_dwork
+    def _adiabat(self, side, mass, volume, energy0, volume0, work_pressure):
+        """(p, dp/dV, e, ρ, c², ∂p/∂W at fixed V) of one side's materials (``side`` 0: α, the
+        left; 1: β) at volume V when their energy follows e = e0 − W (V − V0)/m (W: the work
+        pressure of the step; compiled: :func:`adiabat`)."""
+        return tuple(adiabats(*self._tables, self._sides[side],
+                              *cell_arrays(np.shape(volume), mass, volume, energy0, volume0, work_pressure)))
 
     @staticmethod
     def _with_work_coupling(p, dp_dv, dp_dpi, pi):
@@ -193,40 +299,16 @@ class PressureEquilibrium:
 
     def _split(self, total, state0, work_pressure, guess):
         """Corrector: the volume V_α ∈ (0, total) at which both materials' pressures balance
-        (bracketed Newton, vectorised).  state0 = (m_α, m_β, V_α0, V_β0, e_α0, e_β0)."""
-        m_a, m_b, va0, vb0, ea0, eb0 = state0
-        limit_a = m_a / self.mixed.max_density_left
-        limit_b = m_b / self.mixed.max_density_right
-        lo = np.maximum(1e-12 * total, limit_a * (1 + 1e-9))
-        hi = np.minimum((1 - 1e-12) * total, total - limit_b * (1 + 1e-9))
-        if (lo >= hi).any():
-            bad = int(np.flatnonzero(lo >= hi)[0])
-            raise MixedCellFailure(self.mixed.cells, bad, f"volume {total[bad]:.6g} cannot hold both materials "
+        (bracketed Newton, compiled: :func:`split_cells`).  state0 = (m_α, m_β, V_α0, V_β0,
+        e_α0, e_β0)."""
+        mixed = self.mixed
+        bad, iteration, v, values = split_cells(
+            *self._tables, *self._sides, *cell_arrays(np.shape(total), total, *state0, work_pressure, guess),
+            mixed.max_density_left, mixed.max_density_right, 1e-3 * mixed.tolerance)
+        if bad >= 0:
+            raise MixedCellFailure(mixed.cells, bad, f"volume {total[bad]:.6g} cannot hold both materials "
                                    "below their compression limits")
-        v = np.minimum(np.maximum(guess, lo), hi)
-        for iteration in range(1, 101):
-            pa, da, ea, rho_a, c2a, wa = self._adiabat(self.mixed.left_groups, m_a, v, ea0, va0, work_pressure)
-            pb, db, eb, rho_b, c2b, wb = self._adiabat(self.mixed.right_groups, m_b, total - v, eb0, vb0, work_pressure)
-            h = pa - pb  # decreasing in V_α
-            slope = da + db
-            # balanced: the pressures agree far below the solver tolerance (|slope|·V is
-            # the cell's bulk modulus); such cells keep their volume
-            balanced = np.abs(h) <= 1e-3 * self.mixed.tolerance * np.abs(slope) * total
-            if balanced.all():  # the values just computed are those of the result
-                self.last_slopes = (da, db, wa, wb)
-                return v, 0.5 * (pa + pb), (ea, eb, pa, pb, rho_a, rho_b, c2a, c2b), iteration
-            lo = np.where(h > 0, v, lo)
-            hi = np.where(h <= 0, v, hi)
-            newton = v - h / slope
-            inside = np.isfinite(newton) & (newton > lo) & (newton < hi)
-            v_new = np.where(balanced, v, np.where(inside, newton, 0.5 * (lo + hi)))
-            change = np.abs(v_new - v)
-            v = v_new
-            # or round-off bounds what Newton can still change (a few ulps of the volume)
-            if (balanced | (change <= 8e-16 * total) | (hi - lo <= 8e-16 * total)).all():
-                break
-        pa, da, ea, rho_a, c2a, wa = self._adiabat(self.mixed.left_groups, m_a, v, ea0, va0, work_pressure)
-        pb, db, eb, rho_b, c2b, wb = self._adiabat(self.mixed.right_groups, m_b, total - v, eb0, vb0, work_pressure)
+        (pa, pb), (da, db), (ea, eb), (rho_a, rho_b), (c2a, c2b), (wa, wb) = values
         self.last_slopes = (da, db, wa, wb)
         return v, 0.5 * (pa + pb), (ea, eb, pa, pb, rho_a, rho_b, c2a, c2b), iteration
 
@@ -258,8 +340,8 @@ class PressureEquilibrium:
         for iteration in range(1, self.mixed.max_iterations + 1):
             work = w0 + w1 * pi
             if previous is None:
-                pa, da, *_, wa = self._adiabat(self.mixed.left_groups, m_a, va, ea0, va0, work)
-                pb, db, *_, wb = self._adiabat(self.mixed.right_groups, m_b, vb, eb0, vb0, work)
+                pa, da, *_, wa = self._adiabat(0, m_a, va, ea0, va0, work)
+                pb, db, *_, wb = self._adiabat(1, m_b, vb, eb0, vb0, work)
             else:  # the corrector just evaluated both materials there, with this work
                 pa, pb, da, db, wa, wb = previous
             # Each material's law linearised about the iterate, in V_α and in π through the
@@ -319,8 +401,8 @@ class PressureEquilibrium:
 
     def _state_at(self, state0, va, vb, work):
         m_a, m_b, va0, vb0, ea0, eb0 = state0
-        pa, _, ea, rho_a, c2a, _ = self._adiabat(self.mixed.left_groups, m_a, va, ea0, va0, work)
-        pb, _, eb, rho_b, c2b, _ = self._adiabat(self.mixed.right_groups, m_b, vb, eb0, vb0, work)
+        pa, _, ea, rho_a, c2a, _ = self._adiabat(0, m_a, va, ea0, va0, work)
+        pb, _, eb, rho_b, c2b, _ = self._adiabat(1, m_b, vb, eb0, vb0, work)
         return ea, eb, pa, pb, rho_a, rho_b, c2a, c2b
 
     def _record(self, iterations):
@@ -344,13 +426,11 @@ class PressureEquilibrium:
         a water–air tube at 30° on an Eulerian mesh, the air squeezed to 10⁻¹² of its cell.)"""
         self.mixed.stats["relaxations"] += 1
         mixed = self.mixed
-        kinds, parameters = kernel_tables(tuple(material.eos for material in mixed.materials))
         # The unknown is the volume δ that α takes from β, V_α = V_α^0 + δ, V_β = V_β^0 − δ:
         # each volume then keeps its own precision (a trace's V_β is not the round-off of
         # V − V_α, which left 5e-11 between the pressures of a cell with a trace at rest).
         status, cell, va, vb, pressure, pi_a, pi_b = relax_cells(
-            kinds, parameters, mixed.material_left.astype(np.int64), mixed.material_right.astype(np.int64),
-            *(np.ascontiguousarray(np.broadcast_to(value, np.shape(volume)), dtype=float) for value in (*state0, volume)),
+            *self._tables, *self._sides, *cell_arrays(np.shape(volume), *state0, volume),
             mixed.max_density_left,
             mixed.max_density_right, 1e-3 * mixed.tolerance)
         if status == CANNOT_HOLD:
