@@ -30,6 +30,8 @@ which is what the forms need; a lumped mass built from such weights would not be
 
 from __future__ import annotations
 
+import math
+
 import basix
 import basix.ufl
 import dolfinx_solver  # noqa: F401  (before dolfinx: it loads MPI and PETSc)
@@ -105,6 +107,39 @@ class CutQuadrature:
         else:
             moments = self._polygon_moments(cut_cells, polygons)
         self._fill(full_cells, cut_cells, moments, with_jacobian=False)
+
+    def set_partition(self, other, cut_cells, polygons) -> None:
+        """This measure and ``other``'s (a CutQuadrature of the same mesh) as the two parts of
+        each of ``cut_cells`` (2D), ``polygons`` (2, n, m, 2) this part's and the other's,
+        which tile the cell: the moments of the smaller part by its fan, the larger's the
+        cell's (exact) less them — half the work; the larger part's moments then carry the
+        smaller's quadrature error instead of their own (exact on triangles; on skewed
+        quadrilaterals 2 × 10⁻¹¹ at most against a degree-30 brute force, where each part's
+        own fan gave 8 × 10⁻¹¹: tests/test_cut_quadrature.py)."""
+        cut_cells = np.asarray(cut_cells, dtype=np.int64)
+        # (each part's polygons padded by repeating their last vertex, to one length)
+        length = max(np.shape(polygon)[1] for polygon in polygons)
+        polygons = np.stack([np.pad(np.asarray(polygon, dtype=float), ((0, 0), (0, length - np.shape(polygon)[1]),
+                                                                        (0, 0)), mode="edge")
+                             for polygon in polygons])
+        x, y = polygons[..., 0], polygons[..., 1]
+        area = 0.5 * np.abs(np.sum(x * np.roll(y, -1, axis=-1) - np.roll(x, -1, axis=-1) * y, axis=-1))
+        smaller = area[0] <= area[1]
+        moments = self._polygon_moments(cut_cells, np.where(smaller[:, None, None], polygons[0], polygons[1]))
+        rest = self.cell_moments()[None, :] - moments
+        none = np.zeros(0, dtype=np.int64)
+        self._fill(none, cut_cells, np.where(smaller[:, None], moments, rest), with_jacobian=False)
+        other._fill(none, cut_cells, np.where(smaller[:, None], rest, moments), with_jacobian=False)
+
+    def cell_moments(self) -> np.ndarray:
+        """(e,): ∫ ξ^a η^b over the whole reference cell, exactly — the unit square's
+        1/((a+1)(b+1)), the unit triangle's a! b!/(a+b+2)!."""
+        if self.cell_name == "quadrilateral":
+            return np.array([1.0 / ((a + 1) * (b + 1)) for a, b in self.exponents])
+        if self.cell_name == "triangle":
+            return np.array([math.factorial(a) * math.factorial(b) / math.factorial(a + b + 2)
+                             for a, b in self.exponents])
+        raise ValueError(f"cell_moments: triangles and quadrilaterals, not {self.cell_name}")
 
     def set_interface_segments(self, cut_cells, start, end) -> None:
         """The measure of the interface: the segment [start, end] (n, 2) of each cut cell

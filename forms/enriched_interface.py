@@ -377,8 +377,11 @@ class InterfaceSystem:
                                "vertices of edge_flux)")
         n = self.input_index.size
         take, active = self.input_index, self.active
-        for m in range(2):
-            self.parts[m].set_part_polygons(np.zeros(0, dtype=np.int64), active, parts[m][take])
+        if self.gdim == 2:  # the two parts tile each cell: one fan integrated, the other the rest
+            self.parts[0].set_partition(self.parts[1], active, [parts[m][take] for m in range(2)])
+        else:
+            for m in range(2):
+                self.parts[m].set_part_polygons(np.zeros(0, dtype=np.int64), active, parts[m][take])
         self.interface.set_interface_segments(active, start[take], end[take])
         gdim = self.gdim
         weights = self._vertex_weights()[active]  # the vertex rule's weight of each vertex
