@@ -434,19 +434,30 @@ def test_the_same_unknowns_step_after_step_keep_the_reduced_system():
     """A steady interface gives the same tied unknowns step after step: after set_geometry
     the constraint C is rebuilt, found to have the last one's pattern, and the last one is
     kept with its values refreshed — the reduced matrix (and so the factorisation's
-    analysis) is kept, and the solution is the same as the first."""
-    case, system, mass, rhs = _kink_system()
+    analysis) is kept.  With the tied node sliding along another direction (C's values
+    change, its pattern does not) the solution is a fresh system's; one more tied node gives
+    a new C."""
+    case, system, *_ = _kink_system()
+    mass, rhs = case.inertia_and_rhs(velocity=[0.1 * case.normal_line[:, None] * np.ones((2, case.mesh.n_nodes)),
+                                               np.zeros((2, case.mesh.n_nodes))])
     assert case.tied.any()
-    first = system.solve(mass, rhs, case.tied)
+    sliding = case.tied.copy()
+    first_normal = np.zeros((2, case.mesh.n_nodes))
+    first_normal[0] = 1.0
+    system.solve(mass, rhs, case.tied, sliding, first_normal)
     reduced, constraint = system.system._reduced[0], system._unknowns[1]
     reconstruction = case.cut.reconstruction
     system.set_geometry((reconstruction.alpha, reconstruction.beta), reconstruction.start, reconstruction.end,
                         case.cut.edge_flux, case.cut.normal)
-    again = system.solve(mass, rhs, case.tied)
+    turned = np.zeros((2, case.mesh.n_nodes))
+    turned[:, :] = np.array([[np.cos(0.4)], [np.sin(0.4)]])
+    again = system.solve(mass, rhs, case.tied, sliding, turned)
     assert system._unknowns[1] is constraint and system.system._reduced[0] is reduced
+    _, fresh, *_ = _kink_system()
+    expected = fresh.solve(mass, rhs, case.tied, sliding, turned)
     for m in range(2):
-        assert np.allclose(again["velocity"][m], first["velocity"][m], rtol=0,
-                           atol=1e-13 * np.abs(first["velocity"][m]).max())
+        scale = np.abs(expected["velocity"][m]).max()
+        assert np.allclose(again["velocity"][m], expected["velocity"][m], rtol=0, atol=1e-12 * scale)
     # other unknowns (one more node tied): a new C and a new reduced system
     more = case.tied.copy()
     more[system.nodes[~more[system.nodes]][0]] = True
@@ -517,3 +528,21 @@ def test_a_constraint_that_only_selects_unknowns_reduces_to_the_submatrix_with_p
     joined = constraint(kept, joined_columns)
     bound._reduce(joined)
     assert bound._selection[1] is None  # a PtAP
+
+
+def test_a_scene_asking_for_lu_keeps_mumps():
+    """The system factorises by LDLᵀ by default; a scene's ``pc_type = "lu"`` switches the
+    factorisation, which made PETSc forget MUMPS and fall back to its own LU, which stops on
+    the multiplier rows' zero diagonal (a review found it: "the KSP failed").  MUMPS is kept
+    unless the options choose another solver, and the solution is the default's."""
+    case, system, *_ = _kink_system({"pc_type": "lu"})
+    mass, rhs = case.inertia_and_rhs(velocity=[0.1 * case.normal_line[:, None] * np.ones((2, case.mesh.n_nodes)),
+                                               np.zeros((2, case.mesh.n_nodes))])
+    out = system.solve(mass, rhs, case.tied)
+    preconditioner = system.system.solver.getPC()
+    assert preconditioner.getType() == "lu" and preconditioner.getFactorSolverType() == "mumps"
+    _, default, *_ = _kink_system()
+    expected = default.solve(mass, rhs, case.tied)
+    for m in range(2):
+        scale = np.abs(expected["velocity"][m]).max()
+        assert np.allclose(out["velocity"][m], expected["velocity"][m], rtol=0, atol=1e-12 * scale)

@@ -641,6 +641,8 @@ def _check_petsc_options(options: tuple) -> None:
         ksp.getPC().setFactorSolverType("mumps")
         ksp.setOptionsPrefix(prefix)
         ksp.setFromOptions()
+        if ksp.getPC().getType() in ("lu", "cholesky") and "pc_factor_mat_solver_type" not in dict(options):
+            ksp.getPC().setFactorSolverType("mumps")  # as forms.bound_system.keep_factor_solver does
         ksp.setUp()
         unread = [name for name, _ in options if not database.used(prefix + name)]
         if unread:
