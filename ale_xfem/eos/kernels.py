@@ -32,6 +32,19 @@ PARAMETERS = 4  # the longest row of parameters
 
 
 @numba.njit(**LOOP)
+def hugoniot(rho0, c0, s, rho):  # pragma: no cover (compiled)
+    """The Mie–Grüneisen reference curve, the linear Us = c0 + s up Hugoniot from (ρ0, e = 0),
+    at ρ: (p_H, dp_H/dη, e_H, de_H/dη), η = 1 − ρ0/ρ."""
+    eta = 1.0 - rho0 / rho
+    denom = 1.0 - s * eta
+    stiffness = rho0 * c0 ** 2.0
+    p_h = stiffness * eta / (denom * denom)
+    dp_h_deta = stiffness * (1.0 + s * eta) / denom ** 3.0
+    e_h = p_h * eta / (2.0 * rho0)
+    return p_h, dp_h_deta, e_h, (p_h + eta * dp_h_deta) / (2.0 * rho0)
+
+
+@numba.njit(**LOOP)
 def pressure_sound_speed_squared(kind, parameters, material, rho, e):  # pragma: no cover (compiled)
     """(p, c²) of one state of the material of row ``material`` of ``parameters``: every
     model's formulas, which the models' ``pressure`` and ``sound_speed_squared`` and the
@@ -48,13 +61,7 @@ def pressure_sound_speed_squared(kind, parameters, material, rho, e):  # pragma:
     elif kind == MIE_GRUNEISEN:  # about the linear Us–up Hugoniot (MieGruneisen)
         rho0, c0, s, gamma0 = (parameters[material, 0], parameters[material, 1], parameters[material, 2],
                                parameters[material, 3])
-        eta = 1.0 - rho0 / rho
-        denom = 1.0 - s * eta
-        stiffness = rho0 * c0 ** 2.0
-        p_h = stiffness * eta / (denom * denom)
-        dp_h_deta = stiffness * (1.0 + s * eta) / denom ** 3.0
-        e_h = p_h * eta / (2.0 * rho0)
-        de_h_deta = (p_h + eta * dp_h_deta) / (2.0 * rho0)
+        p_h, dp_h_deta, e_h, de_h_deta = hugoniot(rho0, c0, s, rho)
         k = gamma0 * rho0
         p = p_h + k * (e - e_h)
         dp_drho = (dp_h_deta - k * de_h_deta) * (rho0 / (rho * rho))
@@ -108,13 +115,7 @@ def state_derivatives(kind, parameters, material, rho, e):  # pragma: no cover (
     if kind == MIE_GRUNEISEN:  # p = p_H + Γ0 ρ0 (e − e_H) about the linear Us–up Hugoniot
         rho0, c0, s, gamma0 = (parameters[material, 0], parameters[material, 1], parameters[material, 2],
                                parameters[material, 3])
-        eta = 1.0 - rho0 / rho
-        denom = 1.0 - s * eta
-        stiffness = rho0 * c0 ** 2.0
-        p_h = stiffness * eta / (denom * denom)
-        dp_h_deta = stiffness * (1.0 + s * eta) / denom ** 3.0
-        e_h = p_h * eta / (2.0 * rho0)
-        de_h_deta = (p_h + eta * dp_h_deta) / (2.0 * rho0)
+        p_h, dp_h_deta, e_h, de_h_deta = hugoniot(rho0, c0, s, rho)
         k = gamma0 * rho0
         p = p_h + k * (e - e_h)
         dp_drho = (dp_h_deta - k * de_h_deta) * rho0 / (rho * rho)

@@ -93,6 +93,18 @@ def adiabats(kinds, parameters, materials, mass, volume, energy0, volume0, work_
 
 
 @numba.njit(**KERNEL)
+def both_adiabats(kinds, parameters, left, right, total, m_a, m_b, va0, vb0, ea0, eb0, work_pressure, v, values,
+                  i):  # pragma: no cover (compiled)
+    """:func:`adiabat` of cell i's two materials, α at V_α = v[i] and β at total − v[i],
+    into values[:, 0, i] and values[:, 1, i]."""
+    a, b = left[i], right[i]
+    values[0, 0, i], values[1, 0, i], values[2, 0, i], values[3, 0, i], values[4, 0, i], values[5, 0, i] = adiabat(
+        kinds[a], parameters, a, m_a[i], v[i], ea0[i], va0[i], work_pressure[i])
+    values[0, 1, i], values[1, 1, i], values[2, 1, i], values[3, 1, i], values[4, 1, i], values[5, 1, i] = adiabat(
+        kinds[b], parameters, b, m_b[i], total[i] - v[i], eb0[i], vb0[i], work_pressure[i])
+
+
+@numba.njit(**KERNEL)
 def split_cells(kinds, parameters, left, right, total, m_a, m_b, va0, vb0, ea0, eb0, work_pressure, guess,
                 max_density_left, max_density_right, balance):  # pragma: no cover (compiled)
     """The corrector of every mixed cell (:meth:`PressureEquilibrium._split`): the volume
@@ -117,12 +129,8 @@ def split_cells(kinds, parameters, left, right, total, m_a, m_b, va0, vb0, ea0, 
     for iteration in range(1, 101):
         all_balanced = True
         for i in range(n):
-            a, b = left[i], right[i]
-            (values[0, 0, i], values[1, 0, i], values[2, 0, i], values[3, 0, i], values[4, 0, i],
-             values[5, 0, i]) = adiabat(kinds[a], parameters, a, m_a[i], v[i], ea0[i], va0[i], work_pressure[i])
-            (values[0, 1, i], values[1, 1, i], values[2, 1, i], values[3, 1, i], values[4, 1, i],
-             values[5, 1, i]) = adiabat(kinds[b], parameters, b, m_b[i], total[i] - v[i], eb0[i], vb0[i],
-                                        work_pressure[i])
+            both_adiabats(kinds, parameters, left, right, total, m_a, m_b, va0, vb0, ea0, eb0, work_pressure, v,
+                          values, i)
             h = values[0, 0, i] - values[0, 1, i]  # decreasing in V_α
             slope = values[1, 0, i] + values[1, 1, i]
             # balanced: the pressures agree far below the solver tolerance (|slope|·V is the
@@ -149,12 +157,7 @@ def split_cells(kinds, parameters, left, right, total, m_a, m_b, va0, vb0, ea0, 
         if stopped:
             break
     for i in range(n):
-        a, b = left[i], right[i]
-        (values[0, 0, i], values[1, 0, i], values[2, 0, i], values[3, 0, i], values[4, 0, i],
-         values[5, 0, i]) = adiabat(kinds[a], parameters, a, m_a[i], v[i], ea0[i], va0[i], work_pressure[i])
-        (values[0, 1, i], values[1, 1, i], values[2, 1, i], values[3, 1, i], values[4, 1, i],
-         values[5, 1, i]) = adiabat(kinds[b], parameters, b, m_b[i], total[i] - v[i], eb0[i], vb0[i],
-                                    work_pressure[i])
+        both_adiabats(kinds, parameters, left, right, total, m_a, m_b, va0, vb0, ea0, eb0, work_pressure, v, values, i)
     return -1, iteration, v, values
 
 
