@@ -365,20 +365,15 @@ def test_the_relaxation_converges_to_round_off_on_a_trace():
 
 
 
-def test_the_compiled_relaxation_is_the_numpy_one_to_the_bit():
-    """ale_xfem.mixed.equilibrium.relax_cells, all cells iterated together in compiled code,
-    against the numpy iteration it replaced (tests/oracles.py): 600 cells of five pairs of
-    materials (water | air, air | helium, copper (Mie–Grüneisen) | air, a linear liquid |
-    air, each with the materials in both orders, mixed in one set of cells), volume
-    fractions from 10⁻⁹ to 1 − 10⁻⁹, pressures apart by up to a factor 100 — the same
-    status, volumes and pressure to the bit; then a cell that cannot hold its materials,
-    and one given too few iterations' room (NaN energies), alike."""
-    from ale_xfem.eos import Linear, MieGruneisen, StiffenedGas
-    from ale_xfem.mixed.equilibrium import relax_cells
-    from ale_xfem.eos import kernel_tables
+def _five_materials_in_mixed_cells(generator, model: str, spread_pressures: bool):
+    """600 mixed cells of five materials (water, air, helium, copper (Mie–Grüneisen), a
+    linear liquid) in eight ordered pairs, volume fractions from 10⁻⁹ to 1 − 10⁻⁹, densities
+    within 10 % of the materials', pressures theirs (``spread_pressures``: apart by up to a
+    factor 100): (MixedCells, start values (m_α, m_β, V_α, V_β, e_α, e_β), cell volumes, the
+    pressures (p_α, p_β), the equations of state's codes and parameters)."""
+    from ale_xfem.eos import Linear, MieGruneisen, StiffenedGas, kernel_tables
     from ale_xfem.model.mixed_cells import MixedCells
     from ale_xfem.model.state import Material
-    from tests.oracles import relax
 
     materials = [Material("water", "stiffened_gas", StiffenedGas(4.4, 6e8)),
                  Material("air", "ideal_gas", StiffenedGas(1.4, 0.0)),
@@ -388,22 +383,39 @@ def test_the_compiled_relaxation_is_the_numpy_one_to_the_bit():
     density = np.array([1000.0, 1.2, 0.17, 8930.0, 1000.0])
     pressure = np.array([1e5, 1e5, 1e5, 1e9, 1e5])
     pairs = np.array([(0, 1), (1, 2), (3, 1), (4, 1), (1, 0), (2, 1), (1, 3), (1, 4)])
-    generator = np.random.default_rng(11)
     n = 600
     pair = pairs[generator.integers(0, len(pairs), n)]
     left, right = pair[:, 0], pair[:, 1]
-    mixed = MixedCells(np.arange(n), None, None, left, right, materials, model="single_velocity")
+    mixed = MixedCells(np.arange(n), None, None, left, right, materials, model=model)
     volume = generator.uniform(0.5, 2.0, n)
     fraction = 10.0 ** generator.uniform(-9, 0, n) * np.where(generator.random(n) < 0.5, 1, -1)
     fraction = np.where(fraction > 0, fraction, 1 + fraction)
     va0, vb0 = volume * fraction, volume * (1 - fraction)
     rho_a = density[left] * generator.uniform(0.9, 1.1, n)
     rho_b = density[right] * generator.uniform(0.9, 1.1, n)
-    p_a = pressure[left] * 10.0 ** generator.uniform(-1, 1, n)
-    p_b = pressure[right] * 10.0 ** generator.uniform(-1, 1, n)
+    p_a, p_b = pressure[left], pressure[right]
+    if spread_pressures:
+        p_a = p_a * 10.0 ** generator.uniform(-1, 1, n)
+        p_b = p_b * 10.0 ** generator.uniform(-1, 1, n)
     energy = lambda ids, rho, p: np.array([materials[m].eos.energy(r, q) for m, r, q in zip(ids, rho, p)])  # noqa
     start = (rho_a * va0, rho_b * vb0, va0, vb0, energy(left, rho_a, p_a), energy(right, rho_b, p_b))
-    kinds, parameters = kernel_tables(tuple(m.eos for m in materials))
+    return mixed, start, volume, (p_a, p_b), *kernel_tables(tuple(m.eos for m in materials))
+
+
+def test_the_compiled_relaxation_is_the_numpy_one_to_the_bit():
+    """ale_xfem.mixed.equilibrium.relax_cells, all cells iterated together in compiled code,
+    against the numpy iteration it replaced (tests/oracles.py): 600 cells of five pairs of
+    materials (water | air, air | helium, copper (Mie–Grüneisen) | air, a linear liquid |
+    air, each with the materials in both orders, mixed in one set of cells), volume
+    fractions from 10⁻⁹ to 1 − 10⁻⁹, pressures apart by up to a factor 100 — the same
+    status, volumes and pressure to the bit; then a cell that cannot hold its materials,
+    and one given too few iterations' room (NaN energies), alike."""
+    from ale_xfem.mixed.equilibrium import relax_cells
+    from tests.oracles import relax
+
+    generator = np.random.default_rng(11)
+    mixed, start, volume, _, kinds, parameters = _five_materials_in_mixed_cells(generator, "single_velocity", True)
+    left, right, (_, _, va0, vb0, _, _) = mixed.material_left, mixed.material_right, start
 
     def compiled(start, total):
         status, cell, va, vb, p, _, _ = relax_cells(kinds, parameters, left, right, *start, total,
@@ -446,38 +458,15 @@ def test_the_compiled_corrector_is_the_numpy_one_to_the_bit():
     to 1 − 10⁻⁹) each squeezed or stretched by up to 10 % with a work pressure near its
     pressures — the same iterations, volumes and states to the bit; a cell that cannot hold
     its materials alike."""
-    from ale_xfem.eos import Linear, MieGruneisen, StiffenedGas, kernel_tables
     from ale_xfem.mixed.equilibrium import split_cells
-    from ale_xfem.model.mixed_cells import MixedCells
-    from ale_xfem.model.state import Material
     from tests.oracles import split
 
-    materials = [Material("water", "stiffened_gas", StiffenedGas(4.4, 6e8)),
-                 Material("air", "ideal_gas", StiffenedGas(1.4, 0.0)),
-                 Material("helium", "ideal_gas", StiffenedGas(5.0 / 3.0, 0.0)),
-                 Material("copper", "mie_gruneisen", MieGruneisen(8930.0, 3940.0, 1.49, 2.0)),
-                 Material("liquid", "linear", Linear(1000.0, 1500.0, 1.0e5))]
-    density = np.array([1000.0, 1.2, 0.17, 8930.0, 1000.0])
-    pressure = np.array([1e5, 1e5, 1e5, 1e9, 1e5])
-    pairs = np.array([(0, 1), (1, 2), (3, 1), (4, 1), (1, 0), (2, 1), (1, 3), (1, 4)])
     generator = np.random.default_rng(13)
-    n = 600
-    pair = pairs[generator.integers(0, len(pairs), n)]
-    left, right = pair[:, 0], pair[:, 1]
-    mixed = MixedCells(np.arange(n), None, None, left, right, materials)
-    volume = generator.uniform(0.5, 2.0, n)
-    fraction = 10.0 ** generator.uniform(-9, 0, n) * np.where(generator.random(n) < 0.5, 1, -1)
-    fraction = np.where(fraction > 0, fraction, 1 + fraction)
-    va0, vb0 = volume * fraction, volume * (1 - fraction)
-    rho_a = density[left] * generator.uniform(0.9, 1.1, n)
-    rho_b = density[right] * generator.uniform(0.9, 1.1, n)
-    p_a, p_b = pressure[left], pressure[right]
-    energy = lambda ids, rho, p: np.array([materials[m].eos.energy(r, q) for m, r, q in zip(ids, rho, p)])  # noqa
-    start = (rho_a * va0, rho_b * vb0, va0, vb0, energy(left, rho_a, p_a), energy(right, rho_b, p_b))
-    total = volume * generator.uniform(0.9, 1.1, n)
-    work = 0.5 * (p_a + p_b) * generator.uniform(0.5, 1.5, n)
+    mixed, start, volume, (p_a, p_b), kinds, parameters = _five_materials_in_mixed_cells(generator, "enriched", False)
+    left, right, va0 = mixed.material_left, mixed.material_right, start[2]
+    total = volume * generator.uniform(0.9, 1.1, volume.size)
+    work = 0.5 * (p_a + p_b) * generator.uniform(0.5, 1.5, volume.size)
     guess = va0 * total / volume
-    kinds, parameters = kernel_tables(tuple(m.eos for m in materials))
 
     def compiled(start, total):
         return split_cells(kinds, parameters, left, right, total, *start, work, guess, mixed.max_density_left,
