@@ -623,3 +623,39 @@ def test_petsc_options_reach_the_assembled_predictor():
     from petsc4py import PETSc
 
     assert not [name for name in PETSc.Options().getAll() if name.startswith("ale_xfem")]
+
+
+def test_the_1d_interface_system_is_symmetric():
+    """The 1D assembled predictor's system (the 2D forms on intervals, unstabilised) is
+    solved by LDLᵀ too, which reads one triangle of the matrix: assembled on three mixed
+    cells of a tube with nodes that hold different masses and materials of different
+    compliances, it equals its transpose to round-off."""
+    import dolfinx
+    import dolfinx_solver  # noqa: F401
+    from mpi4py import MPI
+    from petsc4py import PETSc
+
+    from forms.enriched_interface import InterfaceForms, InterfaceSystem
+
+    mesh = dolfinx.mesh.create_interval(MPI.COMM_WORLD, 12, [0.0, 1.0])
+    cells = np.array([2, 6, 9])
+    system = InterfaceSystem(mesh, cells, InterfaceForms(mesh.comm, "none", "free", "interval"))
+    x = mesh.geometry.x[:, 0]
+    nodes = np.asarray(mesh.geometry.dofmaps[0])[cells]
+    a, b = nodes.min(axis=1), nodes.max(axis=1)
+    system.vertex_order(np.stack([a, b], axis=1))
+    x_gamma = x[a] + np.array([0.3, 0.5, 0.8]) * (x[b] - x[a])
+    parts = (np.stack([x[a], x_gamma], axis=1)[..., None], np.stack([x_gamma, x[b]], axis=1)[..., None])
+    edge_flux = np.zeros((2, cells.size, 2, 1))
+    edge_flux[0, :, 0, 0], edge_flux[1, :, 1, 0] = -1.0, 1.0
+    system.set_geometry(parts, x_gamma[:, None], x_gamma[:, None], edge_flux, np.ones((cells.size, 1)))
+    generator = np.random.default_rng(4)
+    system.set_materials(generator.uniform(0.5, 2.0, (2, cells.size)), generator.uniform(0.5, 2.0, (2, cells.size)))
+    mass = [generator.uniform(1.0, 3.0, (1, x.size)) for _ in range(2)]
+    system._set_mass(mass)
+    system.system.assemble()
+    matrix = system.system.matrix
+    difference = matrix.copy()
+    difference.axpy(-1.0, matrix.transpose(PETSc.Mat()))
+    assert matrix.norm(PETSc.NormType.INFINITY) > 0.0
+    assert difference.norm(PETSc.NormType.INFINITY) <= 1e-14 * matrix.norm(PETSc.NormType.INFINITY)
