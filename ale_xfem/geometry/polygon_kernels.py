@@ -169,14 +169,20 @@ def cut_offsets(vertices, normal, fraction):  # pragma: no cover (compiled)
 
 
 @numba.njit(**KERNEL)
+def load_polygon(vertices, p, px, py):  # pragma: no cover (compiled)
+    """Polygon p of ``vertices`` (n, m, 2) into the coordinate arrays ``px``, ``py`` (m,)."""
+    for i in range(px.size):
+        px[i], py[i] = vertices[p, i, 0], vertices[p, i, 1]
+
+
+@numba.njit(**KERNEL)
 def polygon_areas(vertices):  # pragma: no cover (compiled)
     """Signed areas (n,) of polygons (n, m, 2) (:func:`shoelace` each)."""
     n, m = vertices.shape[0], vertices.shape[1]
     area = np.empty(n)
     px, py = np.empty(m), np.empty(m)
     for p in range(n):
-        for i in range(m):
-            px[i], py[i] = vertices[p, i, 0], vertices[p, i, 1]
+        load_polygon(vertices, p, px, py)
         area[p] = shoelace(px, py, m)
     return area
 
@@ -189,8 +195,7 @@ def areas_below_lines(vertices, normal, offset):  # pragma: no cover (compiled)
     area = np.empty(n)
     px, py = np.empty(m), np.empty(m)
     for p in range(n):
-        for i in range(m):
-            px[i], py[i] = vertices[p, i, 0], vertices[p, i, 1]
+        load_polygon(vertices, p, px, py)
         area[p] = area_below_line(px, py, m, normal[p, 0], normal[p, 1], offset[p])
     return area
 
@@ -206,8 +211,7 @@ def clip_polygons(vertices, normal, offset):  # pragma: no cover (compiled)
     count = np.empty(n, dtype=np.int64)
     width = 1
     for p in range(n):
-        for i in range(m):
-            px[i], py[i] = vertices[p, i, 0], vertices[p, i, 1]
+        load_polygon(vertices, p, px, py)
         count[p] = clip_by_line(px, py, m, normal[p, 0], normal[p, 1], offset[p], out_x[p], out_y[p])
         width = max(width, count[p])
     result = np.zeros((n, width, 2))
