@@ -738,3 +738,59 @@ def split(mixed, total, state0, work_pressure, guess):
         a = adiabat(mixed, mixed.left_groups, m_a, v, ea0, va0, work_pressure)
         b = adiabat(mixed, mixed.right_groups, m_b, total - v, eb0, vb0, work_pressure)
     return -1, iteration, v, (a, b)
+
+
+def interface_solve(mixed, state0, pressure0, volume_affine, work_affine):
+    """The interface pressure of every mixed cell, the predictor's iteration in numpy
+    (ale_xfem.mixed.equilibrium.interface_solve): (π, V_α, V_β, details, iterations), or
+    ("cannot hold" | "not converged", the cell)."""
+    a, b = volume_affine
+    w0, w1 = work_affine
+    m_a, m_b, va0, vb0, ea0, eb0 = state0
+    va, vb, pi = va0.copy(), vb0.copy(), pressure0.copy()
+    stalled = 64 * np.finfo(float).eps
+
+    def coupled(p, dp_dv, dp_dpi, pi):
+        coupling = np.minimum(np.maximum(dp_dpi, -0.5), 0.5)
+        return (p - coupling * pi) / (1.0 - coupling), dp_dv / (1.0 - coupling)
+
+    def state_at(va, vb, work):
+        pa, _, ea, rho_a, c2a, _ = adiabat(mixed, mixed.left_groups, m_a, va, ea0, va0, work)
+        pb, _, eb, rho_b, c2b, _ = adiabat(mixed, mixed.right_groups, m_b, vb, eb0, vb0, work)
+        return ea, eb, pa, pb, rho_a, rho_b, c2a, c2b
+
+    previous = None
+    for iteration in range(1, mixed.max_iterations + 1):
+        work = w0 + w1 * pi
+        if previous is None:
+            pa, da, *_, wa = adiabat(mixed, mixed.left_groups, m_a, va, ea0, va0, work)
+            pb, db, *_, wb = adiabat(mixed, mixed.right_groups, m_b, vb, eb0, vb0, work)
+        else:
+            pa, pb, da, db, wa, wb = previous
+        pa, da = coupled(pa, da, wa * w1, pi)
+        pb, db = coupled(pb, db, wb * w1, pi)
+        pi_new = (a - va - vb + pa / da + pb / db) / (1.0 / da + 1.0 / db - b)
+        total = a + b * pi_new
+        work_new = w0 + w1 * pi_new
+        if not mixed.nonlinear:
+            va = va + (pi_new - pa) / da
+            vb = total - va
+            return pi_new, va, vb, state_at(va, vb, work_new), iteration
+        bad, _, va_new, sides = split(mixed, total, state0, work_new, va + (pi_new - pa) / da)
+        if bad >= 0:
+            return "cannot hold", bad
+        side_a, side_b = sides
+        details = (side_a[2], side_b[2], side_a[0], side_b[0], side_a[3], side_b[3], side_a[4], side_b[4])
+        balanced = 0.5 * (side_a[0] + side_b[0])
+        scale = np.maximum(np.abs(pi_new), np.minimum(details[4] * details[6], details[5] * details[7]))
+        converged = np.abs(balanced - pi_new) <= mixed.tolerance * scale
+        change = np.abs(pi_new - pi)
+        converged |= change <= stalled * np.maximum(np.abs(pi_new), scale)
+        va, vb, pi = va_new, total - va_new, pi_new
+        previous = (side_a[0], side_b[0], side_a[1], side_b[1], side_a[5], side_b[5])
+        if converged.all():
+            return pi, va, vb, details, iteration
+    stiffer = np.maximum(details[4] * details[6], details[5] * details[7])
+    if (converged | (change <= stalled * np.maximum(np.abs(pi_new), stiffer))).all():
+        return pi, va, vb, details, mixed.max_iterations
+    return "not converged", int(np.argmax(np.abs(balanced - pi_new) / scale))

@@ -485,6 +485,60 @@ def test_the_compiled_corrector_is_the_numpy_one_to_the_bit():
     assert compiled(crushed, total)[0] == split(mixed, total, crushed, work, guess)[0] == cell
 
 
+def test_the_compiled_interface_solve_is_the_numpy_one_to_the_bit():
+    """ale_xfem.mixed.equilibrium.interface_solve (the predictor's iteration, the corrector
+    inside it), all cells iterated together in compiled code, against the numpy iteration
+    it replaced (tests/oracles.py): the cells of the relaxation's test (five materials,
+    eight ordered pairs, fractions 10⁻⁹ to 1 − 10⁻⁹) squeezed or stretched by 0.1 %, 1 %
+    and 5 %, nonlinear and linearised — the same iterations, interface pressures, volumes
+    and states to the bit, and the same first cell whose root leaves its EOS domain; a
+    solve given too few iterations, and a cell that cannot hold its materials, alike."""
+    from ale_xfem.mixed.equilibrium import CANNOT_HOLD, NOT_CONVERGED, OUTSIDE_EOS, SOLVED, interface_solve
+    from tests.oracles import interface_solve as numpy_solve
+
+    generator = np.random.default_rng(17)
+    mixed, start, volume, (p_a, p_b), kinds, parameters = _five_materials_in_mixed_cells(generator, "enriched", False)
+    n = volume.size
+    pressure0 = 0.5 * (p_a + p_b)
+    compliance = volume * 1e-12 * generator.uniform(0.1, 10.0, n)  # B of V(π) = A + Bπ
+    strain = generator.uniform(-1.0, 1.0, n)
+    work = (0.5 * pressure0, np.full(n, 0.5))
+
+    def compiled(start, offset, iterations):
+        return interface_solve(kinds, parameters, mixed.material_left, mixed.material_right, *start, pressure0, offset,
+                               compliance, *work, iterations, mixed.nonlinear, mixed.tolerance,
+                               mixed.max_density_left, mixed.max_density_right)
+
+    seen = set()
+    for spread in (1e-3, 1e-2, 5e-2):
+        offset = volume * (1.0 + spread * strain) - compliance * pressure0
+        for nonlinear in (True, False):
+            mixed.nonlinear = nonlinear
+            status, cell, iterations, *ours = compiled(start, offset, mixed.max_iterations)
+            theirs = numpy_solve(mixed, start, pressure0, (offset, compliance), work)
+            assert iterations == theirs[4]
+            for a, b in zip(ours[:3], theirs[:3]):
+                assert np.array_equal(a, b)
+            assert all(np.array_equal(a, b, equal_nan=True) for a, b in zip(ours[3], theirs[3]))
+            outside = np.flatnonzero(~((theirs[3][6] > 0.0) & (theirs[3][7] > 0.0)))
+            assert (status, cell) == ((OUTSIDE_EOS, outside[0]) if outside.size else (SOLVED, 0))
+            seen.add((nonlinear, iterations == mixed.max_iterations, status))
+    # converged within the iterations, accepted at the last as stalled, a root outside the
+    # EOS domain: each path was taken
+    assert {(True, False, OUTSIDE_EOS), (True, True, OUTSIDE_EOS), (False, False, SOLVED)} <= seen
+    mixed.nonlinear = True
+    offset = volume * (1.0 + 5e-2 * strain) - compliance * pressure0
+    mixed.max_iterations = 2
+    status, cell, iterations, *_ = compiled(start, offset, 2)
+    assert (status, cell) == (NOT_CONVERGED, numpy_solve(mixed, start, pressure0, (offset, compliance), work)[1])
+    crushed = (start[0].copy(), *start[1:])
+    cell = int(np.flatnonzero(mixed.material_left == 3)[1])
+    crushed[0][cell] = 2.0 * mixed.max_density_left[cell] * volume[cell]
+    mixed.max_iterations = 50
+    assert compiled(crushed, offset, 50)[:2] == (CANNOT_HOLD, cell)
+    assert numpy_solve(mixed, crushed, pressure0, (offset, compliance), work) == ("cannot hold", cell)
+
+
 def test_a_failed_initial_relaxation_is_reported_as_a_breakdown(tmp_path, monkeypatch):
     """If the mixed cells cannot be equilibrated at t = 0, nothing steps: status failed,
     a one-line diagnostic, the initial state written, exit code 3."""

@@ -33,9 +33,9 @@ A mixed cell K = [x_a, x_b] holds material α on the left (volume V_α) and β o
 - **Pressure relaxation** at the start of a step: the same solve at fixed cell volume
   (B = 0) with the energy exchange dE_α = −p* dV_α, p* the final common pressure.
 
-Everything is vectorised over all mixed cells at once; the materials' adiabats, the
-corrector's iterations and the relaxation's are compiled loops over them (:func:`adiabats`,
-:func:`split_cells`, :func:`relax_cells`), the predictor's outer iteration numpy.
+All mixed cells are solved at once, in compiled loops over them, iterated in lock-step:
+the interface solve (:func:`interface_solve`; the predictor's iteration with the
+corrector's, :func:`split_cells`, inside it) and the relaxation (:func:`relax_cells`).
 """
 
 from __future__ import annotations
@@ -272,6 +272,165 @@ def relax_cells(kinds, parameters, left, right, m_a, m_b, va0, vb0, ea0, eb0, to
     return RELAXED, 0, va, vb, pressure, pi_a, pi_b
 
 
+SOLVED, OUTSIDE_EOS = 0, 3  # what interface_solve returns as its status (besides CANNOT_HOLD, NOT_CONVERGED)
+
+
+@numba.njit(**KERNEL)
+def work_coupled_law(p, dp_dv, dp_dpi, pi):  # pragma: no cover (compiled)
+    """The linearised law p + D (V − V^k) + E (π − π^k) = π as p' + D' (V − V^k) = π:
+    (p', D') = ((p − E π^k)/(1 − E), D/(1 − E)), E held within ±½ (a preconditioner: the
+    converged state is the same for any E)."""
+    coupling = minimum(maximum(dp_dpi, -0.5), 0.5)
+    keep = 1.0 - coupling
+    return (p - coupling * pi) / keep, dp_dv / keep
+
+
+@numba.njit(**KERNEL)
+def linearised_laws(kinds, parameters, left, right, m_a, m_b, va0, vb0, ea0, eb0, va, vb, w0, w1, pi, values, first,
+                    laws):  # pragma: no cover (compiled)
+    """The predictor's law of each material linearised about the iterate (V_α, V_β, π),
+    in V_α and in π through the work pressure W = w0 + w1 π of its energy (E_α = w1
+    ∂p_α/∂W; leaving it out made the iteration converge only linearly, by a factor ~ΔV/V
+    per iteration):  p_α ≈ p_α^k + D_α (V_α − V_α^k) + E_α (π − π^k), as
+    :func:`work_coupled_law` writes it.  The materials' values at the iterate are
+    evaluated (``first``) or those the corrector left in ``values`` ((6, 2, n), as
+    :func:`split_cells` returns them).  Writes laws (4, n): p_α', D_α', p_β', D_β'."""
+    for i in range(pi.size):
+        if first:
+            work = w0[i] + w1[i] * pi[i]
+            a, b = left[i], right[i]
+            pa, da, _, _, _, wa = adiabat(kinds[a], parameters, a, m_a[i], va[i], ea0[i], va0[i], work)
+            pb, db, _, _, _, wb = adiabat(kinds[b], parameters, b, m_b[i], vb[i], eb0[i], vb0[i], work)
+        else:
+            pa, pb, da, db, wa, wb = values[0, 0, i], values[0, 1, i], values[1, 0, i], values[1, 1, i], \
+                values[5, 0, i], values[5, 1, i]
+        laws[0, i], laws[1, i] = work_coupled_law(pa, da, wa * w1[i], pi[i])
+        laws[2, i], laws[3, i] = work_coupled_law(pb, db, wb * w1[i], pi[i])
+
+
+@numba.njit(**KERNEL)
+def corrector(kinds, parameters, left, right, m_a, m_b, va0, vb0, ea0, eb0, offset, slope, w0, w1, nonlinear,
+              tolerance, max_density_left, max_density_right, laws, pi_new, va, vb, pi, values,
+              progress):  # pragma: no cover (compiled)
+    """The rest of an iteration of :func:`interface_solve`, once the predictor has given
+    π_new: at the total volume V(π_new) = A + B π_new, the materials' split — the
+    predictor's own, V_α^k + (π_new − p_α')/D_α' (``nonlinear`` false: the linearised solve
+    ends there), or the corrector's, where both materials' pressures balance on their
+    full equations of state (:func:`split_cells`) — becomes the new iterate (va, vb, pi;
+    ``values``: the materials' values there).  Returns (status, cell, whether every cell
+    has converged, details (8, n): e_α, e_β, p_α, p_β, ρ_α, ρ_β, c²_α, c²_β); ``progress``
+    (4, n) keeps each cell's convergence (1/0), its change of π, |p_balanced − π_new| and
+    the pressure scale, for :func:`unconverged`."""
+    n = pi.size
+    total, work, guess = np.empty(n), np.empty(n), np.empty(n)
+    details = np.empty((8, n))
+    for i in range(n):
+        total[i] = offset[i] + slope[i] * pi_new[i]
+        work[i] = w0[i] + w1[i] * pi_new[i]
+        guess[i] = va[i] + (pi_new[i] - laws[0, i]) / laws[1, i]
+    if not nonlinear:
+        for i in range(n):
+            va[i], vb[i], pi[i] = guess[i], total[i] - guess[i], pi_new[i]
+            both_adiabats(kinds, parameters, left, right, total, m_a, m_b, va0, vb0, ea0, eb0, work, va, values, i)
+    else:
+        bad, _, v, split = split_cells(kinds, parameters, left, right, total, m_a, m_b, va0, vb0, ea0, eb0, work,
+                                       guess, max_density_left, max_density_right, 1e-3 * tolerance)
+        if bad >= 0:
+            return CANNOT_HOLD, bad, False, details
+        values[:] = split
+    done = True
+    for i in range(n):
+        for side in range(2):
+            details[side, i] = values[2, side, i]
+            details[2 + side, i] = values[0, side, i]
+            details[4 + side, i] = values[3, side, i]
+            details[6 + side, i] = values[4, side, i]
+        if not nonlinear:
+            continue
+        balanced = 0.5 * (values[0, 0, i] + values[0, 1, i])
+        scale = maximum(abs(pi_new[i]), minimum(values[3, 0, i] * values[4, 0, i], values[3, 1, i] * values[4, 1, i]))
+        converged = abs(balanced - pi_new[i]) <= tolerance * scale
+        # With a stiff material against a soft one (water at 1e9 Pa against air at 1e5 Pa)
+        # round-off in the corrector bounds the balance before the tolerance does: the
+        # iterate then stops moving, which is convergence too.
+        change = abs(pi_new[i] - pi[i])
+        converged |= change <= _STALLED * maximum(abs(pi_new[i]), scale)
+        va[i], vb[i], pi[i] = v[i], total[i] - v[i], pi_new[i]
+        progress[0, i], progress[1, i] = 1.0 if converged else 0.0, change
+        progress[2, i], progress[3, i] = abs(balanced - pi_new[i]), scale
+        done &= converged
+    return SOLVED, 0, done, details
+
+
+@numba.njit(**KERNEL)
+def admissible(iterations, pi, va, vb, details):  # pragma: no cover (compiled)
+    """:func:`interface_solve`'s result once converged: a root outside a material's EOS
+    domain (c² ≤ 0) is a failure (OUTSIDE_EOS, the first such cell)."""
+    for i in range(pi.size):
+        if not (details[6, i] > 0.0 and details[7, i] > 0.0):
+            return OUTSIDE_EOS, i, iterations, pi, va, vb, details, 0.0
+    return SOLVED, 0, iterations, pi, va, vb, details, 0.0
+
+
+@numba.njit(**KERNEL)
+def unconverged(iterations, pi, va, vb, details, progress):  # pragma: no cover (compiled)
+    """:func:`interface_solve`'s result when its iterations ran out.  Round-off in a
+    pressure is relative to the terms of its equation of state, as large as the stiffer
+    material's ρc² (γ p∞ for water): an iterate that still moves, but by less than that,
+    has stopped (a trace of near-vacuum air against water in tension moved by 1.7e-7 Pa on
+    a scale of 100 Pa, the water's ρc² 2.6e9, and failed).  Only a solve that would
+    otherwise fail is accepted on this scale: the iterations of every other stay those of
+    the tolerance.  Else NOT_CONVERGED, the cell farthest from balance (np.argmax: the
+    first NaN, else the first largest) with its pressure change."""
+    accepted = True
+    for i in range(pi.size):
+        stiffer = maximum(details[4, i] * details[6, i], details[5, i] * details[7, i])
+        accepted &= progress[0, i] == 1.0 or progress[1, i] <= _STALLED * maximum(abs(pi[i]), stiffer)
+    if accepted:
+        return admissible(iterations, pi, va, vb, details)
+    worst, largest = 0, -1.0
+    for i in range(pi.size):
+        distance = progress[2, i] / progress[3, i]
+        if distance != distance:
+            worst = i
+            break
+        if distance > largest:
+            worst, largest = i, distance
+    return NOT_CONVERGED, worst, iterations, pi, va, vb, details, progress[2, worst]
+
+
+@numba.njit(**KERNEL)
+def interface_solve(kinds, parameters, left, right, m_a, m_b, va0, vb0, ea0, eb0, pressure0, offset, slope, w0, w1,
+                    max_iterations, nonlinear, tolerance, max_density_left,
+                    max_density_right):  # pragma: no cover (compiled)
+    """The interface pressure π of every mixed cell with V(π) = A + Bπ (``offset``,
+    ``slope``) and work pressure W = w0 + w1 π (:meth:`PressureEquilibrium.solve`; module
+    docstring), all cells iterated together until every one has converged: each
+    iteration the linearised laws (:func:`linearised_laws`), the predictor's pressure in
+    closed form — V_α = V_α^k + (π − p_α')/D_α', V_β likewise, V_α + V_β = A + Bπ — and
+    the corrector (:func:`corrector`).  Returns (status, cell, iterations, π, V_α, V_β,
+    details (8, n), a figure for the failure's message: the volume that cannot hold the
+    materials, or the unconverged pressure change)."""
+    n = pressure0.size
+    va, vb, pi = va0.copy(), vb0.copy(), pressure0.copy()
+    laws, values, progress = np.empty((4, n)), np.empty((6, 2, n)), np.empty((4, n))
+    pi_new, details = np.empty(n), np.empty((8, n))
+    for iteration in range(1, max_iterations + 1):
+        linearised_laws(kinds, parameters, left, right, m_a, m_b, va0, vb0, ea0, eb0, va, vb, w0, w1, pi, values,
+                        iteration == 1, laws)
+        for i in range(n):
+            pa, da, pb, db = laws[0, i], laws[1, i], laws[2, i], laws[3, i]
+            pi_new[i] = (offset[i] - va[i] - vb[i] + pa / da + pb / db) / (1.0 / da + 1.0 / db - slope[i])
+        status, index, done, details = corrector(kinds, parameters, left, right, m_a, m_b, va0, vb0, ea0, eb0,
+                                                 offset, slope, w0, w1, nonlinear, tolerance, max_density_left,
+                                                 max_density_right, laws, pi_new, va, vb, pi, values, progress)
+        if status == CANNOT_HOLD:
+            return status, index, iteration, pi, va, vb, details, offset[index] + slope[index] * pi_new[index]
+        if done:
+            return admissible(iteration, pi, va, vb, details)
+    return unconverged(max_iterations, pi, va, vb, details, progress)
+
+
 class PressureEquilibrium:
     """The interface solve and the pressure relaxation of a set of mixed cells (module
     docstring), vectorised over them; the settings and statistics are those of ``mixed``."""
@@ -293,28 +452,6 @@ class PressureEquilibrium:
         return tuple(adiabats(*self._tables, self._sides[side],
                               *cell_arrays(np.shape(volume), mass, volume, energy0, volume0, work_pressure)))
 
-    @staticmethod
-    def _with_work_coupling(p, dp_dv, dp_dpi, pi):
-        """The linearised law p + D (V − V^k) + E (π − π^k) = π as p' + D' (V − V^k) = π."""
-        coupling = np.minimum(np.maximum(dp_dpi, -0.5), 0.5)  # (np.clip: twice the overhead)
-        keep = 1.0 - coupling
-        return (p - coupling * pi) / keep, dp_dv / keep
-
-    def _split(self, total, state0, work_pressure, guess):
-        """Corrector: the volume V_α ∈ (0, total) at which both materials' pressures balance
-        (bracketed Newton, compiled: :func:`split_cells`).  state0 = (m_α, m_β, V_α0, V_β0,
-        e_α0, e_β0)."""
-        mixed = self.mixed
-        bad, iteration, v, values = split_cells(
-            *self._tables, *self._sides, *cell_arrays(np.shape(total), total, *state0, work_pressure, guess),
-            mixed.max_density_left, mixed.max_density_right, 1e-3 * mixed.tolerance)
-        if bad >= 0:
-            raise MixedCellFailure(mixed.cells, bad, f"volume {total[bad]:.6g} cannot hold both materials "
-                                   "below their compression limits")
-        (pa, pb), (da, db), (ea, eb), (rho_a, rho_b), (c2a, c2b), (wa, wb) = values
-        self.last_slopes = (da, db, wa, wb)
-        return v, 0.5 * (pa + pb), (ea, eb, pa, pb, rho_a, rho_b, c2a, c2b), iteration
-
     def solve(self, state0, pressure0, volume_affine, work_affine, record: bool = True,
               predictor=None):
         """Find the interface pressure π with V(π) = A + Bπ, work pressure W = w0 + w1 π.
@@ -324,83 +461,51 @@ class PressureEquilibrium:
         densities and c² at the end.  A root outside a material's EOS domain (c² ≤ 0: a gas
         at negative pressure) is a failure: at that time step the cell's nodes open faster
         than its materials can fill at an admissible pressure (the run retries the step
-        with a smaller one)."""
-        result = self._solve(state0, pressure0, volume_affine, work_affine, record, predictor)
-        c2a, c2b = result[3][6], result[3][7]
-        bad = ~((c2a > 0.0) & (c2b > 0.0))
-        if bad.any():
-            index = int(np.flatnonzero(bad)[0])
-            raise MixedCellFailure(self.mixed.cells, index, f"the root leaves the EOS domain (π = {result[0][index]:.6g}, "
-                                   f"c² = {c2a[index]:.3g} | {c2b[index]:.3g})")
-        return result
+        with a smaller one).  Compiled (:func:`interface_solve`) unless ``predictor`` (the
+        assembled FE system) gives the predictor's pressure."""
+        mixed = self.mixed
+        n = np.size(pressure0)
+        arrays = cell_arrays((n,), *state0, pressure0, *volume_affine, *work_affine)
+        if predictor is None:
+            status, index, iterations, pi, va, vb, details, gap = interface_solve(
+                *self._tables, *self._sides, *arrays, mixed.max_iterations, mixed.nonlinear, mixed.tolerance,
+                mixed.max_density_left, mixed.max_density_right)
+        else:
+            status, index, iterations, pi, va, vb, details, gap = self._solve_with(predictor, arrays)
+        if status == CANNOT_HOLD:
+            raise MixedCellFailure(mixed.cells, index, f"volume {gap:.6g} cannot hold both materials "
+                                   "below their compression limits")
+        if status == NOT_CONVERGED:
+            raise MixedCellFailure(mixed.cells, index, f"not converged after {mixed.max_iterations} iterations "
+                                   f"(pressure change {gap:.3g})")
+        if record:
+            self._record(iterations)
+        if status == OUTSIDE_EOS:
+            raise MixedCellFailure(mixed.cells, index, f"the root leaves the EOS domain (π = {pi[index]:.6g}, "
+                                   f"c² = {details[6][index]:.3g} | {details[7][index]:.3g})")
+        return pi, va, vb, tuple(details)
 
-    def _solve(self, state0, pressure0, volume_affine, work_affine, record, predictor):
-        a, b = volume_affine
-        w0, w1 = work_affine
-        m_a, m_b, va0, vb0, ea0, eb0 = state0
+    def _solve_with(self, predictor, arrays):
+        """:func:`interface_solve`'s iteration with the predictor's pressure from
+        ``predictor`` (the assembled FE system): the same compiled laws and corrector."""
+        mixed = self.mixed
+        m_a, m_b, va0, vb0, ea0, eb0, pressure0, offset, slope, w0, w1 = arrays
+        n = pressure0.size
         va, vb, pi = va0.copy(), vb0.copy(), pressure0.copy()
-        previous = None  # the corrector's result: pressures and slopes at the new iterate
-        for iteration in range(1, self.mixed.max_iterations + 1):
-            work = w0 + w1 * pi
-            if previous is None:
-                pa, da, *_, wa = self._adiabat(0, m_a, va, ea0, va0, work)
-                pb, db, *_, wb = self._adiabat(1, m_b, vb, eb0, vb0, work)
-            else:  # the corrector just evaluated both materials there, with this work
-                pa, pb, da, db, wa, wb = previous
-            # Each material's law linearised about the iterate, in V_α and in π through the
-            # work pressure W = w0 + w1 π of its energy (E_α = w1 ∂p_α/∂W; leaving it out made
-            # the iteration converge only linearly, by a factor ~ΔV/V per iteration):
-            #   p_α ≈ p_α^k + D_α (V_α − V_α^k) + E_α (π − π^k),
-            # which, with p_α = π, is the law p_α' + D_α' (V_α − V_α^k) of
-            # p_α' = (p_α^k − E_α π^k)/(1 − E_α), D_α' = D_α/(1 − E_α).  E_α is held within
-            # ±½ (a preconditioner: the converged state is the same for any E_α).
-            pa, da = self._with_work_coupling(pa, da, wa * w1, pi)
-            pb, db = self._with_work_coupling(pb, db, wb * w1, pi)
-            # Predictor: V_α = V_α^k + (π − p_α)/D_α, V_β likewise, V_α + V_β = A + Bπ.
-            if predictor is None:
-                pi_new = (a - va - vb + pa / da + pb / db) / (1.0 / da + 1.0 / db - b)
-            else:  # the same linear system, assembled from the UFL forms (forms/enriched_interface.py)
-                pi_new = predictor(va, vb, pa, pb, da, db)
-            total = a + b * pi_new
-            work_new = w0 + w1 * pi_new
-            if not self.mixed.nonlinear:
-                va = va + (pi_new - pa) / da
-                va_new, vb = va, total - va
-                details = self._state_at(state0, va_new, vb, work_new)
-                if record:
-                    self._record(iteration)
-                return pi_new, va_new, vb, details
-            # Corrector: redistribute the total deformation until the pressures balance.
-            # starting from the predictor's own split V_α^k + (π − p_α')/D_α' (it sums to V(π))
-            va_new, balanced, details, _ = self._split(total, state0, work_new, va + (pi_new - pa) / da)
-            scale = np.maximum(np.abs(pi_new), np.minimum(details[4] * details[6], details[5] * details[7]))
-            converged = np.abs(balanced - pi_new) <= self.mixed.tolerance * scale
-            # With a stiff material against a soft one (water at 1e9 Pa against air at
-            # 1e5 Pa) round-off in the corrector bounds the balance before the tolerance
-            # does: the iterate then stops moving, which is convergence too.
-            change = np.abs(pi_new - pi)
-            converged |= change <= _STALLED * np.maximum(np.abs(pi_new), scale)
-            va, vb, pi = va_new, total - va_new, pi_new
-            previous = (details[2], details[3], *self.last_slopes)
-            if converged.all():
-                if record:
-                    self._record(iteration)
-                return pi, va, vb, details
-        # Round-off in a pressure is relative to the terms of its equation of state, as large
-        # as the stiffer material's ρc² (γ p∞ for water): an iterate that still moves, but by
-        # less than that, has stopped (a trace of near-vacuum air against water in tension
-        # moved by 1.7e-7 Pa on a scale of 100 Pa, the water's ρc² 2.6e9, and failed).
-        # Only a solve that would otherwise fail is accepted on this scale: the iterations
-        # of every other stay those of the tolerance.
-        stiffer = np.maximum(details[4] * details[6], details[5] * details[7])
-        if (converged | (change <= _STALLED * np.maximum(np.abs(pi_new), stiffer))).all():
-            if record:
-                self._record(self.mixed.max_iterations)
-            return pi, va, vb, details
-        worst = int(np.argmax(np.abs(balanced - pi_new) / scale))
-        raise MixedCellFailure(
-            self.mixed.cells, worst, f"not converged after {self.mixed.max_iterations} iterations (pressure "
-            f"change {abs(balanced[worst] - pi_new[worst]):.3g})")
+        laws, values = np.empty((4, n)), np.empty((6, 2, n))
+        progress = np.empty((4, n))
+        for iteration in range(1, mixed.max_iterations + 1):
+            linearised_laws(*self._tables, *self._sides, *arrays[:6], va, vb, w0, w1, pi, values, iteration == 1,
+                            laws)
+            pi_new = predictor(va, vb, laws[0], laws[2], laws[1], laws[3])
+            status, index, done, details = corrector(
+                *self._tables, *self._sides, *arrays[:6], offset, slope, w0, w1, mixed.nonlinear, mixed.tolerance,
+                mixed.max_density_left, mixed.max_density_right, laws, pi_new, va, vb, pi, values, progress)
+            if status == CANNOT_HOLD:
+                return status, index, iteration, pi, va, vb, details, offset[index] + slope[index] * pi_new[index]
+            if done:
+                return admissible(iteration, pi, va, vb, details)
+        return unconverged(mixed.max_iterations, pi, va, vb, details, progress)
 
     def _state_at(self, state0, va, vb, work):
         m_a, m_b, va0, vb0, ea0, eb0 = state0
