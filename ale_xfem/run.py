@@ -141,10 +141,11 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
     # the step then leaves out those of the Lagrangian state.
     remap_all = remapper is not None and remapper.motion != "interface"
     stepper.relax_end_state = not remap_all  # a full remap relaxes the state it makes instead
-    # Every cell pure on a Lagrangian mesh, nothing to watch between steps: the steps run in
-    # compiled chunks (ExplicitWilkins.pure_steps), each stopping before a step that is not
-    # plain, which the loop below then takes itself; the same steps, to the bit.
-    compiled_steps = remapper is None and (observe is None or observe_from is not None) and stepper.closure is None
+    # A Lagrangian mesh whose cells are all pure (or whose mixed cells' closure can: 1D
+    # enriched cells), nothing to watch between steps: the steps run in compiled chunks
+    # (ExplicitWilkins.steps), each stopping before a step that is not plain, which the
+    # loop below then takes itself; the same steps, to the bit.
+    compiled_steps = remapper is None and (observe is None or observe_from is not None) and stepper.compiles_steps()
     chunk = max(1, min(1000, 2_000_000 // problem.mesh.n_cells))  # about 0.1 s between progress updates
     clock = time.perf_counter()
     if problem.setup_failure:
@@ -162,7 +163,7 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
         if compiled_steps and stalled == 0:
             budget = chunk if stop_after_steps is None else min(chunk, stop_after_steps - steps)
             taken, state, evaluation, dt_previous, least, largest, boundary_work, boundary_impulse = \
-                stepper.pure_steps(state, evaluation, {"t_end": t_end, "dt_previous": dt_previous, "growth": growth,
+                stepper.steps(state, evaluation, {"t_end": t_end, "dt_previous": dt_previous, "growth": growth,
                                                        "budget": budget, "steps_left": max_steps - steps,
                                                        "watch_stall": watch_stall, "boundary_work": boundary_work,
                                                        "t_stop": np.inf if observe is None else observe_from()},

@@ -635,6 +635,7 @@ def test_a_failed_interface_solve_names_the_cell_its_position_and_materials(tmp_
     import re
 
     from ale_xfem.cli import main
+    from ale_xfem.mixed.enriched import EnrichedClosure
     from ale_xfem.mixed.equilibrium import MixedCellFailure, PressureEquilibrium
 
     solve = PressureEquilibrium.solve
@@ -645,6 +646,10 @@ def test_a_failed_interface_solve_names_the_cell_its_position_and_materials(tmp_
         return solve(self, *args, **kwargs)
 
     monkeypatch.setattr(PressureEquilibrium, "solve", fail_on_step_3)
+    # the failure is injected into the staged step's solve: the run takes every step that
+    # way (a compiled chunk stops before a step whose solve fails, and the staged step
+    # then takes it and reports it: test_the_compiled_enriched_steps_are_the_staged_steps_to_the_bit)
+    monkeypatch.setattr(EnrichedClosure, "compiles_steps", lambda self, step: False)
     out = tmp_path / "run"
     assert main(["run", "sod-two-gamma-enriched", "--out", str(out), "--quiet", "--no-plot",
                  "--set", "mesh.cells=400"]) == 3
@@ -713,3 +718,59 @@ def test_the_1d_interface_system_is_symmetric():
     difference.axpy(-1.0, matrix.transpose(PETSc.Mat()))
     assert matrix.norm(PETSc.NormType.INFINITY) > 0.0
     assert difference.norm(PETSc.NormType.INFINITY) <= 1e-14 * matrix.norm(PETSc.NormType.INFINITY)
+
+
+def _sliver_of_air_struck_by_water():
+    """Air at 1e5 Pa, 0.2 % of its cell, against water at 1e9 Pa on a Lagrangian mesh: its
+    steps are halved where the interface solve's root leaves the air's EOS domain
+    (tests/test_stability.py)."""
+    from ale_xfem.studies.stability import extreme_case
+
+    return extreme_case("sliver", True, 0.002, "lagrangian", (1.2, 1e5), (1000.0, 1e9), cells=100).scene(100)
+
+
+@pytest.mark.parametrize("scene, overrides", [
+    ("sod-two-gamma-enriched", ["mesh.cells=100", "regions.0.interval=[0.0, 0.5037]",
+                                "regions.1.interval=[0.5037, 1.0]"]),
+    ("sod-two-gamma-enriched", ["mesh.cells=60", "interface.solver=linearised"]),
+    ("flyer-target-backing", ["mesh.cells=60"]),  # two mixed cells, Mie–Grüneisen solids
+    ("shock-interface", ["mesh.cells=80"]),
+    ("sod-two-gamma-enriched", ["mesh.cells=60", "boundaries.left=free", "t_end=0.1"]),
+    ("transverse-eulerian", ["mesh.cells=41", "mesh.motion=lagrangian"]),  # a transverse velocity too
+    ("sliver", []),
+], ids=["sod", "linearised", "flyer-target-backing", "shock-interface", "free-end", "transverse", "sliver-halved"])
+def test_the_compiled_enriched_steps_are_the_staged_steps_to_the_bit(scene, overrides, monkeypatch):
+    """A 1D Lagrangian run with enriched mixed cells takes its steps in compiled chunks
+    (ale_xfem.mixed.enriched_steps); watched step by step (an observer makes simulate()
+    take each step itself, through the staged step and the closure) it must give the same
+    steps, states, interface pressures and velocities, time steps, solver statistics and
+    conservation sums, bit for bit.  The sliver of air struck by water halves some steps:
+    the chunks stop before them and the loop takes them itself."""
+    import ale_xfem.mixed.enriched_steps as enriched_steps
+    from ale_xfem.problem import build_problem
+    from ale_xfem.run import simulate
+    from ale_xfem.scene import load_scene, resolve_scene_path
+
+    chunked_steps = []
+    compiled = enriched_steps.enriched_steps
+
+    def counted(*arguments):
+        result = compiled(*arguments)
+        chunked_steps.append(result[0])
+        return result
+    monkeypatch.setattr(enriched_steps, "enriched_steps", counted)
+    runs = []
+    for observe in (None, lambda state, problem: None):
+        loaded = _sliver_of_air_struck_by_water() if scene == "sliver" else load_scene(resolve_scene_path(scene),
+                                                                                       overrides)
+        runs.append(simulate(build_problem(loaded), observe=observe))
+    chunked, stepwise = runs
+    assert chunked.status == stepwise.status == "ok" and chunked.steps == stepwise.steps > 20
+    assert sum(chunked_steps) > 0.9 * chunked.steps  # the chunks took (nearly) every step
+    for name in ("node_position", "node_velocity", "material_energy", "material_volume", "material_density",
+                 "material_pressure", "material_sound_speed", "interface_pressure", "interface_velocity"):
+        np.testing.assert_array_equal(getattr(chunked.state, name), getattr(stepwise.state, name))
+    assert (chunked.dt_min, chunked.dt_max) == (stepwise.dt_min, stepwise.dt_max)
+    assert chunked.mixed_cells == stepwise.mixed_cells and chunked.conservation == stepwise.conservation
+    if scene == "sliver":
+        assert chunked.mixed_cells["halved_steps"] >= 1 and len(chunked_steps) > 1

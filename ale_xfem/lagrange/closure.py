@@ -57,6 +57,15 @@ class MixedCellClosure(ABC):
     #: whether the mixed cells' n+1 stress comes from an implicit solve (timed by the step)
     implicit: bool
 
+    def compiles_steps(self, step) -> bool:
+        """Whether :meth:`steps` can take this run's steps in compiled chunks."""
+        return False
+
+    def steps(self, step, state: State, evaluation, clock: dict, boundary_impulse):
+        """Steps in one compiled call, as ExplicitWilkins.pure_steps takes those of pure
+        cells (its ``clock`` and results); only where :meth:`compiles_steps`."""
+        raise NotImplementedError(f"{type(self).__name__} takes its steps one by one")
+
     @abstractmethod
     def bind(self, mixed: MixedCells) -> None:
         """Take the mixed cells a remap left (no compilation: the forms stay)."""

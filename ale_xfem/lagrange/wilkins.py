@@ -511,6 +511,18 @@ class ExplicitWilkins:
             material_pressure=evaluation.pressure, material_sound_speed=evaluation.sound_speed)
         return new_state, evaluation, work, impulse
 
+    def compiles_steps(self) -> bool:
+        """Whether a Lagrangian run's steps go in compiled chunks (:meth:`steps`): every
+        cell pure, or mixed cells whose closure can (MixedCellClosure.compiles_steps)."""
+        return self.closure is None or self.closure.compiles_steps(self)
+
+    def steps(self, state: State, evaluation: ForceEvaluation, clock: dict, boundary_impulse):
+        """Steps of a Lagrangian run in one compiled call: :meth:`pure_steps`, or the mixed
+        cells' closure's (MixedCellClosure.steps); the same clock and results."""
+        if self.closure is None:
+            return self.pure_steps(state, evaluation, clock, boundary_impulse)
+        return self.closure.steps(self, state, evaluation, clock, boundary_impulse)
+
     def pure_steps(self, state: State, evaluation: ForceEvaluation, clock: dict, boundary_impulse,
                    in_passes: bool = True):
         """Steps of a state whose cells are all pure on a Lagrangian mesh, in one compiled

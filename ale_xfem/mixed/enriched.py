@@ -9,6 +9,7 @@ import numpy as np
 
 from ale_xfem.mixed.assembled_predictor import AssembledPredictor
 from ale_xfem.mixed.common import SharedClosure
+from ale_xfem.mixed.enriched_steps import take_steps
 from ale_xfem.mixed.equilibrium import MixedCellFailure, start_values
 from ale_xfem.model.mixed_cells import MixedCells
 
@@ -25,6 +26,14 @@ class EnrichedClosure(SharedClosure):
         super().__init__(mesh, materials, mixed)
         self.assembled = (AssembledPredictor(mesh.dolfinx_mesh, mixed.cells, petsc_options)
                           if assembled else None)
+
+    def compiles_steps(self, step) -> bool:
+        """1D mixed cells with the predictor in closed form, each step ending relaxed: the
+        steps of a Lagrangian run go in compiled chunks (:mod:`ale_xfem.mixed.enriched_steps`)."""
+        return self.assembled is None and self.mixed.node_left is not None and step.relax_end_state
+
+    def steps(self, step, state, evaluation, clock, boundary_impulse):
+        return take_steps(step, self, state, evaluation, clock, boundary_impulse)
 
     def implicit_solve(self, step, state, first, predicted, mean_force, dt, dt_over_node_mass):
         """The implicit interface solve; adds the mixed cells' n+1 stress to mean_force."""

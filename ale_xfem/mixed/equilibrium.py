@@ -440,7 +440,7 @@ class PressureEquilibrium:
         # what the compiled loops take: the equations of state's codes and parameters, and
         # each side's material ids
         self._tables = kernel_tables(tuple(material.eos for material in mixed.materials))
-        self._sides = tuple(np.ascontiguousarray(ids, dtype=np.int64)
+        self.sides = tuple(np.ascontiguousarray(ids, dtype=np.int64)
                             for ids in (mixed.material_left, mixed.material_right))
 
     # -- thermodynamics along a trapezoidal adiabat ---------------------------------------
@@ -449,7 +449,7 @@ class PressureEquilibrium:
         """(p, dp/dV, e, ρ, c², ∂p/∂W at fixed V) of one side's materials (``side`` 0: α, the
         left; 1: β) at volume V when their energy follows e = e0 − W (V − V0)/m (W: the work
         pressure of the step; compiled: :func:`adiabat`)."""
-        return tuple(adiabats(*self._tables, self._sides[side],
+        return tuple(adiabats(*self._tables, self.sides[side],
                               *cell_arrays(np.shape(volume), mass, volume, energy0, volume0, work_pressure)))
 
     def solve(self, state0, pressure0, volume_affine, work_affine, record: bool = True,
@@ -468,7 +468,7 @@ class PressureEquilibrium:
         arrays = cell_arrays((n,), *state0, pressure0, *volume_affine, *work_affine)
         if predictor is None:
             status, index, iterations, pi, va, vb, details, gap = interface_solve(
-                *self._tables, *self._sides, *arrays, mixed.max_iterations, mixed.nonlinear, mixed.tolerance,
+                *self._tables, *self.sides, *arrays, mixed.max_iterations, mixed.nonlinear, mixed.tolerance,
                 mixed.max_density_left, mixed.max_density_right)
         else:
             status, index, iterations, pi, va, vb, details, gap = self._solve_with(predictor, arrays)
@@ -495,11 +495,11 @@ class PressureEquilibrium:
         laws, values = np.empty((4, n)), np.empty((6, 2, n))
         progress = np.empty((4, n))
         for iteration in range(1, mixed.max_iterations + 1):
-            linearised_laws(*self._tables, *self._sides, *arrays[:6], va, vb, w0, w1, pi, values, iteration == 1,
+            linearised_laws(*self._tables, *self.sides, *arrays[:6], va, vb, w0, w1, pi, values, iteration == 1,
                             laws)
             pi_new = predictor(va, vb, laws[0], laws[2], laws[1], laws[3])
             status, index, done, details = corrector(
-                *self._tables, *self._sides, *arrays[:6], offset, slope, w0, w1, mixed.nonlinear, mixed.tolerance,
+                *self._tables, *self.sides, *arrays[:6], offset, slope, w0, w1, mixed.nonlinear, mixed.tolerance,
                 mixed.max_density_left, mixed.max_density_right, laws, pi_new, va, vb, pi, values, progress)
             if status == CANNOT_HOLD:
                 return status, index, iteration, pi, va, vb, details, offset[index] + slope[index] * pi_new[index]
@@ -538,7 +538,7 @@ class PressureEquilibrium:
         # each volume then keeps its own precision (a trace's V_β is not the round-off of
         # V − V_α, which left 5e-11 between the pressures of a cell with a trace at rest).
         status, cell, va, vb, pressure, pi_a, pi_b = relax_cells(
-            *self._tables, *self._sides, *cell_arrays(np.shape(volume), *state0, volume),
+            *self._tables, *self.sides, *cell_arrays(np.shape(volume), *state0, volume),
             mixed.max_density_left,
             mixed.max_density_right, 1e-3 * mixed.tolerance)
         if status == CANNOT_HOLD:
