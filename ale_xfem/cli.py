@@ -258,12 +258,16 @@ def _stability(args) -> int:
 
 
 def _run(args) -> int:
+    from ale_xfem.parallel.distribution import check_distributable, launched_by_mpiexec, rank, ranks
     from ale_xfem.scene import SceneError, load_scene, resolve_scene_path
 
+    # on several MPI ranks (mpiexec) every rank runs this; rank 0 alone writes and speaks
+    root = rank() == 0 if launched_by_mpiexec() else True
     try:
         scene = load_scene(resolve_scene_path(args.scene), args.overrides)
     except SceneError as error:
-        print(f"error: {error}", file=sys.stderr)
+        if root:
+            print(f"error: {error}", file=sys.stderr)
         return EXIT_BAD_INPUT
 
     from ale_xfem.output.files import write_outputs
@@ -272,30 +276,44 @@ def _run(args) -> int:
 
     out = args.out if args.out is not None else Path("out") / scene.name
     if args.xt and scene.dimension != 1:
-        print("error: --xt: the x–t diagram is for 1D scenes", file=sys.stderr)
+        if root:
+            print("error: --xt: the x–t diagram is for 1D scenes", file=sys.stderr)
         return EXIT_BAD_INPUT
     if args.frames < 0:
-        print(f"error: --frames = {args.frames}: an integer >= 0", file=sys.stderr)
+        if root:
+            print(f"error: --frames = {args.frames}: an integer >= 0", file=sys.stderr)
         return EXIT_BAD_INPUT
     try:
         problem = build_problem(scene)  # 2D: region coverage is checked on the mesh
+        if ranks() > 1 and not args.explain:
+            check_distributable(problem)
     except SceneError as error:
-        print(f"error: {error}", file=sys.stderr)
+        if root:
+            print(f"error: {error}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    if args.explain and not root:
+        return EXIT_OK
     if args.explain:
         from ale_xfem.scene.effects import explain
 
         print(f"{scene.name}: {scene.description}" if scene.description else scene.name)
         print(explain(problem.effect_table))
+        if ranks() > 1:  # launched by mpiexec: whether the run would share its cells out
+            try:
+                check_distributable(problem)
+                print(f"on {ranks()} MPI ranks: each steps its share of the cells and their ghost layer "
+                      "(ale_xfem.parallel)")
+            except SceneError as error:
+                print(f"on {ranks()} MPI ranks: refused: {error}")
         return EXIT_OK
-    progress = Progress(scene.t_end, enabled=False if args.quiet else None)
+    progress = Progress(scene.t_end, enabled=False if args.quiet or not root else None)
     history = None
-    if args.xt:
+    if args.xt and root:
         from ale_xfem.output.plots import XTHistory
 
         history = XTHistory()
     series = None
-    if scene.dimension == 2 and args.frames > 0:
+    if scene.dimension == 2 and args.frames > 0 and root:
         from ale_xfem.output.cells_2d import VTKSeries
 
         series = VTKSeries(problem, out, args.frames)
@@ -304,6 +322,8 @@ def _run(args) -> int:
     # run in compiled chunks (the x–t history wants every state)
     observe_from = series.observe_from if series and not history else None
     result = simulate(problem, progress, observe=observe, observe_from=observe_from)
+    if not root:
+        return EXIT_OK if result.status == "ok" else EXIT_BREAKDOWN
     if series is not None:
         if series.written == 0 or series.times[min(series.next, series.times.size - 1)] > result.state.time:
             series.write(result.state, problem)  # the last state (a failed run's last good one)

@@ -23,6 +23,7 @@ from ale_xfem.mixed.closures import Closures
 from ale_xfem.mixed.cut_cells_2d import material_geometry
 from ale_xfem.model.plic import reconstruct_state
 from ale_xfem.model.state import State, material_masses, totals
+from ale_xfem.parallel.distribution import Distribution, check_distributable, ranks
 from ale_xfem.problem.build import Problem
 from ale_xfem.remap.failure import RemapFailure
 from ale_xfem.remap.remapper_1d import Remapper
@@ -46,6 +47,7 @@ class RunResult:
     phase_seconds: dict = field(default_factory=dict)  # seconds per phase of the step
     remaps: dict | None = None  # with a remap: how many were done, and how
     mixed_cells: dict | None = None
+    ranks: int = 1  # the MPI ranks it ran on
 
     @property
     def zone_cycles_per_second(self) -> float:
@@ -76,9 +78,10 @@ class Progress:
         self.bar.close()
 
 
-def make_stepper(problem: Problem) -> ExplicitWilkins:
+def make_stepper(problem: Problem, mesh=None, layout=None, node_mass=None, boundaries=None) -> ExplicitWilkins:
     """The Lagrange step of a problem, its mixed cells closed as the scene asks (the
-    assembled predictor's UFL forms are compiled here, once per run)."""
+    assembled predictor's UFL forms are compiled here, once per run); ``mesh``, ``layout``,
+    ``node_mass``, ``boundaries``: a part of the problem's (one rank's), in place of its own."""
     keep_freed_memory()
     interface = problem.scene.interface
     enriched_2d = {}
@@ -89,8 +92,9 @@ def make_stepper(problem: Problem) -> ExplicitWilkins:
                         assembled_predictor="interface_predictor_assembled" in problem.effects,
                         petsc_options=dict(interface.petsc_options) if interface is not None else None,
                         **enriched_2d)
-    return ExplicitWilkins(problem.mesh, problem.materials, problem.layout, problem.node_mass,
-                           problem.boundaries, problem.scene.numerics,
+    return ExplicitWilkins(mesh or problem.mesh, problem.materials, layout or problem.layout,
+                           problem.node_mass if node_mass is None else node_mass,
+                           problem.boundaries if boundaries is None else boundaries, problem.scene.numerics,
                            artificial_viscosity="artificial_viscosity" in problem.effects,
                            mixed=problem.mixed, viscous_time_step="viscous_time_step" in problem.effects,
                            closures=closures)
@@ -116,7 +120,15 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
     describe the returned state)."""
     t_end = problem.scene.t_end if t_end is None else t_end
     max_steps = problem.scene.numerics.max_steps
-    stepper = make_stepper(problem)
+    # On several MPI ranks each steps its share of the cells (ale_xfem.parallel), and the
+    # serial state is gathered at the end; one rank pays nothing for it.
+    distribution = None
+    if ranks() > 1:
+        check_distributable(problem)
+        distribution = Distribution(problem)
+        stepper = distribution.stepper(partial(make_stepper, problem))
+    else:
+        stepper = make_stepper(problem)
     remapper = None
     if any(name.startswith("remap_") for name in problem.effects):
         if problem.mesh.dimension == 2:
@@ -133,6 +145,10 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
     start_materials = material_masses(state, problem.layout)
     boundary_work, boundary_impulse = 0.0, np.zeros_like(start_totals["momentum"])
     growth = problem.scene.numerics.dt_growth
+    if distribution is not None:
+        state = distribution.local_state(state)
+        observe = distribution.observer(observe, observe_from, problem)
+        observe_from = None
     evaluation = stepper.evaluate_state(state)
     dt_previous, dt_min, dt_max = np.inf, np.inf, 0.0
     steps, status, diagnostic, stalled, halved_steps = 0, "ok", "", 0, 0
@@ -218,13 +234,16 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
         if progress is not None:
             progress.update(state.time, steps)
     wall = time.perf_counter() - clock
+    if distribution is not None:
+        state = distribution.gathered(state)
+        wall = -distribution.least(-wall)  # the slowest rank's
     if progress is not None:
         progress.update(state.time, steps, force=True)
         progress.close()
     phases = {"lagrange": wall - remap_seconds - stepper.mixed_seconds,
               "mixed_cell_solve": stepper.mixed_seconds, "remap": remap_seconds}
     result = RunResult(status, state, steps, wall, diagnostic, dt_min=float(dt_min if steps else 0.0),
-                       dt_max=float(dt_max), phase_seconds=phases)
+                       dt_max=float(dt_max), phase_seconds=phases, ranks=ranks())
     result.conservation = conservation(start_totals, totals(state, problem.node_mass),
                                        boundary_work, boundary_impulse, scale)
     # each material's own mass: the worst relative change (a remap moves them one by one)

@@ -25,12 +25,13 @@ MAY_IMPORT = {
     "mixed": {"model", "lagrange", "forms", "geometry", "eos"},
     "problem": {"scene", "model", "exact", "geometry", "eos", "mixed"},
     "remap": {"model", "geometry"},
-    "run": {"problem", "model", "lagrange", "mixed", "remap"},
+    "parallel": {"model", "lagrange", "scene"},
+    "run": {"problem", "model", "lagrange", "mixed", "remap", "parallel"},
     "output": {"run", "problem", "model", "geometry", "scene"},
     "studies": {"run", "problem", "scene", "output", "model", "exact", "eos", "geometry", "mixed", "forms"},
-    "cli": {"run", "problem", "scene", "output", "studies"},
+    "cli": {"run", "problem", "scene", "output", "studies", "parallel"},
 }
-STEPPERS = {"lagrange", "mixed", "remap", "run", "output", "studies", "cli"}
+STEPPERS = {"lagrange", "mixed", "remap", "parallel", "run", "output", "studies", "cli"}
 
 
 def module_name(path: Path) -> str:

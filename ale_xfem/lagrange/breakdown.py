@@ -13,5 +13,6 @@ class Breakdown(RuntimeError):
     def __init__(self, quantity: str, cell: int, value: float, position, allowed: str = "",
                  materials: str = "", detail: str = ""):
         self.quantity, self.cell, self.value, self.position = quantity, cell, value, position
+        self.allowed, self.materials, self.detail = allowed, materials, detail
         what = f": {detail}" if detail else f" = {value:.6g}, must be {allowed}"
         super().__init__(f"{place(cell, position, materials)}: {quantity}{what}")

@@ -741,9 +741,9 @@ def evaluate_stage(cell_type, mesh, eos, cell_material, viscosity_law, hourglass
 
 
 @numba.njit(**LOOP)
-def _stage(cell_type, mesh, boundaries, eos, cell_material, viscosity_law, hourglass_coefficient, dt,
-           inverse_node_mass, start, force, other, state, hourglass_state, corrector, evaluate,
-           lean):  # pragma: no cover
+def pure_stage(cell_type, mesh, boundaries, eos, cell_material, viscosity_law, hourglass_coefficient, dt,
+               inverse_node_mass, start, force, other, state, hourglass_state, corrector, evaluate,
+               lean):  # pragma: no cover
     """One stage of :func:`pure_step`: the velocity from ``force``, the positions, the
     energy (with the forces of the start, and of ``other``, the predicted state, in the
     corrector) and, ``evaluate``, the forces of the new state (:func:`evaluate_stage`)."""
@@ -788,16 +788,17 @@ def pure_step(cell_type, mesh, boundaries, eos, cell_material, viscosity_law, ho
     does not need them).  Returns 0, or 1 when a predicted volume is not positive, 2 when
     the final state is not healthy (the caller names the cause)."""
     force0 = start[4]
-    _stage(cell_type, mesh, boundaries, eos, cell_material, viscosity_law, hourglass_coefficient, dt,
-           inverse_node_mass, start, force0, predicted, predicted, (start[8], start[9], start[10]), False, True, lean)
+    pure_stage(cell_type, mesh, boundaries, eos, cell_material, viscosity_law, hourglass_coefficient, dt,
+               inverse_node_mass, start, force0, predicted, predicted, (start[8], start[9], start[10]), False, True,
+               lean)
     if not least(predicted[6]) > 0.0:
         return 1
     predicted_force = predicted[17]
     for d in range(mean_force.shape[0]):
         for i in range(mean_force.shape[1]):
             mean_force[d, i] = (force0[d, i] + predicted_force[d, i]) * 0.5
-    _stage(cell_type, mesh, boundaries, eos, cell_material, viscosity_law, hourglass_coefficient, dt,
-           inverse_node_mass, start, mean_force, predicted, final, final_hourglass, True, evaluate_final, lean)
+    pure_stage(cell_type, mesh, boundaries, eos, cell_material, viscosity_law, hourglass_coefficient, dt,
+               inverse_node_mass, start, mean_force, predicted, final, final_hourglass, True, evaluate_final, lean)
     if evaluate_final and not healthy(final[6], final[12], final[5], final[15], final[8]):
         return 2
     return 0

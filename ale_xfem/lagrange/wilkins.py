@@ -122,6 +122,11 @@ class ExplicitWilkins:
         self.gas_model = kernels.one_gas_model(self.eos_tables)
         self.running_intervals = self.cell_code == CELL_TYPE_CODES["interval"] and self.runs[4] == 1
         self.predicted_arrays = None  # kernels.pure_step's arrays of the predicted state, reused
+        # On several ranks (ale_xfem.parallel): replaces the ghost nodes' values of a nodal
+        # force by their owners', after each evaluation; None on one rank.
+        self.exchange = None
+        # and the serial run's number of each of its nodes, for diagnostics (None: the same)
+        self.node_numbers = None
         self.sum_stack, self.sum_partial = np.empty((3, 64), dtype=np.int64), np.empty(64)  # kernels.pairwise_sum's
 
     @property
@@ -201,6 +206,8 @@ class ExplicitWilkins:
                     node_position, node_velocity, combos, nodes, runs, self.eos_tables,
                     self.pure_layout.cell_material[0], mass0[0], energy0[0], self.viscosity_law, hourglass_control,
                     out, rows, (self.scatter_mode, self.corner_is_run, self.scratch), nodal_force)
+                if self.exchange is not None:
+                    self.exchange(nodal_force)
                 return ForceEvaluation(volume, shape, density, pressure, sound_speed, viscosity, jump, stress, None,
                                        nodal_force, None, None, volume, hourglass, corner_velocity, least_corner)
             kernels.evaluate_pure(code, node_position, node_velocity, combos, nodes, runs, tangle_check,
@@ -242,6 +249,8 @@ class ExplicitWilkins:
         nodal_force = np.empty((dim, self.mesh.n_nodes))
         kernels.scatter_corners(code, stress, rows, nodes, runs, self.scatter_mode, self.corner_is_run, self.scratch,
                                 nodal_force)
+        if self.exchange is not None:
+            self.exchange(nodal_force)
         if dim == 1:
             length = volume  # the CFL length of an interval
         return ForceEvaluation(volume, shape, density, pressure, sound_speed, viscosity, jump, stress,
@@ -485,13 +494,26 @@ class ExplicitWilkins:
         mean_force = np.empty_like(first.nodal_force)
         # e, density, pressure, sound speed are (1, n_cells) arrays: the kernel fills row 0
         as_rows = (5, 10, 11, 12)
-        status = kernels.pure_step(
-            self.cell_code, (self.cell_nodes, self.runs, self.scatter_mode, self.corner_is_run, self.scratch),
-            self.held, self.eos_tables, self.pure_layout.cell_material[0],
-            self.viscosity_law, float(self.hourglass), dt, self.inverse_node_mass, start,
-            predicted[1],
-            tuple(a[0] if i in as_rows else a for i, a in enumerate(final)),
-            final_hourglass, mean_force, not remapped_next, False)
+        arguments = (self.cell_code, (self.cell_nodes, self.runs, self.scatter_mode, self.corner_is_run, self.scratch),
+                     self.held, self.eos_tables, self.pure_layout.cell_material[0], self.viscosity_law,
+                     float(self.hourglass), dt, self.inverse_node_mass, start)
+        final_arrays = tuple(a[0] if i in as_rows else a for i, a in enumerate(final))
+        if self.exchange is None:
+            status = kernels.pure_step(*arguments, predicted[1], final_arrays, final_hourglass, mean_force,
+                                       not remapped_next, False)
+        else:  # kernels.pure_step's two stages, each evaluation's ghost forces exchanged
+            kernels.pure_stage(*arguments, start[4], predicted[1], predicted[1], start[8:11], False, True, False)
+            self.exchange(predicted[1][17])
+            status = 0 if kernels.least(predicted[1][6]) > 0.0 else 1
+            np.add(start[4], predicted[1][17], out=mean_force)
+            mean_force *= 0.5
+            kernels.pure_stage(*arguments, mean_force, predicted[1], final_arrays, final_hourglass, True,
+                               not remapped_next, False)
+            if not remapped_next:
+                self.exchange(final_arrays[17])
+                if status == 0 and not kernels.healthy(final_arrays[6], final_arrays[12], final_arrays[5],
+                                                       final_arrays[15], final_arrays[8]):
+                    status = 2
         u_new, velocity_sum, x_new = final[0], final[1], final[2]
         e_new = final[5]
         if status == 1:
@@ -677,6 +699,8 @@ class ExplicitWilkins:
         x = self.mesh.cell_vertex_positions(position)[cell]  # (4, 2), corners going round
         jacobian = corner_jacobians(x)
         corner = int(np.argmin(jacobian))
-        raise Breakdown(f"{prefix}corner {corner} (node {int(self.mesh.cell_nodes[cell, corner])}) det J",
+        node = int(self.mesh.cell_nodes[cell, corner])
+        node = node if self.node_numbers is None else int(self.node_numbers[node])
+        raise Breakdown(f"{prefix}corner {corner} (node {node}) det J",
                         cell, float(jacobian[corner]), x.mean(axis=0),
                         "> 0 (the corner has turned inside out: the mesh is tangled)")

@@ -29,6 +29,7 @@ def summary(problem: Problem, result: RunResult) -> dict:
         "t_reached": result.state.time,
         "steps": result.steps,
         "cells": problem.mesh.n_cells,
+        "ranks": result.ranks,
         "wall_seconds": result.wall_seconds,
         "zone_cycles_per_second": result.zone_cycles_per_second,
         "effects": list(problem.effects),

@@ -1,0 +1,104 @@
+"""Runs on several MPI ranks (`mpiexec -n N ale-xfem run SCENE`, ale_xfem.parallel): the
+same steps, states and time steps as the serial run, bit for bit, with the partition's
+boundaries crossing the mesh; a breakdown on one rank stops every rank with the serial
+run's diagnostic; a scene that needs one rank refused once, before anything runs.  Three
+ranks run oversubscribed on two cores."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+MPIEXEC = Path(sys.executable).parent / "mpiexec"  # the launcher of the MPI the wheels install
+
+
+def _run(tmp_path: Path, name: str, ranks: int, *overrides: str):
+    """`ale-xfem run` of a shipped scene on ``ranks`` ranks (1: no launcher): (completed
+    process, output folder)."""
+    out = tmp_path / f"{name}-{ranks}"
+    command = [sys.executable, "-m", "ale_xfem.cli", "run", name, "--quiet", "--no-plot", "--frames", "0",
+               "--out", str(out), *[a for o in overrides for a in ("--set", o)]]
+    if ranks > 1:
+        command = [str(MPIEXEC), "-n", str(ranks), *command]
+    return subprocess.run(command, capture_output=True, text=True, timeout=600), out
+
+
+@pytest.mark.parametrize("name, overrides, ranks", [
+    ("sod", ["mesh.cells=200"], 2),
+    ("sod", ["mesh.cells=200", "boundaries.right=free"], 3),
+    ("sod-2d", ["mesh.cells=[24,24]"], 2),
+    ("noh", ["mesh.cells=[16,16]", "mesh.cell_type=triangle", "t_end=0.2"], 3),
+    ("saltzman", ["mesh.cells=[40,4]", "t_end=0.1"], 2),  # a piston's boundary reactions
+], ids=["sod-2", "sod-free-end-3", "sod-2d-2", "noh-triangles-3", "saltzman-2"])
+def test_a_run_on_several_ranks_is_the_serial_run_to_the_bit(tmp_path, name, overrides, ranks):
+    """The cells and nodes of every rank take the serial run's values: the same steps,
+    time steps, errors and final fields (cells.csv / profile.csv byte for byte);
+    conservation sums over the ranks' own nodes may differ in the last digits (the boundary
+    reactions are summed rank by rank)."""
+    serial, serial_out = _run(tmp_path, name, 1, *overrides)
+    parallel, parallel_out = _run(tmp_path, name, ranks, *overrides)
+    assert serial.returncode == 0, serial.stderr
+    assert parallel.returncode == 0, parallel.stderr
+    one, many = (json.loads((folder / "summary.json").read_text()) for folder in (serial_out, parallel_out))
+    assert (one["ranks"], many["ranks"]) == (1, ranks)
+    for key in ("status", "steps", "t_reached", "dt", "errors"):
+        assert many.get(key) == one.get(key), key
+    for key in ("mass", "momentum", "total_energy", "material_mass"):
+        assert abs(many["conservation"][key] - one["conservation"][key]) <= 1e-15, key
+    fields = "cells.csv" if (serial_out / "cells.csv").exists() else "profile.csv"
+    assert (parallel_out / fields).read_bytes() == (serial_out / fields).read_bytes()
+
+
+def test_a_collapsed_time_step_is_reported_on_several_ranks_as_on_one(tmp_path):
+    """Sod to t = 20 with 5000 steps allowed: every step is too small to reach t_end, and
+    after 1000 in a row the run stops (exit code 3), naming the cell that sets the time
+    step — on two ranks the serial cell, with its serial number, after the same steps."""
+    overrides = ["mesh.cells=200", "t_end=20", "numerics.max_steps=5000"]
+    serial, serial_out = _run(tmp_path, "sod", 1, *overrides)
+    parallel, parallel_out = _run(tmp_path, "sod", 2, *overrides)
+    assert serial.returncode == parallel.returncode == 3
+    one, many = (json.loads((folder / "summary.json").read_text()) for folder in (serial_out, parallel_out))
+    assert "the time step collapsed" in one["diagnostic"] and many["diagnostic"] == one["diagnostic"]
+    assert many["steps"] == one["steps"]
+
+
+def test_a_breakdown_on_one_rank_stops_every_rank_with_the_serial_diagnostic(tmp_path):
+    """Sedov on a Lagrangian quadrilateral mesh tangles at step 15 in the cell at the
+    blast's diagonal: on two ranks the run stops there too, exit code 3, with the serial
+    diagnostic (the serial cell and node numbers) and the serial last good state."""
+    overrides = ["mesh.motion=lagrangian", "mesh.cells=[20,20]"]
+    serial, serial_out = _run(tmp_path, "sedov", 1, *overrides)
+    parallel, parallel_out = _run(tmp_path, "sedov", 2, *overrides)
+    assert serial.returncode == parallel.returncode == 3
+    one, many = (json.loads((folder / "summary.json").read_text()) for folder in (serial_out, parallel_out))
+    assert "turned inside out" in one["diagnostic"] and many["diagnostic"] == one["diagnostic"]
+    assert (parallel_out / "cells.csv").read_bytes() == (serial_out / "cells.csv").read_bytes()
+    assert parallel.stderr.count("error: simulation failed") == 1  # said once, by rank 0
+
+
+@pytest.mark.parametrize("name, key", [("sedov", "mesh.motion = 'smoothed'"),
+                                       ("sod-two-gamma-enriched", "interface = 'enriched'")])
+def test_a_scene_that_needs_one_rank_is_refused_once(tmp_path, name, key):
+    """A remapped mesh or mixed cells run on one rank in this version: on two ranks the run
+    stops before anything runs, exit code 2, one line naming the key, and no output."""
+    done, out = _run(tmp_path, name, 2)
+    assert done.returncode == 2
+    lines = [line for line in done.stderr.splitlines() if line.startswith("error:")]
+    assert len(lines) == 1 and key in lines[0] and "run without mpiexec" in lines[0], done.stderr
+    assert not out.exists()
+
+
+def test_explain_on_several_ranks_says_whether_the_cells_are_shared_out():
+    """`--explain` under mpiexec: rank 0 alone prints the effects, and the line saying that
+    the run would share its cells out (or why it is refused)."""
+    command = [str(MPIEXEC), "-n", "2", sys.executable, "-m", "ale_xfem.cli", "run"]
+    shared = subprocess.run([*command, "sod", "--explain"], capture_output=True, text=True, timeout=600)
+    refused = subprocess.run([*command, "sedov", "--explain"], capture_output=True, text=True, timeout=600)
+    assert shared.returncode == refused.returncode == 0
+    assert shared.stdout.count("effects switched on:") == 1
+    assert shared.stdout.count("on 2 MPI ranks: each steps its share of the cells") == 1
+    assert refused.stdout.count("on 2 MPI ranks: refused: mesh.motion = 'smoothed'") == 1
