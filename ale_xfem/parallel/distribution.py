@@ -3,9 +3,9 @@ Lagrange step needs, so that every rank's cells and nodes take the serial run's 
 the bit.
 
 - **The partition.**  Every rank builds the whole problem (its set-up is serial and
-  deterministic) and keeps its share: the cells ordered by their centroids (x, then y) and
-  cut into as many blocks of equal size as there are ranks (strips across a rectangle,
-  segments of a tube).  A node belongs to the lowest rank among its cells'.
+  deterministic) and keeps its share: DOLFINx's graph partitioner cuts the cells' dual
+  graph (cells joined across their facets) into as many parts as there are ranks
+  (:func:`cell_partition`).  A node belongs to the lowest rank among its cells'.
 - **The ghost layer.**  A rank steps its own cells and every cell around one of its nodes,
   so that each of its nodes sums the forces of all its cells, in the serial order (corner
   by corner: :func:`ale_xfem.lagrange.kernels.scatter_corners`); the other nodes of those
@@ -76,6 +76,43 @@ def check_distributable(problem) -> None:
             name.startswith("remap_") for name in effects):
         raise SceneError("interface", problem.scene.interface.model if problem.scene.interface else "(mixed cells)",
                          f"none on {n} ranks (mixed cells run on one rank in this version: run without mpiexec)")
+    if problem.mesh.n_cells < n:
+        raise SceneError("mesh.cells", problem.scene.mesh.cells, f"at least {n} cells on {n} ranks (one a rank)")
+
+
+def facet_neighbours(cell_nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The cells' dual graph, cells joined across the facets they share (1D: a node; 2D:
+    an edge between consecutive corners, which go round the cell): (neighbours, offsets) of
+    an adjacency list, each cell's neighbours in increasing order."""
+    n, k = cell_nodes.shape
+    if k == 2:  # intervals: a facet is a node
+        facets = cell_nodes.reshape(-1, 1)
+    else:
+        facets = np.sort(np.stack([cell_nodes, np.roll(cell_nodes, -1, axis=1)], axis=2).reshape(-1, 2), axis=1)
+    owner = np.repeat(np.arange(n), facets.shape[0] // n)
+    order = np.lexsort(facets.T[::-1])
+    facets, owner = facets[order], owner[order]
+    shared = np.flatnonzero(np.all(facets[1:] == facets[:-1], axis=1))
+    pairs = np.concatenate([np.stack([owner[shared], owner[shared + 1]], axis=1),
+                            np.stack([owner[shared + 1], owner[shared]], axis=1)])
+    pairs = pairs[np.lexsort(pairs.T[::-1])]
+    offsets = np.searchsorted(pairs[:, 0], np.arange(n + 1))
+    return np.ascontiguousarray(pairs[:, 1], dtype=np.int64), offsets.astype(np.int32)
+
+
+def cell_partition(cell_nodes: np.ndarray, parts: int, comm) -> np.ndarray:
+    """Each cell's rank: DOLFINx's graph partitioner (dolfinx.graph.partitioner: SCOTCH,
+    ParMETIS or KaHIP, as DOLFINx was built) on the cells' dual graph, run on rank 0 and
+    sent to every rank (each then shares the cells out alike)."""
+    owner = None
+    if comm.rank == 0:
+        import dolfinx
+        from mpi4py import MPI
+
+        neighbours, offsets = facet_neighbours(cell_nodes)
+        graph = dolfinx.cpp.graph.AdjacencyList_int64(neighbours, offsets)
+        owner = np.array(dolfinx.graph.partitioner()(MPI.COMM_SELF, parts, graph, False).array, dtype=np.int64)
+    return comm.bcast(owner, root=0)
 
 
 class Distribution:
@@ -89,10 +126,12 @@ class Distribution:
         size, me = self.comm.size, self.comm.rank
         mesh = problem.mesh
         cell_nodes = mesh.cell_nodes
-        centroids = mesh.cell_centroids()
-        order = np.lexsort(tuple(centroids[:, d] for d in reversed(range(centroids.shape[1]))))
-        owner = np.empty(mesh.n_cells, dtype=np.int64)
-        owner[order] = np.arange(mesh.n_cells) * size // mesh.n_cells
+        owner = cell_partition(cell_nodes, size, self.comm)
+        held = np.bincount(owner, minlength=size)
+        if held.min() == 0:
+            raise SceneError("mesh.cells", problem.scene.mesh.cells,
+                             f"enough cells for every one of {size} ranks to hold some (rank "
+                             f"{int(np.argmin(held))} got none)")
         node_owner = np.full(mesh.n_nodes, size, dtype=np.int64)
         for corner in range(cell_nodes.shape[1]):
             np.minimum.at(node_owner, cell_nodes[:, corner], owner)
