@@ -79,15 +79,19 @@ def test_a_breakdown_on_one_rank_stops_every_rank_with_the_serial_diagnostic(tmp
     assert parallel.stderr.count("error: simulation failed") == 1  # said once, by rank 0
 
 
-@pytest.mark.parametrize("name, key", [("sedov", "mesh.motion = 'smoothed'"),
-                                       ("sod-two-gamma-enriched", "interface = 'enriched'")])
-def test_a_scene_that_needs_one_rank_is_refused_once(tmp_path, name, key):
-    """A remapped mesh or mixed cells run on one rank in this version: on two ranks the run
-    stops before anything runs, exit code 2, one line naming the key, and no output."""
-    done, out = _run(tmp_path, name, 2)
+@pytest.mark.parametrize("name, overrides, key, allowed", [
+    ("sedov", [], "mesh.motion = 'smoothed'", "run without mpiexec"),
+    ("sod-two-gamma-enriched", [], "interface = 'enriched'", "run without mpiexec"),
+    ("sod", ["mesh.cells=2"], "mesh.cells = 2", "at least 3 cells on 3 ranks"),
+], ids=["remap", "mixed-cells", "fewer-cells-than-ranks"])
+def test_a_scene_that_cannot_share_its_cells_out_is_refused_once(tmp_path, name, overrides, key, allowed):
+    """A remapped mesh or mixed cells run on one rank in this version, and every rank needs
+    a cell: on several ranks the run stops before anything runs, exit code 2, one line
+    naming the key, its value and what is allowed, and no output."""
+    done, out = _run(tmp_path, name, 3 if overrides else 2, *overrides)
     assert done.returncode == 2
     lines = [line for line in done.stderr.splitlines() if line.startswith("error:")]
-    assert len(lines) == 1 and key in lines[0] and "run without mpiexec" in lines[0], done.stderr
+    assert len(lines) == 1 and key in lines[0] and allowed in lines[0], done.stderr
     assert not out.exists()
 
 
