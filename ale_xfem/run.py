@@ -92,7 +92,8 @@ def make_stepper(problem: Problem, mesh=None, layout=None, node_mass=None, bound
                         assembled_predictor="interface_predictor_assembled" in problem.effects,
                         petsc_options=dict(interface.petsc_options) if interface is not None else None,
                         **enriched_2d)
-    return ExplicitWilkins(mesh or problem.mesh, problem.materials, layout or problem.layout,
+    return ExplicitWilkins(problem.mesh if mesh is None else mesh, problem.materials,
+                           problem.layout if layout is None else layout,
                            problem.node_mass if node_mass is None else node_mass,
                            problem.boundaries if boundaries is None else boundaries, problem.scene.numerics,
                            artificial_viscosity="artificial_viscosity" in problem.effects,
@@ -109,15 +110,17 @@ MIXED_CELL_RETRIES = 12
 
 
 def simulate(problem: Problem, progress: Progress | None = None, t_end: float | None = None,
-             stop_after_steps: int | None = None, observe=None, observe_from=None) -> RunResult:
+             stop_after_steps: int | None = None, observe=None, observe_from=None,
+             compiled_chunks: bool = True) -> RunResult:
     """Run to t_end (the scene's by default).  ``stop_after_steps`` ends the run early as a
     normal stop (benchmarks); numerics.max_steps reached first is a failure.  ``observe``:
     called with each new state (and the initial one), e.g. to track extremes;
     ``observe_from``: if given, a function saying from which time ``observe`` needs a state
     again — it is then called only with the states from that time on (and the last one of
-    each compiled chunk of steps), which lets the steps before it run compiled.  With a
-    remapped mesh, problem.layout, problem.mixed and problem.node_mass follow the run (they
-    describe the returned state)."""
+    each compiled chunk of steps), which lets the steps before it run compiled.
+    ``compiled_chunks`` False: every step through the staged step (the same numbers; the
+    tests compare the two).  With a remapped mesh, problem.layout, problem.mixed and
+    problem.node_mass follow the run (they describe the returned state)."""
     t_end = problem.scene.t_end if t_end is None else t_end
     max_steps = problem.scene.numerics.max_steps
     # On several MPI ranks each steps its share of the cells (ale_xfem.parallel), and the
@@ -161,7 +164,12 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
     # enriched cells), nothing to watch between steps: the steps run in compiled chunks
     # (ExplicitWilkins.steps), each stopping before a step that is not plain, which the
     # loop below then takes itself; the same steps, to the bit.
-    compiled_steps = remapper is None and (observe is None or observe_from is not None) and stepper.compiles_steps()
+    # Observed at every state, pure cells take their steps one by one (a chunk of one step
+    # would evaluate its state twice); a closure's compiled steps are still far cheaper than
+    # its staged step, and go in chunks of one step.
+    observe_each = observe is not None and observe_from is None
+    compiled_steps = (compiled_chunks and remapper is None and stepper.compiles_steps()
+                      and not (observe_each and stepper.closure is None))
     chunk = max(1, min(1000, 2_000_000 // problem.mesh.n_cells))  # about 0.1 s between progress updates
     clock = time.perf_counter()
     if problem.setup_failure:
@@ -177,13 +185,14 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
                           f"reached before t_end = {t_end:g}")
             break
         if compiled_steps and stalled == 0:
-            budget = chunk if stop_after_steps is None else min(chunk, stop_after_steps - steps)
+            budget = 1 if observe_each else chunk if stop_after_steps is None else min(chunk, stop_after_steps - steps)
             taken, state, evaluation, dt_previous, least, largest, boundary_work, boundary_impulse = \
                 stepper.steps(state, evaluation, {"t_end": t_end, "dt_previous": dt_previous, "growth": growth,
-                                                       "budget": budget, "steps_left": max_steps - steps,
-                                                       "watch_stall": watch_stall, "boundary_work": boundary_work,
-                                                       "t_stop": np.inf if observe is None else observe_from()},
-                                   boundary_impulse)
+                                                  "budget": budget, "steps_left": max_steps - steps,
+                                                  "watch_stall": watch_stall, "boundary_work": boundary_work,
+                                                  "t_stop": np.inf if observe is None or observe_each
+                                                  else observe_from()},
+                              boundary_impulse)
             if taken:
                 steps += taken
                 dt_min, dt_max = min(dt_min, least), max(dt_max, largest)

@@ -741,11 +741,11 @@ def _sliver_of_air_struck_by_water():
 ], ids=["sod", "linearised", "flyer-target-backing", "shock-interface", "free-end", "transverse", "sliver-halved"])
 def test_the_compiled_enriched_steps_are_the_staged_steps_to_the_bit(scene, overrides, monkeypatch):
     """A 1D Lagrangian run with enriched mixed cells takes its steps in compiled chunks
-    (ale_xfem.mixed.enriched_steps); watched step by step (an observer makes simulate()
-    take each step itself, through the staged step and the closure) it must give the same
-    steps, states, interface pressures and velocities, time steps, solver statistics and
-    conservation sums, bit for bit.  The sliver of air struck by water halves some steps:
-    the chunks stop before them and the loop takes them itself."""
+    (ale_xfem.mixed.enriched_steps); taken step by step through the staged step and the
+    closure (``compiled_chunks=False``) it must give the same steps, states, interface
+    pressures and velocities, time steps, solver statistics and conservation sums, bit for
+    bit; and observed at every state (chunks of one step) too.  The sliver of air struck by
+    water halves some steps: the chunks stop before them and the loop takes them itself."""
     import ale_xfem.mixed.enriched_steps as enriched_steps
     from ale_xfem.problem import build_problem
     from ale_xfem.run import simulate
@@ -759,18 +759,23 @@ def test_the_compiled_enriched_steps_are_the_staged_steps_to_the_bit(scene, over
         chunked_steps.append(result[0])
         return result
     monkeypatch.setattr(enriched_steps, "enriched_steps", counted)
-    runs = []
-    for observe in (None, lambda state, problem: None):
+    runs, observed = [], []
+    for options in ({}, {"compiled_chunks": False}, {"observe": lambda state, problem: observed.append(state.time)}):
         loaded = _sliver_of_air_struck_by_water() if scene == "sliver" else load_scene(resolve_scene_path(scene),
                                                                                        overrides)
-        runs.append(simulate(build_problem(loaded), observe=observe))
-    chunked, stepwise = runs
+        runs.append(simulate(build_problem(loaded), **options))
+        if not options:
+            taken = sum(chunked_steps)
+    chunked, stepwise, watched = runs
     assert chunked.status == stepwise.status == "ok" and chunked.steps == stepwise.steps > 20
-    assert sum(chunked_steps) > 0.9 * chunked.steps  # the chunks took (nearly) every step
+    assert taken > 0.9 * chunked.steps  # the chunks took (nearly) every step
+    assert len(observed) == watched.steps + 1  # every state seen, the initial one too
     for name in ("node_position", "node_velocity", "material_energy", "material_volume", "material_density",
                  "material_pressure", "material_sound_speed", "interface_pressure", "interface_velocity"):
         np.testing.assert_array_equal(getattr(chunked.state, name), getattr(stepwise.state, name))
+        np.testing.assert_array_equal(getattr(watched.state, name), getattr(stepwise.state, name))
     assert (chunked.dt_min, chunked.dt_max) == (stepwise.dt_min, stepwise.dt_max)
     assert chunked.mixed_cells == stepwise.mixed_cells and chunked.conservation == stepwise.conservation
+    assert watched.mixed_cells == stepwise.mixed_cells and watched.conservation == stepwise.conservation
     if scene == "sliver":
         assert chunked.mixed_cells["halved_steps"] >= 1 and len(chunked_steps) > 1
