@@ -28,6 +28,8 @@ from ale_xfem.model.cell_kernels import (INTERVAL, QUADRILATERAL, TRIANGLE, geom
 
 # how corner values are summed onto the nodes (ExplicitWilkins.scatter_mode)
 RUNS, PER_CORNER, FLAT = 0, 1, 2
+# the stages of pure_step (a whole step: both)
+PREDICTOR_STAGE, CORRECTOR_STAGE, BOTH_STAGES = 1, 2, 3
 
 
 # -- one cell ---------------------------------------------------------------------------
@@ -741,9 +743,9 @@ def evaluate_stage(cell_type, mesh, eos, cell_material, viscosity_law, hourglass
 
 
 @numba.njit(**LOOP)
-def pure_stage(cell_type, mesh, boundaries, eos, cell_material, viscosity_law, hourglass_coefficient, dt,
-               inverse_node_mass, start, force, other, state, hourglass_state, corrector, evaluate,
-               lean):  # pragma: no cover
+def _stage(cell_type, mesh, boundaries, eos, cell_material, viscosity_law, hourglass_coefficient, dt,
+           inverse_node_mass, start, force, other, state, hourglass_state, corrector, evaluate,
+           lean):  # pragma: no cover
     """One stage of :func:`pure_step`: the velocity from ``force``, the positions, the
     energy (with the forces of the start, and of ``other``, the predicted state, in the
     corrector) and, ``evaluate``, the forces of the new state (:func:`evaluate_stage`)."""
@@ -770,7 +772,7 @@ def pure_stage(cell_type, mesh, boundaries, eos, cell_material, viscosity_law, h
 @numba.njit(**LOOP)
 def pure_step(cell_type, mesh, boundaries, eos, cell_material, viscosity_law, hourglass_coefficient, dt,
               inverse_node_mass, start, predicted, final, final_hourglass, mean_force, evaluate_final,
-              lean):  # pragma: no cover (compiled)
+              lean, stages):  # pragma: no cover (compiled)
     """One whole step of a state whose cells are all pure (ExplicitWilkins.step), from the
     start's forces to the new state and (``evaluate_final``) its forces, in one call:
 
@@ -785,20 +787,26 @@ def pure_step(cell_type, mesh, boundaries, eos, cell_material, viscosity_law, ho
     pressure, sound speed, velocity jump, viscosity, stress, corner forces, nodal forces);
     ``final_hourglass``: (s_0, s_1, Q) of the final state; ``mean_force``: F̄ is written
     there; ``lean``: the evaluations store no density, pressure and viscosity (the step
-    does not need them).  Returns 0, or 1 when a predicted volume is not positive, 2 when
-    the final state is not healthy (the caller names the cause)."""
+    does not need them); ``stages``: PREDICTOR_STAGE, CORRECTOR_STAGE or both (their sum):
+    the corrector alone takes the predicted state's forces as ``predicted`` holds them (on
+    several ranks their ghost nodes' are exchanged in between).  Returns 0, or 1 when a
+    predicted volume is not positive, 2 when the final state is not healthy (the caller
+    names the cause)."""
     force0 = start[4]
-    pure_stage(cell_type, mesh, boundaries, eos, cell_material, viscosity_law, hourglass_coefficient, dt,
+    if stages & PREDICTOR_STAGE:
+        _stage(cell_type, mesh, boundaries, eos, cell_material, viscosity_law, hourglass_coefficient, dt,
                inverse_node_mass, start, force0, predicted, predicted, (start[8], start[9], start[10]), False, True,
                lean)
-    if not least(predicted[6]) > 0.0:
-        return 1
+        if not least(predicted[6]) > 0.0:
+            return 1
+    if not stages & CORRECTOR_STAGE:
+        return 0
     predicted_force = predicted[17]
     for d in range(mean_force.shape[0]):
         for i in range(mean_force.shape[1]):
             mean_force[d, i] = (force0[d, i] + predicted_force[d, i]) * 0.5
-    pure_stage(cell_type, mesh, boundaries, eos, cell_material, viscosity_law, hourglass_coefficient, dt,
-               inverse_node_mass, start, mean_force, predicted, final, final_hourglass, True, evaluate_final, lean)
+    _stage(cell_type, mesh, boundaries, eos, cell_material, viscosity_law, hourglass_coefficient, dt,
+           inverse_node_mass, start, mean_force, predicted, final, final_hourglass, True, evaluate_final, lean)
     if evaluate_final and not healthy(final[6], final[12], final[5], final[15], final[8]):
         return 2
     return 0
@@ -971,7 +979,8 @@ def pure_steps(cell_type, mesh, boundaries, eos, cell_material, viscosity_law, h
         start = (arrays[2], u0, mass, arrays[5], force, arrays[15], arrays[7], arrays[3], hourglass_state[0],
                  hourglass_state[1], hourglass_state[2], hourglass)
         status = pure_step(cell_type, mesh, boundaries, eos, cell_material, viscosity_law, hourglass_coefficient,
-                           dt, inverse_node_mass, start, predicted, new_arrays, new_hourglass, mean_force, True, True)
+                           dt, inverse_node_mass, start, predicted, new_arrays, new_hourglass, mean_force, True, True,
+                           BOTH_STAGES)
         if status != 0:
             break
         work, t, dt_min, dt_max = account_step(node_mass, held, u0, new_arrays[0], new_arrays[1], mean_force, dt,

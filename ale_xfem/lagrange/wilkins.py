@@ -498,22 +498,17 @@ class ExplicitWilkins:
                      self.held, self.eos_tables, self.pure_layout.cell_material[0], self.viscosity_law,
                      float(self.hourglass), dt, self.inverse_node_mass, start)
         final_arrays = tuple(a[0] if i in as_rows else a for i, a in enumerate(final))
+        step = (*arguments, predicted[1], final_arrays, final_hourglass, mean_force, not remapped_next, False)
         if self.exchange is None:
-            status = kernels.pure_step(*arguments, predicted[1], final_arrays, final_hourglass, mean_force,
-                                       not remapped_next, False)
-        else:  # kernels.pure_step's two stages, each evaluation's ghost forces exchanged
-            kernels.pure_stage(*arguments, start[4], predicted[1], predicted[1], start[8:11], False, True, False)
+            status = kernels.pure_step(*step, kernels.BOTH_STAGES)
+        else:  # the two stages apart, each evaluation's ghost forces exchanged after it
+            predicted_status = kernels.pure_step(*step, kernels.PREDICTOR_STAGE)
             self.exchange(predicted[1][17])
-            status = 0 if kernels.least(predicted[1][6]) > 0.0 else 1
-            np.add(start[4], predicted[1][17], out=mean_force)
-            mean_force *= 0.5
-            kernels.pure_stage(*arguments, mean_force, predicted[1], final_arrays, final_hourglass, True,
-                               not remapped_next, False)
+            # the corrector runs after a failed predictor too: every rank exchanges alike
+            final_status = kernels.pure_step(*step, kernels.CORRECTOR_STAGE)
             if not remapped_next:
                 self.exchange(final_arrays[17])
-                if status == 0 and not kernels.healthy(final_arrays[6], final_arrays[12], final_arrays[5],
-                                                       final_arrays[15], final_arrays[8]):
-                    status = 2
+            status = predicted_status or final_status
         u_new, velocity_sum, x_new = final[0], final[1], final[2]
         e_new = final[5]
         if status == 1:
