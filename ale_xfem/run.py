@@ -78,10 +78,12 @@ class Progress:
         self.bar.close()
 
 
-def make_stepper(problem: Problem, mesh=None, layout=None, node_mass=None, boundaries=None) -> ExplicitWilkins:
+def make_stepper(problem: Problem, mesh=None, layout=None, node_mass=None, boundaries=None,
+                 stepper_class=ExplicitWilkins) -> ExplicitWilkins:
     """The Lagrange step of a problem, its mixed cells closed as the scene asks (the
     assembled predictor's UFL forms are compiled here, once per run); ``mesh``, ``layout``,
-    ``node_mass``, ``boundaries``: a part of the problem's (one rank's), in place of its own."""
+    ``node_mass``, ``boundaries``: a part of the problem's (one rank's), in place of its own,
+    stepped by ``stepper_class`` (ExplicitWilkins or a subclass)."""
     keep_freed_memory()
     interface = problem.scene.interface
     enriched_2d = {}
@@ -92,7 +94,7 @@ def make_stepper(problem: Problem, mesh=None, layout=None, node_mass=None, bound
                         assembled_predictor="interface_predictor_assembled" in problem.effects,
                         petsc_options=dict(interface.petsc_options) if interface is not None else None,
                         **enriched_2d)
-    return ExplicitWilkins(problem.mesh if mesh is None else mesh, problem.materials,
+    return stepper_class(problem.mesh if mesh is None else mesh, problem.materials,
                            problem.layout if layout is None else layout,
                            problem.node_mass if node_mass is None else node_mass,
                            problem.boundaries if boundaries is None else boundaries, problem.scene.numerics,

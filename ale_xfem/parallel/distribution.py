@@ -188,8 +188,9 @@ class Distribution:
         problem = self.problem
         layout = MaterialLayout(problem.layout.cell_material[:, self.cells], problem.layout.n_materials)
         stepper = make_stepper(self.mesh, layout, np.ascontiguousarray(problem.node_mass[self.nodes]),
-                               self.local_boundaries())
-        return DistributedWilkins.adopt(stepper, self)
+                               self.local_boundaries(), stepper_class=DistributedWilkins)
+        stepper.share(self)
+        return stepper
 
     # -- exchanges ------------------------------------------------------------------------
 
@@ -275,18 +276,14 @@ class DistributedWilkins(ExplicitWilkins):
 
     distribution: Distribution
 
-    @classmethod
-    def adopt(cls, stepper: ExplicitWilkins, distribution: Distribution) -> "DistributedWilkins":
-        stepper.__class__ = cls
-        stepper.distribution = distribution
-        stepper.exchange = distribution.forward
-        stepper.node_numbers = distribution.nodes
+    def share(self, distribution: Distribution) -> None:
+        """Step ``distribution``'s cells (this stepper is built on its local problem)."""
+        self.distribution = distribution
+        self.exchange = distribution.forward
+        self.node_numbers = distribution.nodes
         # the boundary reactions of this rank's own held nodes only (each node counted once)
-        mine = np.isin(stepper.held_nodes, distribution.owned_nodes)
-        stepper.held_nodes = stepper.held_nodes[mine]
-        stepper.constrained_nodes = stepper.constrained_nodes[np.isin(stepper.constrained_nodes,
-                                                                      distribution.owned_nodes)]
-        return stepper
+        self.held_nodes = self.held_nodes[np.isin(self.held_nodes, distribution.owned_nodes)]
+        self.constrained_nodes = self.constrained_nodes[np.isin(self.constrained_nodes, distribution.owned_nodes)]
 
     def compiles_steps(self) -> bool:
         return False
