@@ -22,9 +22,10 @@ for _variable in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 # (XDG_CACHE_HOME, or ~/.cache), or NUMBA_CACHE_DIR if set, so a read-only install works.
 KERNEL_SOURCES = ("ale_xfem/eos/kernels.py", "ale_xfem/model/cell_kernels.py", "ale_xfem/lagrange/kernels.py",
                   "ale_xfem/lagrange/interval_steps.py", "ale_xfem/mixed/cut_cells_2d.py",
-                  "ale_xfem/mixed/equilibrium.py", "ale_xfem/mixed/enriched_steps.py",
-                  "ale_xfem/remap/swept_kernels.py", "ale_xfem/remap/swept_kernels_2d.py",
-                  "ale_xfem/geometry/polygon_kernels.py", "forms/cut_quadrature.py")
+                  "ale_xfem/mixed/equilibrium.py", "ale_xfem/mixed/closure_kernels.py",
+                  "ale_xfem/mixed/enriched_steps.py", "ale_xfem/remap/swept_kernels.py",
+                  "ale_xfem/remap/swept_kernels_2d.py", "ale_xfem/geometry/polygon_kernels.py",
+                  "forms/cut_quadrature.py")
 
 
 def _kernel_cache_folder() -> Path:

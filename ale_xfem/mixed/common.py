@@ -8,7 +8,8 @@ import numpy as np
 
 from ale_xfem.lagrange.breakdown import Breakdown
 from ale_xfem.lagrange.closure import MixedCellClosure, MixedView
-from ale_xfem.mixed.equilibrium import MixedCellFailure, PressureEquilibrium
+from ale_xfem.mixed.closure_kernels import viscosity_media
+from ale_xfem.mixed.equilibrium import MixedCellFailure, PressureEquilibrium, cell_arrays
 from ale_xfem.mixed.relaxation import PressureRelaxation
 from ale_xfem.model.mixed_cells import MixedCells, material_names
 
@@ -47,12 +48,13 @@ class SharedClosure(MixedCellClosure):
         materials'; its density the volume-weighted harmonic mean 1/ρ = Σ f_α/ρ_α, which
         weights the material that takes the compression: with the mass-weighted mean, a
         light gas against a dense one is damped by the dense one's inertia and the mixed
-        cell does not compress under a shock."""
+        cell does not compress under a shock.  (Compiled:
+        :func:`ale_xfem.mixed.closure_kernels.viscosity_media`.)"""
         cells = self.mixed.cells
-        rho_right = view.mass_right / view.volume_right
-        c2_right = self.mixed.right_groups.eos_values(self.materials, rho_right, view.energy_right)[3]
-        mixed_density = volume[cells] / (view.volume_left / density[0, cells] + view.volume_right / rho_right)
-        mixed_sound_speed = np.maximum(sound_speed[0, cells], np.sqrt(np.maximum(c2_right, 0.0)))
+        mixed_density, mixed_sound_speed = np.empty(cells.size), np.empty(cells.size)
+        viscosity_media(*self.equilibrium.tables, self.equilibrium.sides[1], cells, volume, density[0],
+                        sound_speed[0], *cell_arrays(cells.shape, view.volume_left, view.volume_right, view.mass_right,
+                                                     view.energy_right), mixed_density, mixed_sound_speed)
         return mixed_density, mixed_sound_speed
 
     def predicted_pressure(self, state, first, strain, view: MixedView):

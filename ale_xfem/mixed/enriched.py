@@ -8,9 +8,10 @@ from __future__ import annotations
 import numpy as np
 
 from ale_xfem.mixed.assembled_predictor import AssembledPredictor
+from ale_xfem.mixed.closure_kernels import cap_by_internal_nodes, interface_affine
 from ale_xfem.mixed.common import SharedClosure
 from ale_xfem.mixed.enriched_steps import take_steps
-from ale_xfem.mixed.equilibrium import MixedCellFailure, start_values
+from ale_xfem.mixed.equilibrium import MixedCellFailure, cell_arrays, start_values
 from ale_xfem.model.mixed_cells import MixedCells
 
 
@@ -39,17 +40,17 @@ class EnrichedClosure(SharedClosure):
         """The implicit interface solve; adds the mixed cells' n+1 stress to mean_force."""
         mixed = self.mixed
         a, b = mixed.node_left, mixed.node_right
-        # held nodes do not move
-        mobility_a = dt_over_node_mass[a] * step.free_nodes[a]
-        mobility_b = dt_over_node_mass[b] * step.free_nodes[b]
         pi_n = state.interface_pressure
-        u0 = state.node_velocity[0]
         # V(π) = A + Bπ (module docstring of ale_xfem.mixed.equilibrium): the internal nodes
-        # move with the trapezoidal force ½(F^n + F*) − ½(π − π^n) ∂V/∂x_i.
-        centred = (u0[b] - u0[a]) + 0.5 * (mobility_b * mean_force[0, b] - mobility_a * mean_force[0, a])
-        slope = 0.25 * dt * (mobility_a + mobility_b)
-        offset = first.volume[mixed.cells] + dt * centred - slope * pi_n
-        work_offset = 0.5 * (pi_n + first.mixed_viscosity + predicted.mixed_viscosity)
+        # move with the trapezoidal force ½(F^n + F*) − ½(π − π^n) ∂V/∂x_i; held nodes do
+        # not move (ale_xfem.mixed.closure_kernels.interface_affine)
+        n = mixed.cells.size
+        mobility, offset, slope, work_offset = np.empty((2, n)), np.empty(n), np.empty(n), np.empty(n)
+        interface_affine(dt, step.inverse_node_mass, step.free_nodes, mixed.cells, a, b, state.node_velocity,
+                         mean_force, first.volume, *cell_arrays((n,), pi_n, first.mixed_viscosity,
+                                                                predicted.mixed_viscosity),
+                         mobility, offset, slope, work_offset)
+        mobility_a, mobility_b = mobility
         start = start_values(state, mixed.cells)
         predictor = None
         if self.assembled is not None:
@@ -83,5 +84,5 @@ class EnrichedClosure(SharedClosure):
         ρ_q ≤ 2 / (L (1/M_a + 1/M_b)) the rate is a pure cell's."""
         density_q, speed = super().viscosity_medium(view, volume, density, sound_speed, node_mass)
         mixed = self.mixed
-        compliance = 1.0 / node_mass[mixed.node_left] + 1.0 / node_mass[mixed.node_right]
-        return np.minimum(density_q, 2.0 / (volume[mixed.cells] * compliance)), speed
+        cap_by_internal_nodes(mixed.cells, volume, node_mass, mixed.node_left, mixed.node_right, density_q)
+        return density_q, speed

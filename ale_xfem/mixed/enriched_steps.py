@@ -21,13 +21,14 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from ale_xfem.eos.kernels import pressure_sound_speed, state_derivatives
-from ale_xfem.geometry.polygon_kernels import KERNEL, maximum, minimum
+from ale_xfem.eos.kernels import pressure_sound_speed
+from ale_xfem.geometry.polygon_kernels import KERNEL, maximum
 from ale_xfem.lagrange.kernels import (account_step, advance_velocity, clamped_step, compatible_energy,
                                        geometry_and_rates, healthy, hold, least, plain_step, scatter_corners,
                                        stable_time_step, stress_and_corner_forces, velocity_sum_and_position)
 from ale_xfem.lagrange.wilkins import ForceEvaluation
-from ale_xfem.mixed.equilibrium import RELAXED, SOLVED, adiabat, interface_solve, relax_cells
+from ale_xfem.mixed.closure_kernels import cap_by_internal_nodes, interface_affine, viscosity_media
+from ale_xfem.mixed.equilibrium import RELAXED, SOLVED, balanced_cells, interface_solve, relaxed_states
 from ale_xfem.model.cell_kernels import INTERVAL
 
 # the arrays of one state and its force evaluation, in the order the kernels take them
@@ -67,16 +68,13 @@ def evaluate_enriched(x, u, mesh, eos, cell_material, mass, energy, mixed, node_
         else:
             pressure[k], sound_speed[k] = pressure_sound_speed(kinds[material], parameters, material, density[k],
                                                                energy[k])
+    # the medium of the mixed cells' viscosity (EnrichedClosure.viscosity_medium)
+    mass_right, energy_of_right = np.empty(cells.size), np.empty(cells.size)
     for j in range(cells.size):
-        # the harmonic-mean density and the larger sound speed (SharedClosure.viscosity_medium),
-        # the density capped by the internal nodes' masses (EnrichedClosure.viscosity_medium)
-        k, material = cells[j], right[j]
-        rho_right = mass[1, k] / volume_right[j]
-        c2_right = state_derivatives(kinds[material], parameters, material, rho_right, energy_right[k])[3]
-        harmonic = volume[k] / (volume_left[j] / density[k] + volume_right[j] / rho_right)
-        mixed_sound_speed[j] = maximum(sound_speed[k], np.sqrt(maximum(c2_right, 0.0)))
-        compliance = 1.0 / node_mass[node_a[j]] + 1.0 / node_mass[node_b[j]]
-        mixed_density[j] = minimum(harmonic, 2.0 / (volume[k] * compliance))
+        mass_right[j], energy_of_right[j] = mass[1, cells[j]], energy_right[cells[j]]
+    viscosity_media(kinds, parameters, right, cells, volume, density, sound_speed, volume_left, volume_right,
+                    mass_right, energy_of_right, mixed_density, mixed_sound_speed)
+    cap_by_internal_nodes(cells, volume, node_mass, node_a, node_b, mixed_density)
     q_quadratic, q_linear, artificial = viscosity_law
     stress_and_corner_forces(INTERVAL, volume, no_shape, no_shape, jump, density, sound_speed, pressure, q_quadratic,
                              q_linear, artificial, cells, mixed_density, mixed_sound_speed, interface_pressure, False,
@@ -84,15 +82,6 @@ def evaluate_enriched(x, u, mesh, eos, cell_material, mass, energy, mixed, node_
     for j in range(cells.size):
         mixed_viscosity[j] = viscosity[cells[j]]
     scatter_corners(INTERVAL, stress, no_shape, cell_nodes, runs, mode, corner_is_run, scratch, nodal_force)
-
-
-@numba.njit(**KERNEL)
-def balanced(pa, pb, bulk_a, bulk_b, tolerance):  # pragma: no cover (compiled)
-    """Whether a mixed cell's pressures agree within what the relaxation leaves alone
-    (PressureRelaxation.balanced): 10 × the tolerance relative to the larger pressure or
-    the smaller ρc²."""
-    scale = maximum(maximum(abs(pa), abs(pb)), minimum(bulk_a, bulk_b))
-    return abs(pa - pb) <= 10.0 * tolerance * scale
 
 
 @numba.njit(**KERNEL)
@@ -137,16 +126,12 @@ def enriched_step(mesh, boundaries, eos, cell_material, viscosity_law, inverse_n
     # The interface solve (EnrichedClosure.implicit_solve): V(π) = A + Bπ of each mixed cell
     # from its internal nodes' trapezoidal motion, the work pressure ½(π^n + q^n + q*) + ½π.
     m_a, m_b, va0, vb0, ea0, eb0 = np.empty(m), np.empty(m), np.empty(m), np.empty(m), np.empty(m), np.empty(m)
-    offset, slope, work_offset, work_slope = np.empty(m), np.empty(m), np.empty(m), np.empty(m)
+    offset, slope, work_offset, work_slope = np.empty(m), np.empty(m), np.empty(m), np.full(m, 0.5)
+    interface_affine(dt, inverse_node_mass, free_nodes, cells, node_a, node_b, u0, mean_force, volume,
+                     interface_pressure, mixed_viscosity, p_mixed_viscosity, np.empty((2, m)), offset, slope,
+                     work_offset)
     for j in range(m):
-        k, a, b = cells[j], node_a[j], node_b[j]
-        mobility_a = dt * inverse_node_mass[a] * free_nodes[a]
-        mobility_b = dt * inverse_node_mass[b] * free_nodes[b]
-        centred = (u0[0, b] - u0[0, a]) + 0.5 * (mobility_b * mean_force[0, b] - mobility_a * mean_force[0, a])
-        slope[j] = 0.25 * dt * (mobility_a + mobility_b)
-        offset[j] = volume[k] + dt * centred - slope[j] * interface_pressure[j]
-        work_offset[j] = 0.5 * (interface_pressure[j] + mixed_viscosity[j] + p_mixed_viscosity[j])
-        work_slope[j] = 0.5
+        k = cells[j]
         m_a[j], m_b[j], va0[j], vb0[j] = mass[0, k], mass[1, k], material_volume[0, k], material_volume[1, k]
         ea0[j], eb0[j] = energy[0, k], energy[1, k]
     status, _, iterations, pi, va, _, details, _ = interface_solve(
@@ -172,31 +157,14 @@ def enriched_step(mesh, boundaries, eos, cell_material, viscosity_law, inverse_n
         vb[j] = (x[0, node_b[j]] - x[0, a]) - va[j]
         interface_velocity[j] = (x[0, a] + va[j] - (x0[0, a] + material_volume[0, k])) / dt
     relaxed = False
-    if relaxation:
-        settled = True
-        for j in range(m):
-            settled &= balanced(details[2, j], details[3, j], details[4, j] * details[6, j],
-                                details[5, j] * details[7, j], tolerance)
-        if not settled:
-            total = np.empty(m)
-            for j in range(m):
-                total[j] = va[j] + vb[j]
-            ea, eb = details[0].copy(), details[1].copy()
-            status, _, va_relaxed, vb_relaxed, common, _, _ = relax_cells(
-                eos[0], eos[1], left, right, m_a, m_b, va, vb, ea, eb, total, max_density_left, max_density_right,
-                1e-3 * tolerance)
-            if status != RELAXED:
-                return 1, 0, False
-            for j in range(m):
-                if not abs(common[j]) < np.inf:
-                    return 1, 0, False
-            for j in range(m):  # each material on its adiabat at the common pressure
-                a, b = left[j], right[j]
-                details[2, j], _, details[0, j], details[4, j], details[6, j], _ = adiabat(
-                    eos[0][a], eos[1], a, m_a[j], va_relaxed[j], ea[j], va[j], common[j])
-                details[3, j], _, details[1, j], details[5, j], details[7, j], _ = adiabat(
-                    eos[0][b], eos[1], b, m_b[j], vb_relaxed[j], eb[j], vb[j], common[j])
-            va, vb, relaxed = va_relaxed, vb_relaxed, True
+    if relaxation and not balanced_cells(details[2], details[3], details[4] * details[6], details[5] * details[7],
+                                         tolerance):
+        status, _, va, vb, _, details, _, _ = relaxed_states(eos[0], eos[1], left, right, m_a, m_b, va, vb,
+                                                            details[0].copy(), details[1].copy(), va + vb,
+                                                            max_density_left, max_density_right, 1e-3 * tolerance)
+        if status != RELAXED:
+            return 1, 0, False
+        relaxed = True
     for j in range(m):
         k = cells[j]
         e[0, k], e[1, k] = details[0, j], details[1, j]
@@ -244,13 +212,13 @@ def enriched_steps(mesh, boundaries, eos, cell_material, viscosity_law, inverse_
         (_, u0, _, _, density, pressure, sound_speed, _, _, volume, evaluated_sound_speed, jump, _, _, force,
          mixed_sound_speed, _, _) = state
         if relaxation:  # a start state out of balance is relaxed by the staged step
-            settled = True
+            start = np.empty((4, cells.size))
             for j in range(cells.size):
                 k = cells[j]
-                c2a, c2b = sound_speed[0, k] * sound_speed[0, k], sound_speed[1, k] * sound_speed[1, k]
-                settled &= balanced(pressure[0, k], pressure[1, k], density[0, k] * c2a, density[1, k] * c2b,
-                                    tolerance)
-            if not settled:
+                start[0, j], start[1, j] = pressure[0, k], pressure[1, k]
+                start[2, j] = density[0, k] * (sound_speed[0, k] * sound_speed[0, k])
+                start[3, j] = density[1, k] * (sound_speed[1, k] * sound_speed[1, k])
+            if not balanced_cells(start[0], start[1], start[2], start[3], tolerance):
                 break
         dt = stable_time_step(force, inverse_node_mass, boundaries, volume, volume, evaluated_sound_speed, jump,
                               viscous, viscosity_law, cells, mixed_sound_speed, cell_nodes, runs, cfl, acceleration,

@@ -62,6 +62,13 @@ class MixedCellFailure(RuntimeError):
         super().__init__(f"mixed cell {self.cell}: {detail}")
 
 
+def cannot_hold(mixed, index: int, volume: float) -> MixedCellFailure:
+    """The failure of a mixed cell whose volume cannot hold its two materials below their
+    compression limits (the interface solve's or the relaxation's)."""
+    return MixedCellFailure(mixed.cells, index, f"volume {volume:.6g} cannot hold both materials below their "
+                            "compression limits")
+
+
 def start_values(state, cells):
     """(m_α, m_β, V_α, V_β, e_α, e_β) of the mixed cells ``cells`` of a state."""
     return (state.material_mass[0, cells], state.material_mass[1, cells],
@@ -79,17 +86,6 @@ def adiabat(kind, parameters, material, mass, volume, energy0, volume0, work_pre
     p, dp_drho, dp_de, c2 = state_derivatives(kind, parameters, material, rho, energy)
     dp_dv = -dp_drho * rho / volume - dp_de * work_pressure / mass
     return p, dp_dv, energy, rho, c2, -dp_de * specific_change
-
-
-@numba.njit(**KERNEL)
-def adiabats(kinds, parameters, materials, mass, volume, energy0, volume0, work_pressure):  # pragma: no cover
-    """:func:`adiabat` of every entry: (6, n) p, dp/dV, e, ρ, c², ∂p/∂W."""
-    out = np.empty((6, volume.size))
-    for i in range(volume.size):
-        m = materials[i]
-        out[0, i], out[1, i], out[2, i], out[3, i], out[4, i], out[5, i] = adiabat(
-            kinds[m], parameters, m, mass[i], volume[i], energy0[i], volume0[i], work_pressure[i])
-    return out
 
 
 @numba.njit(**KERNEL)
@@ -272,6 +268,49 @@ def relax_cells(kinds, parameters, left, right, m_a, m_b, va0, vb0, ea0, eb0, to
     return RELAXED, 0, va, vb, pressure, pi_a, pi_b
 
 
+NOT_FINITE = 4  # what relaxed_states returns besides RELAXED, CANNOT_HOLD and NOT_CONVERGED
+
+
+@numba.njit(**KERNEL)
+def balanced_cells(pa, pb, bulk_a, bulk_b, tolerance):  # pragma: no cover (compiled)
+    """Whether every mixed cell's pressures agree within what the relaxation leaves alone:
+    10 × ``tolerance`` relative to the larger pressure or the smaller ρc² (``bulk``)."""
+    settled = True
+    for i in range(pa.size):
+        scale = maximum(maximum(abs(pa[i]), abs(pb[i])), minimum(bulk_a[i], bulk_b[i]))
+        settled &= abs(pa[i] - pb[i]) <= 10.0 * tolerance * scale
+    return settled
+
+
+@numba.njit(**KERNEL)
+def relaxed_states(kinds, parameters, left, right, m_a, m_b, va0, vb0, ea0, eb0, total, max_density_left,
+                   max_density_right, balance):  # pragma: no cover (compiled)
+    """The pressure relaxation at fixed cell volumes (:meth:`PressureEquilibrium.relax`):
+    :func:`relax_cells`, then each material on its adiabat at the common pressure p*.
+    Returns (status, cell, V_α, V_β, p*, details (8, n): e_α, e_β, p_α, p_β, ρ_α, ρ_β, c²_α,
+    c²_β, and two figures for a failure's message): status RELAXED, or CANNOT_HOLD (the
+    cell's volume), NOT_CONVERGED (its two pressures) or NOT_FINITE (its p*), the cell
+    that failed."""
+    n = total.size
+    details = np.empty((8, n))
+    status, cell, va, vb, pressure, pi_a, pi_b = relax_cells(kinds, parameters, left, right, m_a, m_b, va0, vb0,
+                                                             ea0, eb0, total, max_density_left, max_density_right,
+                                                             balance)
+    if status == CANNOT_HOLD:
+        return status, cell, va, vb, pressure, details, total[cell], np.nan
+    if status == NOT_CONVERGED:
+        return status, cell, va, vb, pressure, details, pi_a[cell], pi_b[cell]
+    for i in range(n):
+        if not abs(pressure[i]) < np.inf:
+            return NOT_FINITE, i, va, vb, pressure, details, pressure[i], np.nan
+    for i in range(n):
+        a, b = left[i], right[i]
+        details[2, i], _, details[0, i], details[4, i], details[6, i], _ = adiabat(
+            kinds[a], parameters, a, m_a[i], va[i], ea0[i], va0[i], pressure[i])
+        details[3, i], _, details[1, i], details[5, i], details[7, i], _ = adiabat(
+            kinds[b], parameters, b, m_b[i], vb[i], eb0[i], vb0[i], pressure[i])
+    return RELAXED, 0, va, vb, pressure, details, np.nan, np.nan
+
 SOLVED, OUTSIDE_EOS = 0, 3  # what interface_solve returns as its status (besides CANNOT_HOLD, NOT_CONVERGED)
 
 
@@ -439,18 +478,9 @@ class PressureEquilibrium:
         self.mixed = mixed
         # what the compiled loops take: the equations of state's codes and parameters, and
         # each side's material ids
-        self._tables = kernel_tables(tuple(material.eos for material in mixed.materials))
+        self.tables = kernel_tables(tuple(material.eos for material in mixed.materials))
         self.sides = tuple(np.ascontiguousarray(ids, dtype=np.int64)
-                            for ids in (mixed.material_left, mixed.material_right))
-
-    # -- thermodynamics along a trapezoidal adiabat ---------------------------------------
-
-    def _adiabat(self, side, mass, volume, energy0, volume0, work_pressure):
-        """(p, dp/dV, e, ρ, c², ∂p/∂W at fixed V) of one side's materials (``side`` 0: α, the
-        left; 1: β) at volume V when their energy follows e = e0 − W (V − V0)/m (W: the work
-        pressure of the step; compiled: :func:`adiabat`)."""
-        return tuple(adiabats(*self._tables, self.sides[side],
-                              *cell_arrays(np.shape(volume), mass, volume, energy0, volume0, work_pressure)))
+                           for ids in (mixed.material_left, mixed.material_right))
 
     def solve(self, state0, pressure0, volume_affine, work_affine, record: bool = True,
               predictor=None):
@@ -468,13 +498,12 @@ class PressureEquilibrium:
         arrays = cell_arrays((n,), *state0, pressure0, *volume_affine, *work_affine)
         if predictor is None:
             status, index, iterations, pi, va, vb, details, gap = interface_solve(
-                *self._tables, *self.sides, *arrays, mixed.max_iterations, mixed.nonlinear, mixed.tolerance,
+                *self.tables, *self.sides, *arrays, mixed.max_iterations, mixed.nonlinear, mixed.tolerance,
                 mixed.max_density_left, mixed.max_density_right)
         else:
             status, index, iterations, pi, va, vb, details, gap = self._solve_with(predictor, arrays)
         if status == CANNOT_HOLD:
-            raise MixedCellFailure(mixed.cells, index, f"volume {gap:.6g} cannot hold both materials "
-                                   "below their compression limits")
+            raise cannot_hold(mixed, index, gap)
         if status == NOT_CONVERGED:
             raise MixedCellFailure(mixed.cells, index, f"not converged after {mixed.max_iterations} iterations "
                                    f"(pressure change {gap:.3g})")
@@ -495,23 +524,17 @@ class PressureEquilibrium:
         laws, values = np.empty((4, n)), np.empty((6, 2, n))
         progress = np.empty((4, n))
         for iteration in range(1, mixed.max_iterations + 1):
-            linearised_laws(*self._tables, *self.sides, *arrays[:6], va, vb, w0, w1, pi, values, iteration == 1,
+            linearised_laws(*self.tables, *self.sides, *arrays[:6], va, vb, w0, w1, pi, values, iteration == 1,
                             laws)
             pi_new = predictor(va, vb, laws[0], laws[2], laws[1], laws[3])
             status, index, done, details = corrector(
-                *self._tables, *self.sides, *arrays[:6], offset, slope, w0, w1, mixed.nonlinear, mixed.tolerance,
+                *self.tables, *self.sides, *arrays[:6], offset, slope, w0, w1, mixed.nonlinear, mixed.tolerance,
                 mixed.max_density_left, mixed.max_density_right, laws, pi_new, va, vb, pi, values, progress)
             if status == CANNOT_HOLD:
                 return status, index, iteration, pi, va, vb, details, offset[index] + slope[index] * pi_new[index]
             if done:
                 return admissible(iteration, pi, va, vb, details)
         return unconverged(mixed.max_iterations, pi, va, vb, details, progress)
-
-    def _state_at(self, state0, va, vb, work):
-        m_a, m_b, va0, vb0, ea0, eb0 = state0
-        pa, _, ea, rho_a, c2a, _ = self._adiabat(0, m_a, va, ea0, va0, work)
-        pb, _, eb, rho_b, c2b, _ = self._adiabat(1, m_b, vb, eb0, vb0, work)
-        return ea, eb, pa, pb, rho_a, rho_b, c2a, c2b
 
     def _record(self, iterations):
         self.mixed.stats["steps"] += 1
@@ -537,18 +560,14 @@ class PressureEquilibrium:
         # The unknown is the volume δ that α takes from β, V_α = V_α^0 + δ, V_β = V_β^0 − δ:
         # each volume then keeps its own precision (a trace's V_β is not the round-off of
         # V − V_α, which left 5e-11 between the pressures of a cell with a trace at rest).
-        status, cell, va, vb, pressure, pi_a, pi_b = relax_cells(
-            *self._tables, *self.sides, *cell_arrays(np.shape(volume), *state0, volume),
-            mixed.max_density_left,
-            mixed.max_density_right, 1e-3 * mixed.tolerance)
+        status, cell, va, vb, pressure, details, figure_a, figure_b = relaxed_states(
+            *self.tables, *self.sides, *cell_arrays(np.shape(volume), *state0, volume),
+            mixed.max_density_left, mixed.max_density_right, 1e-3 * mixed.tolerance)
         if status == CANNOT_HOLD:
-            raise MixedCellFailure(mixed.cells, cell, f"volume {volume[cell]:.6g} cannot hold both materials "
-                                   "below their compression limits")
+            raise cannot_hold(mixed, cell, figure_a)
         if status == NOT_CONVERGED:
             raise MixedCellFailure(mixed.cells, cell, f"pressure relaxation not converged (pressures "
-                                   f"{pi_a[cell]:.6g} and {pi_b[cell]:.6g})")
-        if not np.isfinite(pressure).all():
-            bad = int(np.flatnonzero(~np.isfinite(pressure))[0])
-            raise MixedCellFailure(mixed.cells, bad, f"pressure relaxation = {pressure[bad]:.6g}")
-        details = self._state_at(state0, va, vb, pressure)
-        return pressure, va, vb, details
+                                   f"{figure_a:.6g} and {figure_b:.6g})")
+        if status == NOT_FINITE:
+            raise MixedCellFailure(mixed.cells, cell, f"pressure relaxation = {figure_a:.6g}")
+        return pressure, va, vb, tuple(details)
