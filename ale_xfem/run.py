@@ -78,11 +78,11 @@ class Progress:
         self.bar.close()
 
 
-def make_stepper(problem: Problem, mesh=None, layout=None, node_mass=None, boundaries=None,
+def make_stepper(problem: Problem, mesh=None, layout=None, node_mass=None, boundaries=None, mixed=None,
                  stepper_class=ExplicitWilkins) -> ExplicitWilkins:
     """The Lagrange step of a problem, its mixed cells closed as the scene asks (the
     assembled predictor's UFL forms are compiled here, once per run); ``mesh``, ``layout``,
-    ``node_mass``, ``boundaries``: a part of the problem's (one rank's), in place of its own,
+    ``node_mass``, ``boundaries``, ``mixed``: a part of the problem's (one rank's), in place of its own,
     stepped by ``stepper_class`` (ExplicitWilkins or a subclass)."""
     keep_freed_memory()
     interface = problem.scene.interface
@@ -90,7 +90,7 @@ def make_stepper(problem: Problem, mesh=None, layout=None, node_mass=None, bound
     if interface is not None and interface.stabilisation is not None:  # 2D enriched mixed cells
         enriched_2d = dict(stabilisation=interface.stabilisation, slip=interface.slip,
                            nitsche_penalty=interface.nitsche_penalty or 1.0)
-    closures = Closures(problem.mesh, problem.materials,
+    closures = Closures(problem.mesh if mesh is None else mesh, problem.materials,
                         assembled_predictor="interface_predictor_assembled" in problem.effects,
                         petsc_options=dict(interface.petsc_options) if interface is not None else None,
                         **enriched_2d)
@@ -99,7 +99,7 @@ def make_stepper(problem: Problem, mesh=None, layout=None, node_mass=None, bound
                            problem.node_mass if node_mass is None else node_mass,
                            problem.boundaries if boundaries is None else boundaries, problem.scene.numerics,
                            artificial_viscosity="artificial_viscosity" in problem.effects,
-                           mixed=problem.mixed, viscous_time_step="viscous_time_step" in problem.effects,
+                           mixed=problem.mixed if mixed is None else mixed, viscous_time_step="viscous_time_step" in problem.effects,
                            closures=closures)
 
 
@@ -299,7 +299,7 @@ def _step(stepper, state, dt, evaluation, remapped_next):
         try:
             return (*stepper.step(state, dt, evaluation, remapped_next=remapped_next), dt)
         except Breakdown as failure:
-            if attempt == MIXED_CELL_RETRIES or stepper.mixed is None or failure.cell not in stepper.mixed.cells:
+            if attempt == MIXED_CELL_RETRIES or not stepper.breaks_mixed_cell(failure):
                 raise
             dt *= 0.5
 

@@ -11,6 +11,7 @@ import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 MPIEXEC = Path(sys.executable).parent / "mpiexec"  # the launcher of the MPI the wheels install
@@ -38,18 +39,83 @@ def test_a_run_on_several_ranks_is_the_serial_run_to_the_bit(tmp_path, name, ove
     time steps, errors and final fields (cells.csv / profile.csv byte for byte);
     conservation sums over the ranks' own nodes may differ in the last digits (the boundary
     reactions are summed rank by rank)."""
-    serial, serial_out = _run(tmp_path, name, 1, *overrides)
-    parallel, parallel_out = _run(tmp_path, name, ranks, *overrides)
+    _the_same_run(*_run(tmp_path, name, 1, *overrides), *_run(tmp_path, name, ranks, *overrides), ranks)
+
+
+def _mixed_cells_on_a_partition_boundary(name: str, ranks: int, *overrides: str):
+    """The mixed cells of a shipped scene that have a facet neighbour on another rank, when
+    the scene's cells are shared out over ``ranks`` ranks (the partition every rank of the
+    run computes: DOLFINx's partitioner, deterministic), and the problem."""
+    from mpi4py import MPI
+
+    from ale_xfem.parallel.distribution import cell_partition, facet_neighbours
+    from ale_xfem.problem.build import build_problem
+    from ale_xfem.scene import load_scene, resolve_scene_path
+
+    problem = build_problem(load_scene(resolve_scene_path(name), list(overrides)))
+    cell_nodes = problem.mesh.cell_nodes
+    owner = cell_partition(cell_nodes, ranks, MPI.COMM_SELF)
+    neighbours, offsets = facet_neighbours(cell_nodes)
+    across = np.zeros(cell_nodes.shape[0], dtype=bool)
+    for cell in problem.mixed.cells:  # the few mixed cells
+        across[cell] = np.any(owner[neighbours[offsets[cell]:offsets[cell + 1]]] != owner[cell])
+    return np.flatnonzero(across), problem
+
+
+def _the_same_run(serial, serial_out, parallel, parallel_out, ranks):
+    """The checks of a run on several ranks against the serial run (same steps, time steps,
+    errors, mixed cells' solver statistics, fields byte for byte)."""
     assert serial.returncode == 0, serial.stderr
     assert parallel.returncode == 0, parallel.stderr
     one, many = (json.loads((folder / "summary.json").read_text()) for folder in (serial_out, parallel_out))
     assert (one["ranks"], many["ranks"]) == (1, ranks)
     for key in ("status", "steps", "t_reached", "dt", "errors"):
         assert many.get(key) == one.get(key), key
+    if "mixed_cells" in one:  # the same solves and iterations
+        assert many["mixed_cells"] == one["mixed_cells"]
     for key in ("mass", "momentum", "total_energy", "material_mass"):
         assert abs(many["conservation"][key] - one["conservation"][key]) <= 1e-15, key
     fields = "cells.csv" if (serial_out / "cells.csv").exists() else "profile.csv"
     assert (parallel_out / fields).read_bytes() == (serial_out / fields).read_bytes()
+
+
+def test_an_enriched_mixed_cell_on_a_partition_boundary_is_solved_as_in_the_serial_run(tmp_path):
+    """The 1D two-gamma tube with its interface put inside a cell whose neighbour another
+    of 3 ranks holds: the enriched cell's doubled velocities, interface solve and
+    relaxation (iterated with every rank's mixed cells as one set) give the serial run's
+    steps, solver iterations and profile to the bit."""
+    from mpi4py import MPI
+
+    from ale_xfem.parallel.distribution import cell_partition, facet_neighbours
+    from ale_xfem.problem.build import build_problem
+    from ale_xfem.scene import load_scene, resolve_scene_path
+
+    mesh = build_problem(load_scene(resolve_scene_path("sod-two-gamma-enriched"), ["mesh.cells=200"])).mesh
+    owner = cell_partition(mesh.cell_nodes, 3, MPI.COMM_SELF)
+    neighbours, offsets = facet_neighbours(mesh.cell_nodes)
+    cut = next(c for c in range(mesh.n_cells) if np.any(owner[neighbours[offsets[c]:offsets[c + 1]]] != owner[c]))
+    left, right = np.sort(mesh.node_position[0, mesh.cell_nodes[cut]])
+    interface = left + 0.37 * (right - left)
+    overrides = ["mesh.cells=200", f"regions.0.interval=[0.0, {float(interface)!r}]",
+                 f"regions.1.interval=[{float(interface)!r}, 1.0]"]
+    across, problem = _mixed_cells_on_a_partition_boundary("sod-two-gamma-enriched", 3, *overrides)
+    assert list(problem.mixed.cells) == [cut] and list(across) == [cut]
+    _the_same_run(*_run(tmp_path, "sod-two-gamma-enriched", 1, *overrides),
+                  *_run(tmp_path, "sod-two-gamma-enriched", 3, *overrides), 3)
+
+
+@pytest.mark.parametrize("name, overrides, ranks", [
+    ("water-air", ["interface.model=single_velocity", "mesh.cells=201"], 2),
+    ("rotated-tube", ["mesh.motion=lagrangian", "mesh.cells=[24,24]"], 2),
+    ("rotated-tube", ["mesh.motion=lagrangian", "mesh.cells=[20,20]", "mesh.cell_type=triangle"], 3),
+], ids=["water-air-1d-2", "rotated-tube-2", "rotated-tube-triangles-3"])
+def test_single_velocity_mixed_cells_across_partitions_are_the_serial_ones(tmp_path, name, overrides, ranks):
+    """Single-velocity mixed cells on a Lagrangian mesh, some of them on a partition
+    boundary (the rotated tube's interface crosses the mesh): the serial run to the bit."""
+    across, problem = _mixed_cells_on_a_partition_boundary(name, ranks, *overrides)
+    if problem.mesh.dimension == 2:
+        assert across.size > 0
+    _the_same_run(*_run(tmp_path, name, 1, *overrides), *_run(tmp_path, name, ranks, *overrides), ranks)
 
 
 def test_a_collapsed_time_step_is_reported_on_several_ranks_as_on_one(tmp_path):
@@ -81,14 +147,15 @@ def test_a_breakdown_on_one_rank_stops_every_rank_with_the_serial_diagnostic(tmp
 
 @pytest.mark.parametrize("name, overrides, key, allowed", [
     ("sedov", [], "mesh.motion = 'smoothed'", "run without mpiexec"),
-    ("sod-two-gamma-enriched", [], "interface = 'enriched'", "run without mpiexec"),
+    ("sod-two-gamma-enriched", ["interface.predictor=assembled"], "interface.predictor = 'assembled'",
+     "run without mpiexec"),
     ("sod", ["mesh.cells=2"], "mesh.cells = 2", "at least 3 cells on 3 ranks"),
-], ids=["remap", "mixed-cells", "fewer-cells-than-ranks"])
+], ids=["remap", "assembled-predictor", "fewer-cells-than-ranks"])
 def test_a_scene_that_cannot_share_its_cells_out_is_refused_once(tmp_path, name, overrides, key, allowed):
-    """A remapped mesh or mixed cells run on one rank in this version, and every rank needs
-    a cell: on several ranks the run stops before anything runs, exit code 2, one line
-    naming the key, its value and what is allowed, and no output."""
-    done, out = _run(tmp_path, name, 3 if overrides else 2, *overrides)
+    """A remapped mesh or the assembled 1D predictor run on one rank in this version, and
+    every rank needs a cell: on several ranks the run stops before anything runs, exit
+    code 2, one line naming the key, its value and what is allowed, and no output."""
+    done, out = _run(tmp_path, name, 3 if name == "sod" else 2, *overrides)
     assert done.returncode == 2
     lines = [line for line in done.stderr.splitlines() if line.startswith("error:")]
     assert len(lines) == 1 and key in lines[0] and allowed in lines[0], done.stderr

@@ -411,6 +411,8 @@ class ExplicitWilkins:
             clock = time.perf_counter()
             solution = self.closure.implicit_solve(self, state, first, predicted, mean_force, dt,
                                                    dt * self.inverse_node_mass)
+            if self.exchange is not None:  # the mixed cells' stress on a ghost node: its owner's sum
+                self.exchange(mean_force)
             self.mixed_seconds += time.perf_counter() - clock
             self.mixed_calls += 1
         u_new = self._advance_velocity(u0, mean_force, dt)
@@ -450,6 +452,11 @@ class ExplicitWilkins:
             self.check(predicted, x_pred, e_pred, "predicted ")
             self.check(final, x_new, new_state.material_energy[:1], "")
         return new_state, final, boundary_work, boundary_impulse
+
+    def breaks_mixed_cell(self, failure: Breakdown) -> bool:
+        """Whether ``failure`` is a mixed cell's (a step the run may take again with a
+        smaller dt)."""
+        return self.mixed is not None and failure.cell in self.mixed.cells
 
     def _stage_arrays(self, u0, x0, final: bool):
         """The arrays kernels.pure_step fills for one state (its order): new ones for the

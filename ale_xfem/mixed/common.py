@@ -38,6 +38,8 @@ class SharedClosure(MixedCellClosure):
     def breakdown(self, quantity: str, failure: MixedCellFailure, node_position) -> Breakdown:
         """The diagnostic of a failed mixed-cell solve: the cell, where it is, its materials
         (α | β: slot 0 | slot 1; in 1D left | right) and what failed."""
+        if failure.cell < 0:  # a mixed cell of another MPI rank, which reports it
+            return Breakdown(quantity, -1, float("nan"), np.full(self.mesh.dimension, np.nan), detail=failure.detail)
         centroid = self.mesh.cell_centroids(node_position)[failure.cell]
         return Breakdown(quantity, failure.cell, float("nan"), centroid,
                          materials=material_names(self.mixed, failure.index), detail=failure.detail)

@@ -58,7 +58,9 @@ class MixedCellFailure(RuntimeError):
 
     def __init__(self, cells, index: int, detail: str):
         """``cells``: the mesh cell of each mixed cell (``MixedCells.cells``)."""
-        self.index, self.cell, self.detail = index, int(cells[index]), detail
+        self.index, self.detail = index, detail
+        # index < 0: a cell of another MPI rank (MixedCells.across_ranks)
+        self.cell = int(cells[index]) if index >= 0 else -1
         super().__init__(f"mixed cell {self.cell}: {detail}")
 
 
@@ -482,6 +484,19 @@ class PressureEquilibrium:
         self.sides = tuple(np.ascontiguousarray(ids, dtype=np.int64)
                            for ids in (mixed.material_left, mixed.material_right))
 
+    def all_sides(self):
+        """Each side's material ids of the mixed cells the solves take: this set's, or on
+        several MPI ranks all the ranks' (``MixedCells.across_ranks``)."""
+        ranks = self.mixed.across_ranks
+        return self.sides if ranks is None else ranks.sides
+
+    def all_density_limits(self):
+        """Each side's compression limit of the mixed cells the solves take (as
+        :meth:`all_sides`)."""
+        mixed = self.mixed
+        ranks = mixed.across_ranks
+        return (mixed.max_density_left, mixed.max_density_right) if ranks is None else ranks.density_limits
+
     def solve(self, state0, pressure0, volume_affine, work_affine, record: bool = True,
               predictor=None):
         """Find the interface pressure π with V(π) = A + Bπ, work pressure W = w0 + w1 π.
@@ -496,12 +511,19 @@ class PressureEquilibrium:
         mixed = self.mixed
         n = np.size(pressure0)
         arrays = cell_arrays((n,), *state0, pressure0, *volume_affine, *work_affine)
+        ranks = mixed.across_ranks
+        if ranks is not None:  # every rank solves all the ranks' mixed cells (MixedCells.across_ranks)
+            arrays = ranks.whole(arrays)
         if predictor is None:
             status, index, iterations, pi, va, vb, details, gap = interface_solve(
-                *self.tables, *self.sides, *arrays, mixed.max_iterations, mixed.nonlinear, mixed.tolerance,
-                mixed.max_density_left, mixed.max_density_right)
+                *self.tables, *self.all_sides(), *arrays, mixed.max_iterations, mixed.nonlinear, mixed.tolerance,
+                *self.all_density_limits())
         else:
             status, index, iterations, pi, va, vb, details, gap = self._solve_with(predictor, arrays)
+        at, pi_at, details_at = index, pi, details  # the failing cell's figures, among the arrays solved
+        if ranks is not None:
+            index = ranks.local(index)
+            pi, va, vb, details = ranks.mine((pi, va, vb, details))
         if status == CANNOT_HOLD:
             raise cannot_hold(mixed, index, gap)
         if status == NOT_CONVERGED:
@@ -510,8 +532,8 @@ class PressureEquilibrium:
         if record:
             self._record(iterations)
         if status == OUTSIDE_EOS:
-            raise MixedCellFailure(mixed.cells, index, f"the root leaves the EOS domain (π = {pi[index]:.6g}, "
-                                   f"c² = {details[6][index]:.3g} | {details[7][index]:.3g})")
+            raise MixedCellFailure(mixed.cells, index, f"the root leaves the EOS domain (π = {pi_at[at]:.6g}, "
+                                   f"c² = {details_at[6][at]:.3g} | {details_at[7][at]:.3g})")
         return pi, va, vb, tuple(details)
 
     def _solve_with(self, predictor, arrays):
@@ -560,9 +582,15 @@ class PressureEquilibrium:
         # The unknown is the volume δ that α takes from β, V_α = V_α^0 + δ, V_β = V_β^0 − δ:
         # each volume then keeps its own precision (a trace's V_β is not the round-off of
         # V − V_α, which left 5e-11 between the pressures of a cell with a trace at rest).
+        arrays = cell_arrays(np.shape(volume), *state0, volume)
+        ranks = mixed.across_ranks
+        if ranks is not None:  # every rank relaxes all the ranks' mixed cells (MixedCells.across_ranks)
+            arrays = ranks.whole(arrays)
         status, cell, va, vb, pressure, details, figure_a, figure_b = relaxed_states(
-            *self.tables, *self.sides, *cell_arrays(np.shape(volume), *state0, volume),
-            mixed.max_density_left, mixed.max_density_right, 1e-3 * mixed.tolerance)
+            *self.tables, *self.all_sides(), *arrays, *self.all_density_limits(), 1e-3 * mixed.tolerance)
+        if ranks is not None:
+            cell = ranks.local(cell)
+            va, vb, pressure, details = ranks.mine((va, vb, pressure, details))
         if status == CANNOT_HOLD:
             raise cannot_hold(mixed, cell, figure_a)
         if status == NOT_CONVERGED:

@@ -44,7 +44,10 @@ class PressureRelaxation:
         """Whether the materials' pressures agree within what the relaxation leaves alone:
         10 × interface_tolerance relative to the larger pressure or the smaller ρc²
         (compiled: :func:`ale_xfem.mixed.equilibrium.balanced_cells`)."""
-        return bool(balanced_cells(*cell_arrays(np.shape(pa), pa, pb, bulk_a, bulk_b), self.mixed.tolerance))
+        arrays = cell_arrays(np.shape(pa), pa, pb, bulk_a, bulk_b)
+        if self.mixed.across_ranks is not None:  # all the ranks' mixed cells balanced, or all relaxed
+            arrays = self.mixed.across_ranks.whole(arrays)
+        return bool(balanced_cells(*arrays, self.mixed.tolerance))
 
     def relax(self, volume, start, guess):
         """The equilibrium at fixed volumes: (p*, V_α, V_β, details); raises

@@ -55,6 +55,11 @@ class MixedCells:
     relaxation: bool = True  # pressure relaxation at the start of every step
     stats: dict = field(default_factory=lambda: {"steps": 0, "iterations": 0, "max_iterations": 0,
                                                  "relaxations": 0})
+    # On several MPI ranks (ale_xfem.parallel): the mixed cells of all the ranks as one set
+    # (whole(arrays), mine(arrays), local(index)), which every rank solves whole — the
+    # solves iterate all their cells until every one is done, and relax all or none: the
+    # serial run's iterations.  None on one rank.
+    across_ranks: object = None
 
     def __post_init__(self):
         self.left_groups = MaterialGroups(self.material_left)

@@ -21,12 +21,25 @@ the bit.
 - **The result.**  Each rank's own cells and nodes, gathered into the serial state on every
   rank; conservation and errors are taken on it as in a serial run.
 
-What runs distributed: Lagrangian meshes whose cells are all pure (no interface, no
-remap), in 1D and 2D; other scenes are refused at the start with the key that needs one
-rank.
+- **Mixed cells.**  A rank holds the mixed cells among its cells (:meth:`Distribution.local_mixed`);
+  their closure works cell by cell, but the interface solve and the relaxation iterate all
+  the mixed cells together until every one is done, and relax all or none: so every rank
+  solves the whole set, each cell's inputs gathered from its owner
+  (:class:`MixedCellsOnRanks`, ``MixedCells.across_ranks``), and keeps its own cells'
+  results — the serial run's iterations, and a failure seen by every rank at once.  The
+  1D enriched cells' interface pressure acts on their nodes after the forces' exchange:
+  the mean force is exchanged again after the solve.  A predicted state's breakdown waits
+  for the step's end (:meth:`DistributedWilkins.check`), so that no rank leaves an exchange
+  the others are in.
+
+What runs distributed: Lagrangian meshes, in 1D and 2D, with pure cells, single-velocity
+mixed cells or 1D enriched cells (closed-form predictor); other scenes (a remap, the
+assembled 1D predictor) are refused at the start with the key that needs one rank.
 """
 
 from __future__ import annotations
+
+from dataclasses import replace
 
 import numpy as np
 
@@ -34,6 +47,7 @@ from ale_xfem.lagrange.breakdown import Breakdown
 from ale_xfem.lagrange.wilkins import ExplicitWilkins
 from ale_xfem.model.boundaries import Boundary
 from ale_xfem.model.mesh import MeshArrays
+from ale_xfem.model.mixed_cells import MixedCells
 from ale_xfem.model.state import MaterialLayout, State
 from ale_xfem.scene import SceneError
 
@@ -69,13 +83,13 @@ def check_distributable(problem) -> None:
     """Raise SceneError naming the key that keeps ``problem`` on one rank."""
     n = ranks()
     effects = problem.effects
-    if problem.scene.mesh.motion != "lagrangian":
+    if problem.scene.mesh.motion != "lagrangian" or any(name.startswith("remap_") for name in effects):
         raise SceneError("mesh.motion", problem.scene.mesh.motion,
                          f"'lagrangian' on {n} ranks (the remap runs on one rank in this version: run without mpiexec)")
-    if problem.scene.interface is not None or problem.mixed is not None or problem.layout.slots != 1 or any(
-            name.startswith("remap_") for name in effects):
-        raise SceneError("interface", problem.scene.interface.model if problem.scene.interface else "(mixed cells)",
-                         f"none on {n} ranks (mixed cells run on one rank in this version: run without mpiexec)")
+    if "interface_predictor_assembled" in effects:
+        raise SceneError("interface.predictor", "assembled",
+                         f"'closed_form' on {n} ranks (the assembled predictor runs on one rank in this version: "
+                         "run without mpiexec)")
     if problem.mesh.n_cells < n:
         raise SceneError("mesh.cells", problem.scene.mesh.cells, f"at least {n} cells on {n} ranks (one a rank)")
 
@@ -158,6 +172,24 @@ class Distribution:
         self.index_map = dolfinx.common.IndexMap(self.comm, int(self.owned_nodes.size), number[ghosts],
                                                  node_owner[ghosts].astype(np.int32), 1)
         self.vectors = {}
+        self.mixed = self.local_mixed(problem.mixed)
+
+    def local_mixed(self, whole: MixedCells | None) -> MixedCells | None:
+        """The mixed cells this rank holds (local numbers, in the serial order), solved with
+        all the ranks' (MixedCells.across_ranks: the serial run's iterations); None when the
+        problem has none.  A rank that holds none still solves with the others."""
+        if whole is None:
+            return None
+        held = np.flatnonzero(np.isin(whole.cells, self.cells))
+        owned = np.flatnonzero(self.cell_owner[whole.cells[held]] == self.comm.rank)
+        self.mixed_held, self.mixed_owned = held, owned
+
+        def local_nodes(nodes):
+            return None if nodes is None else np.searchsorted(self.nodes, nodes[held])
+        return replace(whole, cells=np.searchsorted(self.cells, whole.cells[held]),
+                       node_left=local_nodes(whole.node_left), node_right=local_nodes(whole.node_right),
+                       material_left=whole.material_left[held], material_right=whole.material_right[held],
+                       stats=whole.stats, across_ranks=MixedCellsOnRanks(self.comm, whole, held, owned))
 
     # -- the local problem ----------------------------------------------------------------
 
@@ -174,7 +206,11 @@ class Distribution:
 
         def cell_values(values):
             return None if values is None else np.ascontiguousarray(values[:, cells])
-        return state.evolved(
+        mixed_values = {}
+        if self.mixed is not None:
+            mixed_values = {name: np.ascontiguousarray(getattr(state, name)[self.mixed_held])
+                            for name in ("interface_pressure", "interface_velocity")}
+        return state.evolved(**mixed_values,
             node_position=np.ascontiguousarray(state.node_position[:, nodes]),
             node_velocity=np.ascontiguousarray(state.node_velocity[:, nodes]),
             material_mass=cell_values(state.material_mass), material_energy=cell_values(state.material_energy),
@@ -188,7 +224,7 @@ class Distribution:
         problem = self.problem
         layout = MaterialLayout(problem.layout.cell_material[:, self.cells], problem.layout.n_materials)
         stepper = make_stepper(self.mesh, layout, np.ascontiguousarray(problem.node_mass[self.nodes]),
-                               self.local_boundaries(), stepper_class=DistributedWilkins)
+                               self.local_boundaries(), mixed=self.mixed, stepper_class=DistributedWilkins)
         stepper.share(self)
         return stepper
 
@@ -248,6 +284,10 @@ class Distribution:
         for name in names:
             values = getattr(state, name)
             mine[name] = None if values is None else values[:, self.owned_cells]
+        if self.mixed is not None:
+            mine["mixed"] = self.mixed_held[self.mixed_owned]
+            for name in ("interface_pressure", "interface_velocity"):
+                mine[name] = getattr(state, name)[self.mixed_owned]
         pieces = self.comm.allgather(mine)
         whole = self.problem.state
         changes = {}
@@ -264,7 +304,49 @@ class Distribution:
             for piece in pieces:
                 values[:, piece["cells"]] = piece[name]
             changes[name] = values
+        if self.mixed is not None:
+            for name in ("interface_pressure", "interface_velocity"):
+                values = np.empty(self.problem.mixed.count)
+                for piece in pieces:
+                    values[piece["mixed"]] = piece[name]
+                changes[name] = values
         return state.evolved(**changes)
+
+
+class MixedCellsOnRanks:
+    """All the ranks' mixed cells as one set, in the serial order (``MixedCells.across_ranks``):
+    the per-cell inputs of a solve gathered from the ranks that own the cells
+    (:meth:`whole`), this rank's entries of its results (:meth:`mine`)."""
+
+    def __init__(self, comm, whole: MixedCells, held, owned):
+        """``whole``: the problem's mixed cells; ``held``: the places among them of this
+        rank's, ``owned`` (among ``held``) those it owns."""
+        self.comm, self.count = comm, whole.count
+        self.held, self.owned_places = held, held[owned]
+        self.owned = owned
+        self.place = np.full(whole.count, -1, dtype=np.int64)
+        self.place[held] = np.arange(held.size)
+        # the settings the compiled solves take of every cell
+        self.sides = tuple(np.ascontiguousarray(ids, dtype=np.int64) for ids in (whole.material_left,
+                                                                                 whole.material_right))
+        self.density_limits = (whole.max_density_left, whole.max_density_right)
+
+    def whole(self, arrays):
+        """Per-cell arrays of this rank's mixed cells → the same of all the ranks' (each cell
+        from its owner)."""
+        pieces = self.comm.allgather((self.owned_places, np.stack(arrays)[:, self.owned]))
+        out = np.empty((len(arrays), self.count))
+        for places, values in pieces:
+            out[:, places] = values
+        return tuple(out)
+
+    def mine(self, arrays):
+        """Arrays over all the ranks' mixed cells (last axis) → this rank's entries."""
+        return tuple(np.asarray(values)[..., self.held] for values in arrays)
+
+    def local(self, index: int) -> int:
+        """The place among this rank's mixed cells of the whole set's ``index`` (-1: none)."""
+        return int(self.place[index]) if 0 <= index < self.count else -1
 
 
 class DistributedWilkins(ExplicitWilkins):
@@ -275,6 +357,7 @@ class DistributedWilkins(ExplicitWilkins):
     inside each)."""
 
     distribution: Distribution
+    predicted_failure: Breakdown | None = None
 
     def share(self, distribution: Distribution) -> None:
         """Step ``distribution``'s cells (this stepper is built on its local problem)."""
@@ -300,16 +383,40 @@ class DistributedWilkins(ExplicitWilkins):
         text = super().limiting_cell(evaluation, position).replace(f"cell {local} ", f"cell {number} ", 1)
         return min(self.distribution.comm.allgather((float(times[local]), number, text)))[2]
 
+    def check(self, evaluation, position, energy, prefix: str) -> None:
+        """A predicted state's breakdown is kept until the step ends, when the ranks agree
+        on it (the other ranks still exchange forces and solve the mixed cells with this
+        one); other checks come after the step's last exchange and raise at once."""
+        if prefix != "predicted " or self.closure is None:
+            return super().check(evaluation, position, energy, prefix)
+        try:
+            super().check(evaluation, position, energy, prefix)
+        except Breakdown as failure:
+            if self.predicted_failure is None:
+                self.predicted_failure = failure
+
+    def breaks_mixed_cell(self, failure: Breakdown) -> bool:
+        """As ExplicitWilkins's, of the serial cell numbers (every rank decides alike)."""
+        whole = self.distribution.problem.mixed
+        return whole is not None and failure.cell in whole.cells
+
     def step(self, state, dt, start=None, remapped_next=False):
-        failure = None
+        failure, self.predicted_failure = None, None
         try:
             new_state, evaluation, work, impulse = super().step(state, dt, start, remapped_next)
         except Breakdown as error:
             failure = error
+        # a predicted state's breakdown comes first, as it would in the serial run
+        stage = 1 if failure is not None else 2
+        if self.predicted_failure is not None:
+            stage, failure = 0, self.predicted_failure
         distribution = self.distribution
-        failures = distribution.comm.allgather(None if failure is None else self._global(failure))
-        first = next((f for f in failures if f is not None), None)
-        if first is not None:
+        failures = distribution.comm.allgather(None if failure is None else (stage, *self._global(failure)))
+        # the first of the earliest stage, its cell named by a rank that holds it (a mixed
+        # cell's failure reaches every rank: those that hold the cell name it)
+        failures = [f for f in failures if f is not None]
+        if failures:
+            stage, *first = min(failures, key=lambda f: (f[0], f[2] < 0))
             raise Breakdown(*first[:4], **first[4])
         return new_state, evaluation, distribution.summed(work), distribution.summed(impulse)
 
