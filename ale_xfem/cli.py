@@ -92,6 +92,11 @@ def _parser() -> argparse.ArgumentParser:
     bench.add_argument("--peers", action="store_true",
                        help="Sod's tube: PyClaw's second-order solver against our Lagrangian and enriched "
                             "runs, 100 ... 3200 cells (`make bench-peers` installs PyClaw)")
+    bench.add_argument("--ranks", default=None, metavar="N1,N2,...",
+                       help="strong scaling on MPI ranks (mpiexec -n N ale-xfem run): the 2D explicit loop "
+                            "(sod-2d) and single-velocity mixed cells (the rotated tube, Lagrangian) on "
+                            "1000 × 1000 cells (or --cells N: √N × √N), about 50 steps, by phase with the "
+                            "communication share, speed-up against the first number of ranks")
     bench.add_argument("--out", type=Path, default=Path("out") / "bench-peers",
                        help="with --peers: output folder (default: out/bench-peers)")
     # an unknown option is reported with the usage of the (sub)command it was given to
@@ -207,6 +212,26 @@ def _bench(args) -> int:
     except ValueError:
         print(f"error: --cells = {args.cells!r}: comma-separated positive integers", file=sys.stderr)
         return EXIT_BAD_INPUT
+    if args.ranks is not None:
+        from ale_xfem.studies.bench import mpi_launcher, run_rank_bench
+
+        try:
+            ranks = [int(v) for v in args.ranks.split(",")]
+            if not ranks or any(v < 1 for v in ranks):
+                raise ValueError
+        except ValueError:
+            print(f"error: --ranks = {args.ranks!r}: comma-separated positive integers (numbers of MPI ranks)",
+                  file=sys.stderr)
+            return EXIT_BAD_INPUT
+        if max(ranks) > 1 and not mpi_launcher().exists():
+            print(f"error: --ranks = {args.ranks!r}: needs the MPI launcher {mpi_launcher()}, which is not there "
+                  "(the mpich wheel DOLFINx needs puts it there: `make test` or `make demo` sets .venv up)", file=sys.stderr)
+            return EXIT_BAD_INPUT
+        if len(sizes) > 1 and args.cells != "1000,10000,100000,1000000":
+            print(f"error: --cells = {args.cells!r}: one size with --ranks", file=sys.stderr)
+            return EXIT_BAD_INPUT
+        run_rank_bench(ranks, 1_000_000 if args.cells == "1000,10000,100000,1000000" else sizes[0])
+        return EXIT_OK
     if args.enriched:
         from ale_xfem.studies.bench import run_enriched_bench
 

@@ -23,7 +23,7 @@ from ale_xfem.mixed.closures import Closures
 from ale_xfem.mixed.cut_cells_2d import material_geometry
 from ale_xfem.model.plic import reconstruct_state
 from ale_xfem.model.state import State, material_masses, totals
-from ale_xfem.parallel.distribution import Distribution, check_distributable, ranks
+from ale_xfem.parallel.distribution import REMAP_GHOST_RINGS, Distribution, check_distributable, ranks
 from ale_xfem.problem.build import Problem
 from ale_xfem.remap.failure import RemapFailure
 from ale_xfem.remap.remapper_1d import Remapper
@@ -128,16 +128,19 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
     # On several MPI ranks each steps its share of the cells (ale_xfem.parallel), and the
     # serial state is gathered at the end; one rank pays nothing for it.
     distribution = None
+    remapped = any(name.startswith("remap_") for name in problem.effects)
     if ranks() > 1:
         check_distributable(problem)
-        distribution = Distribution(problem)
+        # a remap reads further than a Lagrange step: a deeper ghost layer
+        distribution = Distribution(problem, rings=REMAP_GHOST_RINGS if remapped else 1)
         stepper = distribution.stepper(partial(make_stepper, problem))
     else:
         stepper = make_stepper(problem)
     remapper = None
-    if any(name.startswith("remap_") for name in problem.effects):
+    if remapped:
         if problem.mesh.dimension == 2:
-            remapper = Remapper2D(problem, problem.scene.mesh.motion, problem.scene.numerics.remap_order)
+            remapper = Remapper2D(problem, problem.scene.mesh.motion, problem.scene.numerics.remap_order,
+                                  **({} if distribution is None else distribution.remap_parts()))
             interface = problem.scene.interface
             if interface is not None and interface.model == "enriched":  # the step's masses
                 remapper.material_geometry = partial(material_geometry, problem.mesh)
@@ -226,7 +229,7 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
             if remapper is not None:
                 remap_clock = time.perf_counter()
                 new_state, evaluation, impulse, kinetic_change = _remap(
-                    problem, stepper, remapper, new_state, evaluation, impulse)
+                    problem, stepper, remapper, new_state, evaluation, impulse, distribution)
                 work += remapper.wall_work
                 remap_energy_change += kinetic_change
                 remap_seconds += time.perf_counter() - remap_clock
@@ -247,12 +250,15 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
     wall = time.perf_counter() - clock
     if distribution is not None:
         state = distribution.gathered(state)
+        distribution.gather_problem()  # the layout, masses and mixed cells a remap left
         wall = -distribution.least(-wall)  # the slowest rank's
     if progress is not None:
         progress.update(state.time, steps, force=True)
         progress.close()
     phases = {"lagrange": wall - remap_seconds - stepper.mixed_seconds,
               "mixed_cell_solve": stepper.mixed_seconds, "remap": remap_seconds}
+    if distribution is not None:  # within the others: exchanges and reductions, the most any rank spent
+        phases["communication"] = -distribution.least(-distribution.seconds)
     result = RunResult(status, state, steps, wall, diagnostic, dt_min=float(dt_min if steps else 0.0),
                        dt_max=float(dt_max), phase_seconds=phases, ranks=ranks())
     result.conservation = conservation(start_totals, totals(state, problem.node_mass),
@@ -304,14 +310,19 @@ def _step(stepper, state, dt, evaluation, remapped_next):
             dt *= 0.5
 
 
-def _remap(problem, stepper, remapper, state, evaluation, impulse):
+def _remap(problem, stepper, remapper, state, evaluation, impulse, distribution=None):
     """The transport phase: remap, take the new layout, hold the walls, relax mixed cells.
-    Returns (state, its evaluation, boundary impulse, kinetic energy change)."""
+    Returns (state, its evaluation, boundary impulse, kinetic energy change).  On several
+    MPI ranks (``distribution``) the rank's share: its mixed cells solved with all the
+    ranks', the walls' impulse and work summed over the ranks' own nodes."""
     state, layout, mixed, node_mass, kinetic_change = remapper.apply(state, stepper.layout, stepper.mixed)
     if node_mass is None:  # nothing was remapped this step
         return state, evaluation, impulse, 0.0
+    if distribution is not None:
+        mixed = distribution.adopt_mixed(mixed, remapper.solver_options)
     stepper.rebuild(layout, node_mass, mixed)
-    problem.layout, problem.mixed, problem.node_mass = layout, mixed, node_mass
+    if distribution is None:  # (on several ranks the problem takes the ranks' at the end)
+        problem.layout, problem.mixed, problem.node_mass = layout, mixed, node_mass
     # The walls hold the remapped velocities too: their impulse is a boundary reaction, the
     # kinetic energy it removes part of the remap's change.
     held = stepper.constrained_nodes
@@ -319,8 +330,12 @@ def _remap(problem, stepper, remapper, state, evaluation, impulse):
     for boundary in stepper.constraints:
         boundary.apply(state.node_velocity)  # the remap's own array
     after = state.node_velocity[:, held]
-    impulse = impulse + (node_mass[held] * (after - before)).sum(axis=1) + remapper.wall_impulse
-    kinetic_change += 0.5 * float(np.sum(node_mass[held] * (after**2 - before**2)))
+    held_impulse = (node_mass[held] * (after - before)).sum(axis=1)
+    held_kinetic = 0.5 * float(np.sum(node_mass[held] * (after**2 - before**2)))
+    if distribution is not None:
+        held_impulse, held_kinetic = distribution.summed(held_impulse), distribution.summed(held_kinetic)
+    impulse = impulse + held_impulse + remapper.wall_impulse
+    kinetic_change += held_kinetic
     if stepper.closure is not None:  # the remap leaves a pressure jump in mixed cells
         state, _ = stepper.closure.relax_start(state, in_place=True)
     evaluation = stepper.evaluate_state(state, thermodynamics_known=True)

@@ -17,11 +17,11 @@ import pytest
 MPIEXEC = Path(sys.executable).parent / "mpiexec"  # the launcher of the MPI the wheels install
 
 
-def _run(tmp_path: Path, name: str, ranks: int, *overrides: str):
-    """`ale-xfem run` of a shipped scene on ``ranks`` ranks (1: no launcher): (completed
-    process, output folder)."""
+def _run(tmp_path: Path, name: str, ranks: int, *overrides: str, frames: int = 0):
+    """`ale-xfem run` of a shipped scene on ``ranks`` ranks (1: no launcher), with
+    ``frames`` VTK frames: (completed process, output folder)."""
     out = tmp_path / f"{name}-{ranks}"
-    command = [sys.executable, "-m", "ale_xfem.cli", "run", name, "--quiet", "--no-plot", "--frames", "0",
+    command = [sys.executable, "-m", "ale_xfem.cli", "run", name, "--quiet", "--no-plot", "--frames", str(frames),
                "--out", str(out), *[a for o in overrides for a in ("--set", o)]]
     if ranks > 1:
         command = [str(MPIEXEC), "-n", str(ranks), *command]
@@ -77,6 +77,10 @@ def _the_same_run(serial, serial_out, parallel, parallel_out, ranks):
         assert abs(many["conservation"][key] - one["conservation"][key]) <= 1e-15, key
     fields = "cells.csv" if (serial_out / "cells.csv").exists() else "profile.csv"
     assert (parallel_out / fields).read_bytes() == (serial_out / fields).read_bytes()
+    frames = sorted(p.name for p in serial_out.glob("*.vtu"))  # (written by rank 0 from gathered states)
+    assert frames == sorted(p.name for p in parallel_out.glob("*.vtu"))
+    for frame in frames:
+        assert (parallel_out / frame).read_bytes() == (serial_out / frame).read_bytes(), frame
 
 
 def test_an_enriched_mixed_cell_on_a_partition_boundary_is_solved_as_in_the_serial_run(tmp_path):
@@ -118,6 +122,25 @@ def test_single_velocity_mixed_cells_across_partitions_are_the_serial_ones(tmp_p
     _the_same_run(*_run(tmp_path, name, 1, *overrides), *_run(tmp_path, name, ranks, *overrides), ranks)
 
 
+@pytest.mark.parametrize("name, overrides, ranks", [
+    ("rotated-tube", ["mesh.motion=eulerian", "mesh.cells=[40,40]"], 2),
+    ("rotated-tube", ["mesh.motion=smoothed", "mesh.cells=[24,24]", "mesh.cell_type=triangle"], 3),
+    ("sedov", ["mesh.cells=[30,30]"], 2),  # smoothed
+    ("noh", ["mesh.motion=smoothed", "mesh.cells=[30,30]", "t_end=0.2"], 3),
+    ("shock-disk", ["mesh.cells=[48,24]", "t_end=0.2"], 2),  # traces moved to neighbours
+], ids=["rotated-tube-eulerian-2", "rotated-tube-smoothed-triangles-3", "sedov-smoothed-2", "noh-smoothed-3",
+        "shock-disk-smoothed-2"])
+def test_a_remapped_run_on_several_ranks_is_the_serial_run_to_the_bit(tmp_path, name, overrides, ranks):
+    """Eulerian and smoothed meshes, pure and single-velocity mixed cells: each rank remaps
+    its share with a ghost layer of REMAP_GHOST_RINGS rings, refreshed from the owners after
+    the fluxes and each pass of the traces' moves, sums taken in the serial order: the
+    serial run's steps, mixed cells, cells.csv and VTK frames (rank 0 writes them from the
+    gathered states, their layouts and mixed cells too) to the bit (the meshes are large
+    enough for every rank's ghost layer to end inside the mesh)."""
+    _the_same_run(*_run(tmp_path, name, 1, *overrides, frames=3), *_run(tmp_path, name, ranks, *overrides, frames=3),
+                  ranks)
+
+
 def test_a_collapsed_time_step_is_reported_on_several_ranks_as_on_one(tmp_path):
     """Sod to t = 20 with 5000 steps allowed: every step is too small to reach t_end, and
     after 1000 in a row the run stops (exit code 3), naming the cell that sets the time
@@ -146,14 +169,15 @@ def test_a_breakdown_on_one_rank_stops_every_rank_with_the_serial_diagnostic(tmp
 
 
 @pytest.mark.parametrize("name, overrides, key, allowed", [
-    ("sedov", [], "mesh.motion = 'smoothed'", "run without mpiexec"),
+    ("transverse-eulerian", [], "mesh.motion = 'eulerian'", "in 1D on 2 ranks"),
+    ("sliding-block", [], "interface.model = 'enriched'", "run without mpiexec"),
     ("sod-two-gamma-enriched", ["interface.predictor=assembled"], "interface.predictor = 'assembled'",
      "run without mpiexec"),
     ("sod", ["mesh.cells=2"], "mesh.cells = 2", "at least 3 cells on 3 ranks"),
-], ids=["remap", "assembled-predictor", "fewer-cells-than-ranks"])
+], ids=["remap-1d", "enriched-2d", "assembled-predictor", "fewer-cells-than-ranks"])
 def test_a_scene_that_cannot_share_its_cells_out_is_refused_once(tmp_path, name, overrides, key, allowed):
-    """A remapped mesh or the assembled 1D predictor run on one rank in this version, and
-    every rank needs a cell: on several ranks the run stops before anything runs, exit
+    """A 1D remap, 2D enriched cells or the assembled 1D predictor run on one rank in this
+    version, and every rank needs a cell: on several ranks the run stops before anything runs, exit
     code 2, one line naming the key, its value and what is allowed, and no output."""
     done, out = _run(tmp_path, name, 3 if name == "sod" else 2, *overrides)
     assert done.returncode == 2
@@ -167,8 +191,38 @@ def test_explain_on_several_ranks_says_whether_the_cells_are_shared_out():
     the run would share its cells out (or why it is refused)."""
     command = [str(MPIEXEC), "-n", "2", sys.executable, "-m", "ale_xfem.cli", "run"]
     shared = subprocess.run([*command, "sod", "--explain"], capture_output=True, text=True, timeout=600)
-    refused = subprocess.run([*command, "sedov", "--explain"], capture_output=True, text=True, timeout=600)
+    refused = subprocess.run([*command, "transverse-eulerian", "--explain"], capture_output=True, text=True,
+                             timeout=600)
     assert shared.returncode == refused.returncode == 0
     assert shared.stdout.count("effects switched on:") == 1
     assert shared.stdout.count("on 2 MPI ranks: each steps its share of the cells") == 1
-    assert refused.stdout.count("on 2 MPI ranks: refused: mesh.motion = 'smoothed'") == 1
+    assert refused.stdout.count("on 2 MPI ranks: refused: mesh.motion = 'eulerian'") == 1
+
+
+def test_bench_ranks_times_each_case_on_each_number_of_ranks():
+    """`bench --ranks 1,2` (ale_xfem.studies.bench.run_rank_bench), one round on 40 × 40
+    (20 × 20 for the remapped run): each case runs the same steps on 1 and 2 ranks;
+    one rank spends nothing on communication, two spend something, less than their step;
+    the efficiency is the speed-up per rank; only the remapped case has a remap phase."""
+    from ale_xfem.studies.bench import RANK_CASES, run_rank_bench
+
+    lines = []
+    cases = (RANK_CASES[0], RANK_CASES[-1])  # the explicit loop and the remapped run
+    rows = run_rank_bench((1, 2), cells=1600, out=lines.append, rounds=1, cases=cases)
+    assert len(rows) == 2 * len(cases) and len(lines) == 2 + len(rows)
+    for one, two in zip(rows[::2], rows[1::2]):
+        assert (one["ranks"], two["ranks"]) == (1, 2) and one["case"] == two["case"]
+        assert one["steps"] == two["steps"] > 10 and one["cells"] == two["cells"]
+        assert one["phases"]["communication"] == 0.0 < two["phases"]["communication"]
+        assert two["phases"]["communication"] < two["seconds_per_step"][1]
+        assert one["speed_up"] == (1.0, 1.0, 1.0)
+        assert two["efficiency"][0] == pytest.approx(two["speed_up"][0] / 2)
+        assert (one["phases"]["remap"] > 0.0) == ("remapped" in one["case"])
+
+
+@pytest.mark.parametrize("ranks", ["0,2", "x", ""])
+def test_bench_ranks_rejects_what_is_not_a_number_of_ranks(capsys, ranks):
+    from ale_xfem.cli import main
+
+    assert main(["bench", "--ranks", ranks]) == 2
+    assert "--ranks" in capsys.readouterr().err

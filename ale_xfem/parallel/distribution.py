@@ -19,8 +19,8 @@ the bit.
   verdict after the step, the first failing rank's diagnostic for all), the boundary
   reactions' work and impulse (each rank's own nodes; summed in rank order).
 - **The result.**  Each rank's own cells and nodes, gathered into the serial state on every
-  rank; conservation and errors are taken on it as in a serial run.
-
+  rank (with the layout, nodal masses and mixed cells a remap left); conservation and
+  errors are taken on it as in a serial run.
 - **Mixed cells.**  A rank holds the mixed cells among its cells (:meth:`Distribution.local_mixed`);
   their closure works cell by cell, but the interface solve and the relaxation iterate all
   the mixed cells together until every one is done, and relax all or none: so every rank
@@ -31,14 +31,23 @@ the bit.
   the mean force is exchanged again after the solve.  A predicted state's breakdown waits
   for the step's end (:meth:`DistributedWilkins.check`), so that no rank leaves an exchange
   the others are in.
+- **The 2D remap.**  A remapped mesh takes a ghost layer of :data:`REMAP_GHOST_RINGS` rings
+  of cells; each rank remaps its local mesh, whose outer ghost cells miss neighbours and
+  come out wrong, and :class:`RankScope` refreshes the ghost cells and nodes from their
+  owners (an ``IndexMap`` of the cells besides the nodes') after the fluxes, after each
+  pass of the traces' moves and at the end, takes the sums over the mesh in the serial
+  order (:meth:`Distribution.serial_total`) and agrees on failures; the new mixed cells are
+  then solved as one set again (:meth:`Distribution.adopt_mixed`).
 
-What runs distributed: Lagrangian meshes, in 1D and 2D, with pure cells, single-velocity
-mixed cells or 1D enriched cells (closed-form predictor); other scenes (a remap, the
-assembled 1D predictor) are refused at the start with the key that needs one rank.
+What runs distributed: 1D and 2D Lagrangian meshes and 2D Eulerian and smoothed meshes,
+with pure cells, single-velocity mixed cells or (1D, Lagrangian) enriched cells with the
+closed-form predictor; other scenes (a 1D remap, 2D enriched cells, the assembled 1D
+predictor) are refused at the start with the key that needs one rank.
 """
 
 from __future__ import annotations
 
+import time
 from dataclasses import replace
 
 import numpy as np
@@ -49,7 +58,17 @@ from ale_xfem.model.boundaries import Boundary
 from ale_xfem.model.mesh import MeshArrays
 from ale_xfem.model.mixed_cells import MixedCells
 from ale_xfem.model.state import MaterialLayout, State
+from ale_xfem.remap.failure import RemapFailure
+from ale_xfem.remap.scope import WholeMesh
 from ale_xfem.scene import SceneError
+
+# The ghost layer of a remapped mesh, in rings of cells around each rank's own: a cell's
+# new state needs its donors' reconstructions (their neighbours: 2 rings), a node's its
+# cells' fluxes and their donors' velocities and reconstructions (3 rings); the ghost
+# cells are refreshed from their owners after the fluxes and after each pass of the
+# traces' moves (RankScope), so those passes need no more.  The tests' runs were the serial
+# ones with 3 rings and not with 2; one ring more is kept in hand.
+REMAP_GHOST_RINGS = 4
 
 
 def launched_by_mpiexec() -> bool:
@@ -83,9 +102,16 @@ def check_distributable(problem) -> None:
     """Raise SceneError naming the key that keeps ``problem`` on one rank."""
     n = ranks()
     effects = problem.effects
-    if problem.scene.mesh.motion != "lagrangian" or any(name.startswith("remap_") for name in effects):
-        raise SceneError("mesh.motion", problem.scene.mesh.motion,
-                         f"'lagrangian' on {n} ranks (the remap runs on one rank in this version: run without mpiexec)")
+    motion = problem.scene.mesh.motion
+    remapped = motion != "lagrangian" or any(name.startswith("remap_") for name in effects)
+    if remapped and problem.mesh.dimension == 1:
+        raise SceneError("mesh.motion", motion, f"'lagrangian' in 1D on {n} ranks (the 1D remap runs on one rank in "
+                         "this version: run without mpiexec)")
+    interface = problem.scene.interface
+    if remapped and interface is not None and interface.model == "enriched":
+        raise SceneError("interface.model", interface.model,
+                         f"'single_velocity' on {n} ranks (2D enriched mixed cells run on one rank in this version: "
+                         "run without mpiexec)")
     if "interface_predictor_assembled" in effects:
         raise SceneError("interface.predictor", "assembled",
                          f"'closed_form' on {n} ranks (the assembled predictor runs on one rank in this version: "
@@ -134,7 +160,10 @@ class Distribution:
     indices, sorted) and nodes (``nodes``), the local problem's mesh, and the exchange of
     nodal fields with the other ranks."""
 
-    def __init__(self, problem, comm=None):
+    def __init__(self, problem, comm=None, rings: int = 1):
+        """``rings``: the ghost layer's depth in rings of cells around the rank's own (1: the
+        cells around its nodes, what a Lagrange step needs; a remap needs
+        REMAP_GHOST_RINGS)."""
         self.comm = comm if comm is not None else world()
         self.problem = problem
         size, me = self.comm.size, self.comm.rank
@@ -151,6 +180,10 @@ class Distribution:
             np.minimum.at(node_owner, cell_nodes[:, corner], owner)
         self.cell_owner, self.node_owner = owner, node_owner
         local = (owner == me) | np.any(node_owner[cell_nodes] == me, axis=1)
+        for _ in range(rings - 1):  # one more ring: every cell around a node of the local cells
+            reached = np.zeros(mesh.n_nodes, dtype=bool)
+            reached[cell_nodes[local]] = True
+            local |= np.any(reached[cell_nodes], axis=1)
         self.cells = np.flatnonzero(local)
         self.nodes = np.unique(cell_nodes[self.cells])
         self.owned_cells = np.flatnonzero(owner[self.cells] == me)  # local indices
@@ -171,13 +204,32 @@ class Distribution:
 
         self.index_map = dolfinx.common.IndexMap(self.comm, int(self.owned_nodes.size), number[ghosts],
                                                  node_owner[ghosts].astype(np.int32), 1)
-        self.vectors = {}
+        self.node_number = number  # each node's number in the index map (all ranks')
+        # the cells' index map (refreshing ghost cells after a remap), numbered alike
+        counts = np.bincount(owner, minlength=size)
+        offsets = np.concatenate([[0], np.cumsum(counts)])
+        cell_number = np.empty(mesh.n_cells, dtype=np.int64)
+        for r in range(size):
+            mine = np.flatnonzero(owner == r)
+            cell_number[mine] = offsets[r] + np.arange(mine.size)
+        self.ghost_cells = np.flatnonzero(owner[self.cells] != me)
+        ghost_cells = self.cells[self.ghost_cells]
+        self.cell_map = dolfinx.common.IndexMap(self.comm, int(self.owned_cells.size), cell_number[ghost_cells],
+                                                owner[ghost_cells].astype(np.int32), 2)
+        self.vectors, self.cell_vectors = {}, {}
+        self.stats = None  # the mixed cells' solver statistics (the whole run's)
+        # seconds in the exchanges and reductions over the ranks (waiting for the others
+        # included): the run's phase_seconds["communication"]
+        self.seconds = 0.0
         self.mixed = self.local_mixed(problem.mixed)
 
     def local_mixed(self, whole: MixedCells | None) -> MixedCells | None:
         """The mixed cells this rank holds (local numbers, in the serial order), solved with
         all the ranks' (MixedCells.across_ranks: the serial run's iterations); None when the
         problem has none.  A rank that holds none still solves with the others."""
+        self.whole_mixed = whole
+        if whole is not None and getattr(self, "stats", None) is None:
+            self.stats = whole.stats
         if whole is None:
             return None
         held = np.flatnonzero(np.isin(whole.cells, self.cells))
@@ -189,15 +241,40 @@ class Distribution:
         return replace(whole, cells=np.searchsorted(self.cells, whole.cells[held]),
                        node_left=local_nodes(whole.node_left), node_right=local_nodes(whole.node_right),
                        material_left=whole.material_left[held], material_right=whole.material_right[held],
-                       stats=whole.stats, across_ranks=MixedCellsOnRanks(self.comm, whole, held, owned))
+                       stats=whole.stats, across_ranks=MixedCellsOnRanks(self, whole, held, owned))
 
     # -- the local problem ----------------------------------------------------------------
 
-    def local_boundaries(self):
-        """The problem's boundaries on this rank's nodes (local numbers)."""
+    def adopt_mixed(self, mixed: MixedCells | None, options: dict) -> MixedCells | None:
+        """The mixed cells a remap left on this rank (local numbers, every local cell's
+        state the serial one), solved with all the ranks' as one set: the whole set from each
+        rank's own mixed cells, in the serial order (ascending cell numbers, as a serial
+        remap lists them; ``options``: the solver settings a remap gives new mixed cells)."""
+        mine = np.empty(0, dtype=np.int64) if mixed is None else mixed.cells
+        sides = (np.empty(0, dtype=np.int64),) * 2 if mixed is None else (mixed.material_left, mixed.material_right)
+        owned = self.cell_owner[self.cells[mine]] == self.comm.rank
+        pieces = self.allgather((self.cells[mine][owned], sides[0][owned], sides[1][owned]))
+        cells = np.concatenate([p[0] for p in pieces])
+        if cells.size == 0:
+            self.whole_mixed, self.mixed = None, None
+            return None
+        order = np.argsort(cells)
+        left, right = (np.concatenate([p[k] for p in pieces])[order] for k in (1, 2))
+        whole = MixedCells(cells[order], None, None, left, right, self.problem.materials, **options)
+        if self.stats is not None:  # one record of the solves for the whole run
+            whole.stats = self.stats
+        self.stats = whole.stats
+        self.mixed = self.local_mixed(whole)
+        return self.mixed
+
+    def local_boundaries(self, owned_only: bool = False):
+        """The problem's boundaries on this rank's nodes (local numbers; ``owned_only``: on
+        the nodes it owns)."""
         local = []
         for boundary in self.problem.boundaries:
             here = np.flatnonzero(np.isin(self.nodes, boundary.nodes))
+            if owned_only:
+                here = here[self.node_owner[self.nodes[here]] == self.comm.rank]
             local.append(Boundary(boundary.side, boundary.kind, here, boundary.normal, boundary.velocity))
         return local
 
@@ -218,6 +295,12 @@ class Distribution:
             material_pressure=cell_values(state.material_pressure),
             material_sound_speed=cell_values(state.material_sound_speed))
 
+    def remap_parts(self) -> dict:
+        """What a remapper of this rank's share takes (Remapper2D's mesh, boundaries and
+        scope): the local mesh, the boundaries of its own nodes (a ghost node takes its
+        owner's remapped velocity), and the scope that reaches the other ranks."""
+        return {"mesh": self.mesh, "boundaries": self.local_boundaries(owned_only=True), "scope": RankScope(self)}
+
     def stepper(self, make_stepper) -> "DistributedWilkins":
         """The Lagrange step of this rank's cells (``make_stepper``: ale_xfem.run's, given
         the local problem's parts)."""
@@ -226,6 +309,7 @@ class Distribution:
         stepper = make_stepper(self.mesh, layout, np.ascontiguousarray(problem.node_mass[self.nodes]),
                                self.local_boundaries(), mixed=self.mixed, stepper_class=DistributedWilkins)
         stepper.share(self)
+        self.step = stepper
         return stepper
 
     # -- exchanges ------------------------------------------------------------------------
@@ -235,6 +319,7 @@ class Distribution:
         their owners' (DOLFINx's scatter_forward)."""
         import dolfinx
 
+        clock = time.perf_counter()
         components = field.shape[0]
         vector = self.vectors.get(components)
         if vector is None:
@@ -244,6 +329,68 @@ class Distribution:
         values[:owned] = field[:, self.owned_nodes].T
         vector.scatter_forward()
         field[:, self.ghost_nodes] = values[owned:].T
+        self.seconds += time.perf_counter() - clock
+
+    def forward_cells(self, field: np.ndarray) -> None:
+        """Replace the ghost cells' values of a cell field (rows, local cells) by their
+        owners' (DOLFINx's scatter_forward on the cells' index map)."""
+        import dolfinx
+
+        clock = time.perf_counter()
+        rows = field.shape[0]
+        vector = self.cell_vectors.get(rows)
+        if vector is None:
+            vector = self.cell_vectors[rows] = dolfinx.la.vector(self.cell_map, bs=rows)
+        values = vector.array.reshape(-1, rows)
+        owned = self.owned_cells.size
+        values[:owned] = field[:, self.owned_cells].T
+        vector.scatter_forward()
+        field[:, self.ghost_cells] = values[owned:].T
+        self.seconds += time.perf_counter() - clock
+
+    def serial_total(self, values, over: str) -> float:
+        """Σ of a field over the whole mesh in the serial order: each rank's own entries
+        gathered on rank 0 into the serial array, summed there as one rank sums it, the sum
+        sent to every rank (``over``: "nodes", (n_nodes,), or "cells", (rows, n_cells))."""
+        clock = time.perf_counter()
+        if over == "nodes":
+            mine, numbers, shape = values[self.owned_nodes], self.nodes[self.owned_nodes], (self.problem.mesh.n_nodes,)
+        else:
+            mine, numbers = values[:, self.owned_cells], self.cells[self.owned_cells]
+            shape = (values.shape[0], self.problem.mesh.n_cells)
+        pieces = self.comm.gather((numbers, mine), root=0)
+        total = None
+        if pieces is not None:
+            whole = np.empty(shape)
+            for where, piece in pieces:
+                whole[..., where] = piece
+            total = float(whole.sum())
+        total = self.comm.bcast(total, root=0)
+        self.seconds += time.perf_counter() - clock
+        return total
+
+    def allgather(self, value) -> list:
+        """Every rank's ``value``, in rank order (timed as communication)."""
+        clock = time.perf_counter()
+        values = self.comm.allgather(value)
+        self.seconds += time.perf_counter() - clock
+        return values
+
+    def gather_problem(self) -> None:
+        """The problem's material layout, nodal masses and mixed cells made the whole run's
+        from the ranks' own (a remap changes them as the run goes)."""
+        step = self.step
+        layout = step.layout
+        pieces = self.allgather((self.cells[self.owned_cells], layout.cell_material[:, self.owned_cells],
+                                 self.nodes[self.owned_nodes], step.node_mass[self.owned_nodes]))
+        material = np.empty((layout.cell_material.shape[0], self.problem.mesh.n_cells), dtype=layout.cell_material.dtype)
+        node_mass = np.empty(self.problem.mesh.n_nodes)
+        for cells, values, nodes, masses in pieces:
+            material[:, cells], node_mass[nodes] = values, masses
+        problem = self.problem
+        problem.layout = MaterialLayout(material, layout.n_materials)
+        problem.node_mass = node_mass
+        problem.mixed = None if self.whole_mixed is None else replace(self.whole_mixed, across_ranks=None)
 
     def observer(self, observe, observe_from, problem):
         """``observe`` (rank 0's, or None) called with the serial state, gathered from the
@@ -257,18 +404,19 @@ class Distribution:
             due = observe is not None and (observe_from is None or state.time >= observe_from())
             if self.comm.bcast(due, root=0):
                 whole = self.gathered(state)
+                self.gather_problem()
                 if observe is not None:
                     observe(whole, problem)
         return observe_gathered
 
     def least(self, value: float) -> float:
         """The least of each rank's ``value`` (NaN if any is)."""
-        values = self.comm.allgather(float(value))
+        values = self.allgather(float(value))
         return float("nan") if any(v != v for v in values) else min(values)
 
     def summed(self, value):
         """Σ over the ranks of ``value`` (a number or an array), in rank order."""
-        values = self.comm.allgather(value)
+        values = self.allgather(value)
         total = values[0]
         for other in values[1:]:
             total = total + other
@@ -306,11 +454,48 @@ class Distribution:
             changes[name] = values
         if self.mixed is not None:
             for name in ("interface_pressure", "interface_velocity"):
-                values = np.empty(self.problem.mixed.count)
+                values = np.empty(self.whole_mixed.count)
                 for piece in pieces:
                     values[piece["mixed"]] = piece[name]
                 changes[name] = values
         return state.evolved(**changes)
+
+
+class RankScope(WholeMesh):
+    """What one rank's remap reaches beyond its cells (ale_xfem.remap.scope): the ghost cells
+    and nodes refreshed from their owners, sums over the ranks' own entries in the serial
+    order, failures agreed over the ranks (the serial run's: of one check, the lowest
+    serial cell number)."""
+
+    def __init__(self, distribution: Distribution):
+        self.distribution = distribution
+        self.owned_nodes = distribution.owned_nodes
+
+    def cells(self, *fields) -> None:
+        for field in fields:
+            self.distribution.forward_cells(field)
+
+    def nodes(self, *fields) -> None:
+        for field in fields:
+            self.distribution.forward(field if field.ndim == 2 else field[None, :])
+
+    def total(self, values, over: str) -> float:
+        return self.distribution.serial_total(values, over)
+
+    def summed(self, value):
+        return self.distribution.summed(value)
+
+    def anywhere(self, flag: bool) -> bool:
+        return any(self.distribution.allgather(bool(flag)))
+
+    def cell_number(self, cell: int) -> int:
+        return int(self.distribution.cells[cell])
+
+    def verdict(self, failure: RemapFailure | None, order: int = 0) -> None:
+        found = [f for f in self.distribution.allgather(None if failure is None else (order, str(failure)))
+                 if f is not None]
+        if found:
+            raise RemapFailure(min(found)[1])
 
 
 class MixedCellsOnRanks:
@@ -318,10 +503,10 @@ class MixedCellsOnRanks:
     the per-cell inputs of a solve gathered from the ranks that own the cells
     (:meth:`whole`), this rank's entries of its results (:meth:`mine`)."""
 
-    def __init__(self, comm, whole: MixedCells, held, owned):
+    def __init__(self, distribution: Distribution, whole: MixedCells, held, owned):
         """``whole``: the problem's mixed cells; ``held``: the places among them of this
         rank's, ``owned`` (among ``held``) those it owns."""
-        self.comm, self.count = comm, whole.count
+        self.distribution, self.count = distribution, whole.count
         self.held, self.owned_places = held, held[owned]
         self.owned = owned
         self.place = np.full(whole.count, -1, dtype=np.int64)
@@ -334,7 +519,7 @@ class MixedCellsOnRanks:
     def whole(self, arrays):
         """Per-cell arrays of this rank's mixed cells → the same of all the ranks' (each cell
         from its owner)."""
-        pieces = self.comm.allgather((self.owned_places, np.stack(arrays)[:, self.owned]))
+        pieces = self.distribution.allgather((self.owned_places, np.stack(arrays)[:, self.owned]))
         out = np.empty((len(arrays), self.count))
         for places, values in pieces:
             out[:, places] = values
@@ -381,12 +566,23 @@ class DistributedWilkins(ExplicitWilkins):
         local = int(np.argmin(times))
         number = int(self.distribution.cells[local])
         text = super().limiting_cell(evaluation, position).replace(f"cell {local} ", f"cell {number} ", 1)
-        return min(self.distribution.comm.allgather((float(times[local]), number, text)))[2]
+        return min(self.distribution.allgather((float(times[local]), number, text)))[2]
 
     def check(self, evaluation, position, energy, prefix: str) -> None:
         """A predicted state's breakdown is kept until the step ends, when the ranks agree
         on it (the other ranks still exchange forces and solve the mixed cells with this
         one); other checks come after the step's last exchange and raise at once."""
+        if prefix == "remapped ":  # after the remap, outside a step: the ranks agree at once
+            failure = None
+            try:
+                super().check(evaluation, position, energy, prefix)
+            except Breakdown as error:
+                failure = self._global(error)
+            failures = [f for f in self.distribution.allgather(failure) if f is not None]
+            if failures:
+                first = failures[0]
+                raise Breakdown(*first[:4], **first[4])
+            return None
         if prefix != "predicted " or self.closure is None:
             return super().check(evaluation, position, energy, prefix)
         try:
@@ -411,7 +607,7 @@ class DistributedWilkins(ExplicitWilkins):
         if self.predicted_failure is not None:
             stage, failure = 0, self.predicted_failure
         distribution = self.distribution
-        failures = distribution.comm.allgather(None if failure is None else (stage, *self._global(failure)))
+        failures = distribution.allgather(None if failure is None else (stage, *self._global(failure)))
         # the first of the earliest stage, its cell named by a rank that holds it (a mixed
         # cell's failure reaches every rank: those that hold the cell name it)
         failures = [f for f in failures if f is not None]

@@ -9,12 +9,14 @@ from __future__ import annotations
 import numpy as np
 
 
-def losses_only(loss):
+def losses_only(loss, totals=None):
     """The nodes' kinetic-energy losses (n_nodes,) with the gains left out and the rest
     scaled to the same sum, for a remap that lost kinetic energy overall (loss.sum() > 0):
-    deposited as heat, total energy is conserved."""
+    deposited as heat, total energy is conserved.  ``totals``: (Σ loss, Σ max(loss, 0)) over
+    the whole mesh, when ``loss`` is one MPI rank's share (:mod:`ale_xfem.remap.scope`)."""
     positive = np.maximum(loss, 0.0)
-    return positive * (loss.sum() / positive.sum())
+    total, positive_total = (loss.sum(), positive.sum()) if totals is None else totals
+    return positive * (total / positive_total)
 
 
 def made_kinetic_energy_factor(loss_sum, internal_energy_sum):

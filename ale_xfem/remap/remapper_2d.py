@@ -49,6 +49,7 @@ from ale_xfem.model.mixed_cells import MixedCells
 from ale_xfem.remap import swept_kernels_2d
 from ale_xfem.remap.failure import RemapFailure
 from ale_xfem.remap.kinetic_energy import losses_only, made_kinetic_energy_factor
+from ale_xfem.remap.scope import WholeMesh, first_cell
 from ale_xfem.model.state import density_of, thermodynamics
 
 # A material that falls below this fraction of its cell's area in a remap leaves the cell (its mass and energy go
@@ -79,8 +80,12 @@ class Remapper2D:
     """The transport phase of a 2D run (see module docstring); ``apply`` has the signature
     of :class:`ale_xfem.remap.remapper_1d.Remapper`'s."""
 
-    def __init__(self, problem, motion: str, order: int):
-        mesh = problem.mesh
+    def __init__(self, problem, motion: str, order: int, mesh=None, boundaries=None, scope=None):
+        """``mesh``, ``boundaries``, ``scope``: one MPI rank's share of the problem's mesh,
+        the boundaries of the nodes it owns, and what it reaches beyond them
+        (:mod:`ale_xfem.remap.scope`; by default the whole mesh)."""
+        mesh = problem.mesh if mesh is None else mesh
+        self.scope = WholeMesh() if scope is None else scope
         self.mesh, self.materials = mesh, problem.materials
         self.motion, self.order = motion, order
         self.heat = problem.scene.numerics.remap_energy == "total"
@@ -106,7 +111,8 @@ class Remapper2D:
         self.energy_limited = 0  # (the 1D remapper's counter: the 2D deposit is always of losses only)
         # walls and pistons hold the remapped velocities inside the remap, so that the kinetic
         # energy they remove is heat like the rest; their impulse is reported here
-        self.constraints = [boundary for boundary in problem.boundaries if boundary.kind != "free"]
+        self.constraints = [boundary for boundary in (problem.boundaries if boundaries is None else boundaries)
+                            if boundary.kind != "free"]
         self.wall_impulse, self.wall_work = np.zeros(2), 0.0
         self._fixed_target = None  # an Eulerian target's edge ends and cell areas (they never change)
         self.node_neighbours = node_neighbour_cells(mesh.cell_nodes, mesh.n_nodes)  # where traces go
@@ -161,6 +167,8 @@ class Remapper2D:
         mesh = self.mesh
         n_materials, n_cells = len(self.materials), mesh.n_cells
         x, X = state.node_position, self.target(state.node_position)
+        if self.motion != "eulerian":  # a smoothed node needs its neighbours: the ghost nodes' from their owners
+            self.scope.nodes(X)
         # per material dense arrays (n_materials, n_cells): volume, mass, internal energy
         volume, mass, energy = swept_kernels_2d.by_material(layout.cell_material, state.material_volume,
                                                             state.material_mass, state.material_energy, n_materials)
@@ -194,6 +202,7 @@ class Remapper2D:
             self._second_order(x, layout, is_mixed, rho, eps, swept, donor, flux_volume, flux_mass, flux_energy)
         for quantity, flux in ((volume, flux_volume), (mass, flux_mass), (energy, flux_energy)):
             swept_kernels_2d.exchange(quantity, flux, donor, receiver)
+        self.scope.cells(volume, mass, energy)  # (on several ranks: the ghost cells' from their owners)
         # a trace the fluxes changed is a trace this remap made: it moves (kept, traces of a
         # shock's path took energy below zero on the shock on a disk)
         touched = np.abs(volume[standing_where] - standing_volume) > 1e-6 * standing_volume
@@ -215,8 +224,8 @@ class Remapper2D:
         u = state.node_velocity
         velocity, node_mass, kinetic_before, loss = swept_kernels_2d.cell_momentum(
             u, mesh.cell_nodes, old_cell_mass, mass.sum(axis=0), flux_mass, donor, receiver, mesh.distinct_corners)
-        if np.any(node_mass <= 0):
-            raise RemapFailure("a node lost all its mass in the remap")
+        owned_mass = node_mass if self.scope.owned_nodes is None else node_mass[self.scope.owned_nodes]
+        self.scope.verdict(RemapFailure("a node lost all its mass in the remap") if np.any(owned_mass <= 0) else None)
         # walls take the normal velocity (that kinetic energy is heat too); pistons impose
         # theirs (the energy that costs is work of the boundary, like in the Lagrange step)
         self.wall_impulse, self.wall_work = np.zeros(velocity.shape[0]), 0.0
@@ -230,9 +239,13 @@ class Remapper2D:
                 np.subtract.at(loss, boundary.nodes, change_k)
             else:
                 self.wall_work += float(change_k.sum())
+        self.wall_impulse, self.wall_work = self.scope.summed(self.wall_impulse), self.scope.summed(self.wall_work)
+        self.scope.nodes(velocity, node_mass, loss)
         kinetic_after = 0.5 * node_mass * np.sum(velocity * velocity, axis=0)
-        kinetic_change = float(kinetic_after.sum() - kinetic_before.sum()) - self.wall_work
+        kinetic_change = self.scope.total(kinetic_after, "nodes") - self.scope.total(kinetic_before, "nodes") \
+            - self.wall_work
         self._deposit(loss, node_mass, mass, energy)
+        self.scope.cells(energy)
 
         return self._new_state(state, layout, mixed, X, volume, mass, energy, area, standing, velocity,
                                node_mass, kinetic_change)
@@ -243,14 +256,15 @@ class Remapper2D:
         internal energy, back in slots; returns what :meth:`apply` returns."""
         count, cell_material, slot_mass, slot_volume, slot_energy = swept_kernels_2d.material_slots(
             volume, mass, energy, area, standing, TRACE)
-        if np.any(count > 2):
-            c = int(np.flatnonzero(count > 2)[0])
-            raise RemapFailure(f"cell {c}: three materials meet in one cell; refine the mesh")
-        if np.any(count == 0):
-            raise RemapFailure(f"cell {int(np.flatnonzero(count == 0)[0])}: no material left after the remap")
+        scope = self.scope
+        for bad, what in ((count > 2, "three materials meet in one cell; refine the mesh"),
+                          (count == 0, "no material left after the remap")):
+            c = first_cell(bad)
+            number = scope.cell_number(c) if c >= 0 else -1
+            scope.verdict(RemapFailure(f"cell {number}: {what}") if c >= 0 else None, order=number)
         mixed_cells = np.flatnonzero(count == 2)
-        if np.any(slot_mass[cell_material >= 0] <= 0):
-            raise RemapFailure("a material's mass became ≤ 0 in the remap (a node moved too far)")
+        scope.verdict(RemapFailure("a material's mass became ≤ 0 in the remap (a node moved too far)")
+                      if np.any(slot_mass[cell_material >= 0] <= 0) else None)
         new_layout = layout.updated(cell_material)
         density = density_of(slot_mass, slot_volume)
         pressure, sound_speed = thermodynamics(self.materials, new_layout, density, slot_energy)
@@ -277,13 +291,14 @@ class Remapper2D:
         "total"``; otherwise nothing).  ``corner_mass`` (2, k, n_cells): each material's own
         corner masses (2D enriched cells, condensed), which ``node_mass`` sums; by default
         each cell's equal corner shares, split by material mass."""
-        if self.heat and loss.sum() > 0:
+        total_loss = self.scope.total(loss, "nodes")
+        if self.heat and total_loss > 0:
             # Deposited where it is lost, by corner mass then by material mass.  A node may
             # gain a little where its neighbours lose (the cells' momentum is shared by
             # corners): only the losses are deposited, scaled to their sum — cold gas must
             # not be cooled below zero by a neighbour's gain.
             corners, k = self.mesh.corners, self.mesh.cell_type.nodes_per_cell
-            loss = losses_only(loss)
+            loss = losses_only(loss, (total_loss, self.scope.total(np.maximum(loss, 0.0), "nodes")))
             per_mass = loss / node_mass
             if corner_mass is not None:  # Σ_m Σ_K Σ_k (loss_i / M_i) c_m,K,k is the whole loss
                 gathered = per_mass[self.mesh.cell_nodes.T]  # (k, n_cells)
@@ -295,11 +310,11 @@ class Remapper2D:
             heat = sum(g[0] for g in gathered) * (new_cell_mass / k)
             with np.errstate(invalid="ignore", divide="ignore"):
                 energy += heat * np.where(new_cell_mass > 0, mass / np.where(new_cell_mass > 0, new_cell_mass, 1), 0)
-        elif self.heat and loss.sum() < 0:
+        elif self.heat and total_loss < 0:
             # The momentum remap through the cells is not dissipative node by node, and now and
             # then not overall either: the kinetic energy it made is taken from the internal
             # energies in proportion (each scaled by the same factor, so none goes below 0).
-            energy *= made_kinetic_energy_factor(loss.sum(), energy.sum())
+            energy *= made_kinetic_energy_factor(total_loss, self.scope.total(energy, "cells"))
 
     def _moved_with_the_mesh(self, state, layout):
         """The per-material fields of a state whose step had no mixed cell (all materials
@@ -385,9 +400,10 @@ class Remapper2D:
         material instead (counted in ``lone_traces``: each material's mass is then exact
         within such flecks).  ``carried``: more (n_materials, n_cells) quantities that go
         with the mass (each material's momentum, per component)."""
+        scope = self.scope  # (on several ranks every rank takes each pass, the ghost cells refreshed after it)
         for _ in range(MAX_TRACE_PASSES):
             material, cells = swept_kernels_2d.traces(volume, mass, area, standing, TRACE)
-            if not cells.size:
+            if not scope.anywhere(cells.size > 0):
                 return
             present = swept_kernels_2d.present_materials(volume[:, cells], area[cells], standing[:, cells], TRACE)
             keeper = np.argmax(np.where(present, volume[:, cells], -np.inf), axis=0)
@@ -396,13 +412,14 @@ class Remapper2D:
             best = np.argmax(held, axis=1)
             rows = np.arange(cells.size)
             larger = held[rows, best] > volume[material, cells]
-            if not np.any(larger):
+            if not scope.anywhere(np.any(larger)):
                 break
             material, cells, keeper = material[larger], cells[larger], keeper[larger]
             receiver = candidates[rows[larger], best[larger]]
             for quantity in (mass, energy, *carried):
                 _hand_over(quantity, (material, cells), (material, receiver))
             _hand_over(volume, (material, cells), (keeper, cells))
+            scope.cells(mass, energy, *carried, volume)
         material, cells = swept_kernels_2d.traces(volume, mass, area, standing, TRACE)
         if cells.size:  # flecks: merged into their own cell's largest material
             present = swept_kernels_2d.present_materials(volume[:, cells], area[cells], standing[:, cells], TRACE)

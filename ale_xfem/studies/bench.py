@@ -8,6 +8,10 @@ element-wise kernels are single-threaded)."""
 from __future__ import annotations
 
 import importlib.util
+import json
+import subprocess
+import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -274,3 +278,84 @@ def _mixed_cells(scene: str, side: int) -> int:
     """The scene's mixed cells at the start on side × side cells."""
     problem = build_problem(load_scene(resolve_scene_path(scene), [f"mesh.cells=[{side},{side}]"]))
     return 0 if problem.mixed is None else int(problem.mixed.cells.size)
+
+
+# Strong scaling on several MPI ranks (`bench --ranks`): (label, scene, overrides on side ×
+# side cells, the side's share of the bench's), each run for about 50 steps (its t_end
+# scaled with the cell size); the runs with mixed cells and a remap on a quarter of the cells
+RANK_CASES = (
+    ("2D explicit loop (sod-2d)", "sod-2d", lambda side: [f"mesh.cells=[{side},{side}]", f"t_end={4.0 / side!r}"],
+     1.0),
+    ("mixed cells (rotated tube, Lagrangian)", "rotated-tube",
+     lambda side: [f"mesh.cells=[{side},{side}]", "mesh.motion=lagrangian", f"t_end={3.4 / side!r}"], 0.5),
+    ("remapped (rotated tube, Eulerian)", "rotated-tube",
+     lambda side: [f"mesh.cells=[{side},{side}]", "mesh.motion=eulerian", f"t_end={6.9 / side!r}"], 0.5),
+)
+
+
+def mpi_launcher() -> Path:
+    """The launcher of the MPI that DOLFINx's wheels install beside this Python."""
+    return Path(sys.executable).parent / "mpiexec"
+
+
+def run_on_ranks(ranks: int, scene: str, overrides, folder: Path) -> dict:
+    """`ale-xfem run` of ``scene`` on ``ranks`` MPI ranks (1: without the launcher), in a
+    process of its own; its summary.json."""
+    command = [sys.executable, "-m", "ale_xfem.cli", "run", scene, "--quiet", "--no-plot", "--frames", "0",
+               "--out", str(folder), *[a for o in overrides for a in ("--set", o)]]
+    if ranks > 1:
+        command = [str(mpi_launcher()), "-n", str(ranks), *command]
+    done = subprocess.run(command, capture_output=True, text=True)
+    if done.returncode != 0:
+        raise RuntimeError(f"{' '.join(command)} failed (exit {done.returncode}): {done.stderr.strip()[-500:]}")
+    return json.loads((folder / "summary.json").read_text())
+
+
+def run_rank_bench(ranks=(1, 2), cells: int = 1_000_000, out=print, rounds: int = 3,
+                   cases=RANK_CASES) -> list[dict]:
+    """Strong scaling of whole runs on several MPI ranks (ale_xfem.parallel): each of
+    ``cases`` (by default :data:`RANK_CASES`) on its share of √cells × √cells, run on each number of ``ranks`` in
+    turn within each of ``rounds`` rounds (separate processes: `mpiexec -n N ale-xfem run`).
+    Per number of ranks: ms a step (range over the rounds), zone-cycles/s (the fastest
+    round), speed-up and parallel efficiency against the first number of ranks (median of
+    the rounds' own, with the range), and the step by phase (ms, medians of the rounds): the
+    Lagrange step, the remap, and within them the exchanges and reductions between the
+    ranks (the rank that spent most; waiting for the others included)."""
+    side = int(round(np.sqrt(cells)))
+    out(f"strong scaling on MPI ranks ({mpi_launcher()}), {rounds} rounds, each number of ranks in turn within a "
+        f"round; speed-up and efficiency: median of the rounds' own (range), against {ranks[0]} "
+        f"rank{'s' if ranks[0] > 1 else ''}; phases: ms a step, medians")
+    out(f"{'case':<40} {'cells':>9} {'ranks':>5} {'steps':>5} {'ms/step':>15} {'zone-cycles/s':>13} "
+        f"{'speed-up':>16} {'efficiency':>16} {'lagrange':>8} {'remap':>8} {'comm.':>8}")
+    rows = []
+    with tempfile.TemporaryDirectory() as scratch:
+        for label, scene, overrides, share in cases:
+            case_side = max(4, int(round(share * side)))
+            runs = {n: [] for n in ranks}
+            for round_ in range(rounds):
+                for n in ranks:
+                    runs[n].append(run_on_ranks(n, scene, overrides(case_side),
+                                                Path(scratch) / f"{scene}-{n}-{round_}"))
+            reference = [s["wall_seconds"] for s in runs[ranks[0]]]
+            for n in ranks:
+                summaries = runs[n]
+                steps = summaries[0]["steps"]
+                per_step = [s["wall_seconds"] / steps for s in summaries]
+                speed_up = sorted(r / s["wall_seconds"] for r, s in zip(reference, summaries))
+                efficiency = [v * ranks[0] / n for v in speed_up]
+                phases = {key: float(np.median([s["phase_seconds"].get(key, 0.0) for s in summaries])) / steps
+                          for key in ("lagrange", "mixed_cell_solve", "remap", "communication")}
+                row = {"case": label, "ranks": n, "steps": steps, "cells": summaries[0]["cells"],
+                       "seconds_per_step": (min(per_step), max(per_step)),
+                       "zone_cycles_per_second": summaries[0]["cells"] / min(per_step),
+                       "speed_up": (speed_up[len(speed_up) // 2], speed_up[0], speed_up[-1]),
+                       "efficiency": (efficiency[len(efficiency) // 2], efficiency[0], efficiency[-1]),
+                       "phases": phases}
+                rows.append(row)
+                out(f"{label:<40} {row['cells']:>9d} {n:>5d} {steps:>5d} "
+                    f"{1e3 * min(per_step):>7.1f}–{1e3 * max(per_step):<7.1f} {row['zone_cycles_per_second']:>13.3e} "
+                    f"{row['speed_up'][0]:>5.2f} ({speed_up[0]:.2f}–{speed_up[-1]:.2f}) {row['efficiency'][0]:>5.2f} "
+                    f"({efficiency[0]:.2f}–{efficiency[-1]:.2f}) "
+                    f"{1e3 * (phases['lagrange'] + phases['mixed_cell_solve']):>8.1f} {1e3 * phases['remap']:>8.1f} "
+                    f"{1e3 * phases['communication']:>8.1f}")
+    return rows
