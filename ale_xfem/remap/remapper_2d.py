@@ -242,8 +242,8 @@ class Remapper2D:
         self.wall_impulse, self.wall_work = self.scope.summed(self.wall_impulse), self.scope.summed(self.wall_work)
         self.scope.nodes(velocity, node_mass, loss)
         kinetic_after = 0.5 * node_mass * np.sum(velocity * velocity, axis=0)
-        kinetic_change = self.scope.total(kinetic_after, "nodes") - self.scope.total(kinetic_before, "nodes") \
-            - self.wall_work
+        after, before = self.scope.totals((kinetic_after, kinetic_before), "nodes")
+        kinetic_change = after - before - self.wall_work
         self._deposit(loss, node_mass, mass, energy)
         self.scope.cells(energy)
 
@@ -291,14 +291,14 @@ class Remapper2D:
         "total"``; otherwise nothing).  ``corner_mass`` (2, k, n_cells): each material's own
         corner masses (2D enriched cells, condensed), which ``node_mass`` sums; by default
         each cell's equal corner shares, split by material mass."""
-        total_loss = self.scope.total(loss, "nodes")
+        total_loss, gains_left_out = self.scope.totals((loss, np.maximum(loss, 0.0)), "nodes")
         if self.heat and total_loss > 0:
             # Deposited where it is lost, by corner mass then by material mass.  A node may
             # gain a little where its neighbours lose (the cells' momentum is shared by
             # corners): only the losses are deposited, scaled to their sum — cold gas must
             # not be cooled below zero by a neighbour's gain.
             corners, k = self.mesh.corners, self.mesh.cell_type.nodes_per_cell
-            loss = losses_only(loss, (total_loss, self.scope.total(np.maximum(loss, 0.0), "nodes")))
+            loss = losses_only(loss, (total_loss, gains_left_out))
             per_mass = loss / node_mass
             if corner_mass is not None:  # Σ_m Σ_K Σ_k (loss_i / M_i) c_m,K,k is the whole loss
                 gathered = per_mass[self.mesh.cell_nodes.T]  # (k, n_cells)
@@ -314,7 +314,7 @@ class Remapper2D:
             # The momentum remap through the cells is not dissipative node by node, and now and
             # then not overall either: the kinetic energy it made is taken from the internal
             # energies in proportion (each scaled by the same factor, so none goes below 0).
-            energy *= made_kinetic_energy_factor(total_loss, self.scope.total(energy, "cells"))
+            energy *= made_kinetic_energy_factor(total_loss, self.scope.totals((energy,), "cells")[0])
 
     def _moved_with_the_mesh(self, state, layout):
         """The per-material fields of a state whose step had no mixed cell (all materials

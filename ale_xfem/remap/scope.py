@@ -29,10 +29,10 @@ class WholeMesh:
     def nodes(self, *fields) -> None:
         """Refresh nodal fields (each (rows, n_nodes) or (n_nodes,)): as :meth:`cells`."""
 
-    def total(self, values, over: str) -> float:
-        """Σ of a field over the whole mesh (``over`` "cells": (rows, n_cells), "nodes":
+    def totals(self, fields, over: str) -> list[float]:
+        """Σ of each field over the whole mesh (``over`` "cells": (rows, n_cells), "nodes":
         (n_nodes,)), in the serial order."""
-        return float(values.sum())
+        return [float(values.sum()) for values in fields]
 
     def summed(self, value):
         """Σ over the ranks of a value each rank found on its own cells or nodes (here: the
