@@ -283,7 +283,8 @@ def _stability(args) -> int:
 
 
 def _run(args) -> int:
-    from ale_xfem.parallel.distribution import check_distributable, launched_by_mpiexec, rank, ranks
+    from ale_xfem.parallel.distribution import (REMAP_GHOST_RINGS, check_distributable, launched_by_mpiexec, rank,
+                                                ranks)
     from ale_xfem.scene import SceneError, load_scene, resolve_scene_path
 
     # on several MPI ranks (mpiexec) every rank runs this; rank 0 alone writes and speaks
@@ -326,8 +327,12 @@ def _run(args) -> int:
         if ranks() > 1:  # launched by mpiexec: whether the run would share its cells out
             try:
                 check_distributable(problem)
-                print(f"on {ranks()} MPI ranks: each steps its share of the cells and their ghost layer "
-                      "(ale_xfem.parallel)")
+                remapped = any(name.startswith("remap_") for name in problem.effects)
+                mixed = problem.mixed is not None or problem.scene.interface is not None
+                print(f"on {ranks()} MPI ranks: each steps its share of the cells and their ghost layer"
+                      + (f" ({REMAP_GHOST_RINGS} cells deep: each remaps its share)" if remapped else "")
+                      + ("; the mixed cells' solves take every rank's cells as one set" if mixed else "")
+                      + " (ale_xfem.parallel)")
             except SceneError as error:
                 print(f"on {ranks()} MPI ranks: refused: {error}")
         return EXIT_OK
