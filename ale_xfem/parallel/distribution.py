@@ -326,35 +326,31 @@ class Distribution:
     def forward(self, field: np.ndarray) -> None:
         """Replace the ghost nodes' values of a nodal field (components, local nodes) by
         their owners' (DOLFINx's scatter_forward)."""
-        import dolfinx
-
-        clock = time.perf_counter()
-        components = field.shape[0]
-        vector = self.vectors.get(components)
-        if vector is None:
-            vector = self.vectors[components] = dolfinx.la.vector(self.index_map, bs=components)
-        values = vector.array.reshape(-1, components)
-        owned, shared = self.owned_nodes.size, self.shared_node_places
-        values[shared] = field[:, self.owned_nodes[shared]].T
-        vector.scatter_forward()
-        field[:, self.ghost_nodes] = values[owned:].T
-        self.seconds += time.perf_counter() - clock
+        self._scatter(field, self.vectors, self.index_map, self.owned_nodes, self.shared_node_places,
+                      self.ghost_nodes)
 
     def forward_cells(self, field: np.ndarray) -> None:
         """Replace the ghost cells' values of a cell field (rows, local cells) by their
         owners' (DOLFINx's scatter_forward on the cells' index map)."""
+        self._scatter(field, self.cell_vectors, self.cell_map, self.owned_cells, self.shared_cell_places,
+                      self.ghost_cells)
+
+    def _scatter(self, field, vectors, index_map, owned, shared, ghosts) -> None:
+        """``field`` (rows, local entries): its ``ghosts`` take their owners' values, through
+        a DOLFINx vector of ``rows`` per entry on ``index_map`` (made once, kept in
+        ``vectors``) whose owned part holds ``owned``'s values where another rank reads
+        them (``shared``: their places among ``owned``)."""
         import dolfinx
 
         clock = time.perf_counter()
         rows = field.shape[0]
-        vector = self.cell_vectors.get(rows)
+        vector = vectors.get(rows)
         if vector is None:
-            vector = self.cell_vectors[rows] = dolfinx.la.vector(self.cell_map, bs=rows)
+            vector = vectors[rows] = dolfinx.la.vector(index_map, bs=rows)
         values = vector.array.reshape(-1, rows)
-        owned, shared = self.owned_cells.size, self.shared_cell_places
-        values[shared] = field[:, self.owned_cells[shared]].T
+        values[shared] = field[:, owned[shared]].T
         vector.scatter_forward()
-        field[:, self.ghost_cells] = values[owned:].T
+        field[:, ghosts] = values[owned.size:].T
         self.seconds += time.perf_counter() - clock
 
     def serial_totals(self, fields, over: str) -> list[float]:
