@@ -155,6 +155,21 @@ def cell_partition(cell_nodes: np.ndarray, parts: int, comm) -> np.ndarray:
     return comm.bcast(owner, root=0)
 
 
+def ghost_index_map(comm, owner: np.ndarray, held: np.ndarray, tag: int):
+    """A DOLFINx IndexMap of the entries ``held`` (serial numbers, ascending) of this rank,
+    ``owner`` each entry's rank (all of them): the entries numbered rank by rank, each
+    rank's own in a block in the serial order.  Returns (the map, the places among ``held``
+    of its ghosts, in the map's order)."""
+    import dolfinx
+
+    number = np.empty(owner.size, dtype=np.int64)
+    number[np.argsort(owner, kind="stable")] = np.arange(owner.size)
+    ghost_places = np.flatnonzero(owner[held] != comm.rank)
+    ghosts = held[ghost_places]
+    owned = held.size - ghost_places.size
+    return dolfinx.common.IndexMap(comm, owned, number[ghosts], owner[ghosts].astype(np.int32), tag), ghost_places
+
+
 class Distribution:
     """This rank's share of a serial problem (module docstring): its cells (``cells``, global
     indices, sorted) and nodes (``nodes``), the local problem's mesh, and the exchange of
@@ -188,38 +203,16 @@ class Distribution:
         self.nodes = np.unique(cell_nodes[self.cells])
         self.owned_cells = np.flatnonzero(owner[self.cells] == me)  # local indices
         self.owned_nodes = np.flatnonzero(node_owner[self.nodes] == me)
-        self.ghost_nodes = np.flatnonzero(node_owner[self.nodes] != me)
         local_cell_nodes = np.searchsorted(self.nodes, cell_nodes[self.cells])
         self.mesh = MeshArrays(mesh.cell_type, np.ascontiguousarray(mesh.node_position[:, self.nodes]),
                                local_cell_nodes)
-        # the nodes' numbers in the index map: each rank's own nodes in a block, in order
-        counts = np.bincount(node_owner, minlength=size)
-        offsets = np.concatenate([[0], np.cumsum(counts)])
-        number = np.empty(mesh.n_nodes, dtype=np.int64)
-        for r in range(size):
-            mine = np.flatnonzero(node_owner == r)
-            number[mine] = offsets[r] + np.arange(mine.size)
-        ghosts = self.nodes[self.ghost_nodes]
-        import dolfinx
-
-        self.index_map = dolfinx.common.IndexMap(self.comm, int(self.owned_nodes.size), number[ghosts],
-                                                 node_owner[ghosts].astype(np.int32), 1)
-        self.node_number = number  # each node's number in the index map (all ranks')
+        # the index maps of the nodes and of the cells (refreshing ghost cells after a remap)
+        self.index_map, self.ghost_nodes = ghost_index_map(self.comm, node_owner, self.nodes, 1)
+        self.cell_map, self.ghost_cells = ghost_index_map(self.comm, owner, self.cells, 2)
         # each rank's own nodes and cells in the serial numbering, ascending (rank 0 gathers
         # fields into the serial order with them: serial_totals)
         self.owned_by_rank = {"nodes": [np.flatnonzero(node_owner == r) for r in range(size)] if me == 0 else None,
                               "cells": [np.flatnonzero(owner == r) for r in range(size)] if me == 0 else None}
-        # the cells' index map (refreshing ghost cells after a remap), numbered alike
-        counts = np.bincount(owner, minlength=size)
-        offsets = np.concatenate([[0], np.cumsum(counts)])
-        cell_number = np.empty(mesh.n_cells, dtype=np.int64)
-        for r in range(size):
-            mine = np.flatnonzero(owner == r)
-            cell_number[mine] = offsets[r] + np.arange(mine.size)
-        self.ghost_cells = np.flatnonzero(owner[self.cells] != me)
-        ghost_cells = self.cells[self.ghost_cells]
-        self.cell_map = dolfinx.common.IndexMap(self.comm, int(self.owned_cells.size), cell_number[ghost_cells],
-                                                owner[ghost_cells].astype(np.int32), 2)
         # the owned entries another rank holds as ghosts: the only ones an exchange reads
         # (copying every owned entry into the vector took 2–3 ms an exchange at 10⁵ cells a rank)
         self.shared_node_places, self.shared_cell_places = (
