@@ -94,9 +94,10 @@ def _parser() -> argparse.ArgumentParser:
                             "runs, 100 ... 3200 cells (`make bench-peers` installs PyClaw)")
     bench.add_argument("--ranks", default=None, metavar="N1,N2,...",
                        help="strong scaling on MPI ranks (mpiexec -n N ale-xfem run): the 2D explicit loop "
-                            "(sod-2d) and single-velocity mixed cells (the rotated tube, Lagrangian) on "
-                            "1000 × 1000 cells (or --cells N: √N × √N), about 50 steps, by phase with the "
-                            "communication share, speed-up against the first number of ranks")
+                            "(sod-2d) on 1000 × 1000 cells (or --cells N: √N × √N), and the rotated tube with "
+                            "single-velocity mixed cells, Lagrangian and Eulerian (remapped), on a quarter of "
+                            "them; about 50 steps, by phase with the communication, speed-up against the first "
+                            "number of ranks")
     bench.add_argument("--out", type=Path, default=Path("out") / "bench-peers",
                        help="with --peers: output folder (default: out/bench-peers)")
     # an unknown option is reported with the usage of the (sub)command it was given to
