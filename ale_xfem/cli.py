@@ -226,7 +226,8 @@ def _bench(args) -> int:
             return EXIT_BAD_INPUT
         if max(ranks) > 1 and not mpi_launcher().exists():
             print(f"error: --ranks = {args.ranks!r}: needs the MPI launcher {mpi_launcher()}, which is not there "
-                  "(the mpich wheel DOLFINx needs puts it there: `make test` or `make demo` sets .venv up)", file=sys.stderr)
+                  "(the mpich wheel DOLFINx needs puts it there: `make test` or `make demo` sets .venv up)",
+                  file=sys.stderr)
             return EXIT_BAD_INPUT
         if len(sizes) > 1 and args.cells != "1000,10000,100000,1000000":
             print(f"error: --cells = {args.cells!r}: one size with --ranks", file=sys.stderr)

@@ -95,12 +95,12 @@ def make_stepper(problem: Problem, mesh=None, layout=None, node_mass=None, bound
                         petsc_options=dict(interface.petsc_options) if interface is not None else None,
                         **enriched_2d)
     return stepper_class(problem.mesh if mesh is None else mesh, problem.materials,
-                           problem.layout if layout is None else layout,
-                           problem.node_mass if node_mass is None else node_mass,
-                           problem.boundaries if boundaries is None else boundaries, problem.scene.numerics,
-                           artificial_viscosity="artificial_viscosity" in problem.effects,
-                           mixed=problem.mixed if mixed is None else mixed, viscous_time_step="viscous_time_step" in problem.effects,
-                           closures=closures)
+                         problem.layout if layout is None else layout,
+                         problem.node_mass if node_mass is None else node_mass,
+                         problem.boundaries if boundaries is None else boundaries, problem.scene.numerics,
+                         artificial_viscosity="artificial_viscosity" in problem.effects,
+                         mixed=problem.mixed if mixed is None else mixed,
+                         viscous_time_step="viscous_time_step" in problem.effects, closures=closures)
 
 
 # Steps in a row at a time step too small to reach t_end within numerics.max_steps before a
@@ -339,7 +339,7 @@ def _remap(problem, stepper, remapper, state, evaluation, impulse, distribution=
     if stepper.closure is not None:  # the remap leaves a pressure jump in mixed cells
         state, _ = stepper.closure.relax_start(state, in_place=True)
     evaluation = stepper.evaluate_state(state, thermodynamics_known=True)
-    stepper.check(evaluation, state.node_position, state.material_energy, "remapped ")
+    stepper.check_remapped(evaluation, state.node_position, state.material_energy)
     return state, evaluation, impulse, kinetic_change
 
 

@@ -401,7 +401,7 @@ class ExplicitWilkins:
                                   hourglass=first.hourglass_force, tangle_check=False,
                                   corner_velocity=corner_velocity)
         if not predicted.volume.min() > 0.0:
-            self.check(predicted, x_pred, e_pred, "predicted ")
+            self.check_predicted(predicted, x_pred, e_pred)
 
         # Corrector with the time-centred forces F̄ = (F^n + F*)/2.
         mean_force = first.nodal_force + predicted.nodal_force
@@ -435,7 +435,7 @@ class ExplicitWilkins:
         if self.mixed is None:
             final = self.evaluate(x_new, u_new, mass, e_new, corner_velocity=corner_velocity)
             if not self._healthy(final, e_new):
-                self.check(predicted, x_pred, e_pred, "predicted ")  # report the first cause
+                self.check_predicted(predicted, x_pred, e_pred)  # report the first cause
                 self.check(final, x_new, e_new, "")
             new_state = state.evolved(
                 time=state.time + dt, node_position=x_new, node_velocity=u_new,
@@ -449,7 +449,7 @@ class ExplicitWilkins:
                 boundary_work, boundary_impulse
         new_state, final = self.closure.finish(self, state, solution, x_new, u_new, e_new, dt)
         if not self._healthy(final, new_state.material_energy[:1]):
-            self.check(predicted, x_pred, e_pred, "predicted ")
+            self.check_predicted(predicted, x_pred, e_pred)
             self.check(final, x_new, new_state.material_energy[:1], "")
         return new_state, final, boundary_work, boundary_impulse
 
@@ -519,15 +519,15 @@ class ExplicitWilkins:
         u_new, velocity_sum, x_new = final[0], final[1], final[2]
         e_new = final[5]
         if status == 1:
-            self.check(self._stage_evaluation(predicted[0], first.hourglass_force), predicted[0][2], predicted[0][5],
-                       "predicted ")
+            self.check_predicted(self._stage_evaluation(predicted[0], first.hourglass_force), predicted[0][2],
+                                 predicted[0][5])
         work, impulse = self._boundary_reaction(u0, u_new, velocity_sum, mean_force, dt)
         if remapped_next:
             return self._state_for_remap(state, None, x_new, u_new, e_new, dt), None, work, impulse
         evaluation = self._stage_evaluation(final, None if final_hourglass is self.no_hourglass else final_hourglass)
         if status == 2:
-            self.check(self._stage_evaluation(predicted[0], first.hourglass_force), predicted[0][2],
-                       predicted[0][5], "predicted ")  # report the first cause
+            self.check_predicted(self._stage_evaluation(predicted[0], first.hourglass_force), predicted[0][2],
+                                 predicted[0][5])  # report the first cause
             self.check(evaluation, x_new, e_new, "")
         new_state = state.evolved(
             time=state.time + dt, node_position=x_new, node_velocity=u_new, material_energy=e_new,
@@ -690,6 +690,14 @@ class ExplicitWilkins:
                 raise Breakdown(prefix + name, cell, float(values[cell]), centroids[cell], allowed)
             if name == "volume" and evaluation.least_corner is not None:
                 self.check_corners(evaluation.least_corner, position, prefix)
+
+    def check_predicted(self, evaluation: ForceEvaluation, position, energy) -> None:
+        """:meth:`check` of a step's predicted state (its diagnostic says "predicted")."""
+        self.check(evaluation, position, energy, "predicted ")
+
+    def check_remapped(self, evaluation: ForceEvaluation, position, energy) -> None:
+        """:meth:`check` of a state the remap made (its diagnostic says "remapped")."""
+        self.check(evaluation, position, energy, "remapped ")
 
     def check_corners(self, least_corner, position, prefix: str = "") -> None:
         """Raise :class:`Breakdown` if a quadrilateral's corner has turned inside out (the

@@ -391,7 +391,8 @@ class Distribution:
         layout = step.layout
         pieces = self.allgather((self.cells[self.owned_cells], layout.cell_material[:, self.owned_cells],
                                  self.nodes[self.owned_nodes], step.node_mass[self.owned_nodes]))
-        material = np.empty((layout.cell_material.shape[0], self.problem.mesh.n_cells), dtype=layout.cell_material.dtype)
+        material = np.empty((layout.cell_material.shape[0], self.problem.mesh.n_cells),
+                            dtype=layout.cell_material.dtype)
         node_mass = np.empty(self.problem.mesh.n_nodes)
         for cells, values, nodes, masses in pieces:
             material[:, cells], node_mass[nodes] = values, masses
@@ -576,28 +577,28 @@ class DistributedWilkins(ExplicitWilkins):
         text = super().limiting_cell(evaluation, position).replace(f"cell {local} ", f"cell {number} ", 1)
         return min(self.distribution.allgather((float(times[local]), number, text)))[2]
 
-    def check(self, evaluation, position, energy, prefix: str) -> None:
+    def check_predicted(self, evaluation, position, energy) -> None:
         """A predicted state's breakdown is kept until the step ends, when the ranks agree
-        on it (the other ranks still exchange forces and solve the mixed cells with this
-        one); other checks come after the step's last exchange and raise at once."""
-        if prefix == "remapped ":  # after the remap, outside a step: the ranks agree at once
-            failure = None
-            try:
-                super().check(evaluation, position, energy, prefix)
-            except Breakdown as error:
-                failure = self._global(error)
-            failures = [f for f in self.distribution.allgather(failure) if f is not None]
-            if failures:
-                first = failures[0]
-                raise Breakdown(*first[:4], **first[4])
-            return None
-        if prefix != "predicted " or self.closure is None:
-            return super().check(evaluation, position, energy, prefix)
+        on it, before any later one (the other ranks still exchange forces and solve the
+        mixed cells with this one; the serial run reports it first); the step's other checks
+        come after its last exchange and raise at once."""
         try:
-            super().check(evaluation, position, energy, prefix)
+            super().check_predicted(evaluation, position, energy)
         except Breakdown as failure:
             if self.predicted_failure is None:
                 self.predicted_failure = failure
+
+    def check_remapped(self, evaluation, position, energy) -> None:
+        """After the remap, outside a step: the ranks agree at once (the first rank's)."""
+        failure = None
+        try:
+            super().check_remapped(evaluation, position, energy)
+        except Breakdown as error:
+            failure = self._global(error)
+        failures = [f for f in self.distribution.allgather(failure) if f is not None]
+        if failures:
+            first = failures[0]
+            raise Breakdown(*first[:4], **first[4])
 
     def breaks_mixed_cell(self, failure: Breakdown) -> bool:
         """As ExplicitWilkins's, of the serial cell numbers (every rank decides alike)."""
