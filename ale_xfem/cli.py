@@ -332,7 +332,8 @@ def _run(args) -> int:
                 remapped = any(name.startswith("remap_") for name in problem.effects)
                 mixed = problem.mixed is not None or problem.scene.interface is not None
                 print(f"on {ranks()} MPI ranks: each steps its share of the cells and their ghost layer"
-                      + (f" ({REMAP_GHOST_RINGS} cells deep: each remaps its share)" if remapped else "")
+                      + ((f" ({REMAP_GHOST_RINGS} cells deep: each remaps its share)" if problem.mesh.dimension == 2
+                          else "; each remaps the whole line, gathered, and keeps its share") if remapped else "")
                       + ("; the mixed cells' solves take every rank's cells as one set" if mixed else "")
                       + " (ale_xfem.parallel)")
             except SceneError as error:

@@ -23,7 +23,8 @@ from ale_xfem.mixed.closures import Closures
 from ale_xfem.mixed.cut_cells_2d import material_geometry
 from ale_xfem.model.plic import reconstruct_state
 from ale_xfem.model.state import State, material_masses, totals
-from ale_xfem.parallel.distribution import REMAP_GHOST_RINGS, Distribution, check_distributable, ranks
+from ale_xfem.parallel.distribution import (REMAP_GHOST_RINGS, Distribution, RemapOnEveryRank, check_distributable,
+                                            ranks)
 from ale_xfem.problem.build import Problem
 from ale_xfem.remap.failure import RemapFailure
 from ale_xfem.remap.remapper_1d import Remapper
@@ -131,8 +132,10 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
     remapped = any(name.startswith("remap_") for name in problem.effects)
     if ranks() > 1:
         check_distributable(problem)
-        # a remap reads further than a Lagrange step: a deeper ghost layer
-        distribution = Distribution(problem, rings=REMAP_GHOST_RINGS if remapped else 1)
+        # a 2D remap reads further than a Lagrange step: a deeper ghost layer (the 1D remap
+        # takes the whole mesh on every rank: RemapOnEveryRank)
+        distribution = Distribution(problem, rings=REMAP_GHOST_RINGS if remapped and problem.mesh.dimension == 2
+                                    else 1)
         stepper = distribution.stepper(partial(make_stepper, problem))
     else:
         stepper = make_stepper(problem)
@@ -146,6 +149,8 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
                 remapper.material_geometry = partial(material_geometry, problem.mesh)
         else:
             remapper = Remapper(problem, problem.scene.mesh.motion, problem.scene.numerics.remap_order)
+            if distribution is not None:
+                remapper = RemapOnEveryRank(distribution, remapper)
     remap_energy_change, remap_seconds = 0.0, 0.0
     state = problem.state
     start_totals = totals(state, problem.node_mass)
@@ -318,7 +323,7 @@ def _remap(problem, stepper, remapper, state, evaluation, impulse, distribution=
     state, layout, mixed, node_mass, kinetic_change = remapper.apply(state, stepper.layout, stepper.mixed)
     if node_mass is None:  # nothing was remapped this step
         return state, evaluation, impulse, 0.0
-    if distribution is not None:
+    if distribution is not None and not isinstance(remapper, RemapOnEveryRank):  # (it hands its ranks' share)
         mixed = distribution.adopt_mixed(mixed, remapper.solver_options)
     stepper.rebuild(layout, node_mass, mixed)
     if distribution is None:  # (on several ranks the problem takes the ranks' at the end)

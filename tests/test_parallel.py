@@ -74,12 +74,15 @@ def _the_same_run(serial, serial_out, parallel, parallel_out, ranks):
     assert parallel.returncode == 0, parallel.stderr
     one, many = (json.loads((folder / "summary.json").read_text()) for folder in (serial_out, parallel_out))
     assert (one["ranks"], many["ranks"]) == (1, ranks)
-    for key in ("status", "steps", "t_reached", "dt", "errors"):
+    for key in ("status", "steps", "t_reached", "dt", "errors", "remaps"):
         assert many.get(key) == one.get(key), key
     if "mixed_cells" in one:  # the same solves and iterations
         assert many["mixed_cells"] == one["mixed_cells"]
     for key in ("mass", "momentum", "total_energy", "material_mass"):
         assert abs(many["conservation"][key] - one["conservation"][key]) <= 1e-15, key
+    if "remap_kinetic_energy_change" in one["conservation"]:  # the walls' share summed rank by rank
+        assert many["conservation"]["remap_kinetic_energy_change"] == pytest.approx(
+            one["conservation"]["remap_kinetic_energy_change"], rel=1e-12, abs=1e-15)
     fields = "cells.csv" if (serial_out / "cells.csv").exists() else "profile.csv"
     assert (parallel_out / fields).read_bytes() == (serial_out / fields).read_bytes()
     frames = sorted(p.name for p in serial_out.glob("*.vtu"))  # (written by rank 0 from gathered states)
@@ -88,11 +91,13 @@ def _the_same_run(serial, serial_out, parallel, parallel_out, ranks):
         assert (parallel_out / frame).read_bytes() == (serial_out / frame).read_bytes(), frame
 
 
-def test_an_enriched_mixed_cell_on_a_partition_boundary_is_solved_as_in_the_serial_run(tmp_path):
+@pytest.mark.parametrize("predictor", ["closed_form", "assembled"])
+def test_an_enriched_mixed_cell_on_a_partition_boundary_is_solved_as_in_the_serial_run(tmp_path, predictor):
     """The 1D two-gamma tube with its interface put inside a cell whose neighbour another
     of 3 ranks holds: the enriched cell's doubled velocities, interface solve and
-    relaxation (iterated with every rank's mixed cells as one set) give the serial run's
-    steps, solver iterations and profile to the bit."""
+    relaxation (iterated with every rank's mixed cells as one set; the assembled
+    predictor's FE system assembled and solved by every rank over the whole set) give the
+    serial run's steps, solver iterations and profile to the bit."""
     from mpi4py import MPI
 
     from ale_xfem.parallel.distribution import cell_partition, facet_neighbours
@@ -106,7 +111,7 @@ def test_an_enriched_mixed_cell_on_a_partition_boundary_is_solved_as_in_the_seri
     left, right = np.sort(mesh.node_position[0, mesh.cell_nodes[cut]])
     interface = left + 0.37 * (right - left)
     overrides = ["mesh.cells=200", "t_end=0.1", f"regions.0.interval=[0.0, {float(interface)!r}]",
-                 f"regions.1.interval=[{float(interface)!r}, 1.0]"]
+                 f"regions.1.interval=[{float(interface)!r}, 1.0]", f"interface.predictor={predictor}"]
     across, problem = _mixed_cells_on_a_partition_boundary("sod-two-gamma-enriched", 3, *overrides)
     assert list(problem.mixed.cells) == [cut] and list(across) == [cut]
     _the_same_run(*_run(tmp_path, "sod-two-gamma-enriched", 1, *overrides),
@@ -131,15 +136,26 @@ def test_single_velocity_mixed_cells_across_partitions_are_the_serial_ones(tmp_p
     ("rotated-tube", ["mesh.motion=smoothed", "mesh.cells=[24,24]", "mesh.cell_type=triangle", "t_end=0.05"], 3),
     ("sedov", ["mesh.cells=[30,30]", "t_end=0.3"], 2),  # smoothed
     ("shock-disk", ["mesh.cells=[48,24]", "t_end=0.15"], 2),  # traces moved to neighbours
+    ("transverse-eulerian", ["mesh.cells=200"], 2),  # 1D enriched cells
+    ("transverse-eulerian", ["mesh.cells=200", "interface.predictor=assembled", "t_end=0.05"], 3),
+    ("water-air", ["interface.model=single_velocity", "mesh.cells=201", "mesh.motion=smoothed", "t_end=1e-4"], 3),
+    ("sod-two-gamma-enriched", ["mesh.motion=interface", "mesh.cells=200", "t_end=0.1"], 2),
 ], ids=["rotated-tube-eulerian-2", "rotated-tube-smoothed-triangles-3", "sedov-smoothed-2",
-        "shock-disk-smoothed-2"])
+        "shock-disk-smoothed-2", "1d-enriched-eulerian-2", "1d-assembled-eulerian-3", "1d-single-velocity-smoothed-3",
+        "1d-interface-following-2"])
 def test_a_remapped_run_on_several_ranks_is_the_serial_run_to_the_bit(tmp_path, name, overrides, ranks):
     """Eulerian and smoothed meshes, pure and single-velocity mixed cells: each rank remaps
     its share with a ghost layer of REMAP_GHOST_RINGS rings, refreshed from the owners after
     the fluxes and each pass of the traces' moves, sums taken in the serial order: the
     serial run's steps, mixed cells, cells.csv and VTK frames (rank 0 writes them from the
     gathered states, their layouts and mixed cells too) to the bit (the meshes are large
-    enough for every rank's ghost layer to end inside the mesh)."""
+    enough for every rank's ghost layer to end inside the mesh).  1D (Eulerian, smoothed
+    and interface-following meshes; enriched cells with either predictor, single-velocity
+    cells): every rank remaps the whole line from the gathered state (RemapOnEveryRank) and
+    keeps its share, the new mixed cells solved as one set."""
+    if "mesh.motion=interface" in overrides:  # windows remapped around the interface
+        done, out = _run(tmp_path, name, 1, *overrides)
+        assert json.loads((out / "summary.json").read_text())["remaps"]["local"] > 0
     _the_same_run(*_run(tmp_path, name, 1, *overrides, frames=3), *_run(tmp_path, name, ranks, *overrides, frames=3),
                   ranks)
 
@@ -172,16 +188,13 @@ def test_a_breakdown_on_one_rank_stops_every_rank_with_the_serial_diagnostic(tmp
 
 
 @pytest.mark.parametrize("name, overrides, key, allowed", [
-    ("transverse-eulerian", [], "mesh.motion = 'eulerian'", "in 1D on 2 ranks"),
     ("sliding-block", [], "interface.model = 'enriched'", "run without mpiexec"),
-    ("sod-two-gamma-enriched", ["interface.predictor=assembled"], "interface.predictor = 'assembled'",
-     "run without mpiexec"),
     ("sod", ["mesh.cells=2"], "mesh.cells = 2", "at least 3 cells on 3 ranks"),
-], ids=["remap-1d", "enriched-2d", "assembled-predictor", "fewer-cells-than-ranks"])
+], ids=["enriched-2d", "fewer-cells-than-ranks"])
 def test_a_scene_that_cannot_share_its_cells_out_is_refused_once(tmp_path, name, overrides, key, allowed):
-    """A 1D remap, 2D enriched cells or the assembled 1D predictor run on one rank in this
-    version, and every rank needs a cell: on several ranks the run stops before anything runs, exit
-    code 2, one line naming the key, its value and what is allowed, and no output."""
+    """2D enriched cells run on one rank in this version, and every rank needs a cell: on
+    several ranks the run stops before anything runs, exit code 2, one line naming the key,
+    its value and what is allowed, and no output."""
     done, out = _run(tmp_path, name, 3 if name == "sod" else 2, *overrides)
     assert done.returncode == 2
     lines = [line for line in done.stderr.splitlines() if line.startswith("error:")]
@@ -194,12 +207,11 @@ def test_explain_on_several_ranks_says_whether_the_cells_are_shared_out():
     the run would share its cells out (or why it is refused)."""
     command = [str(MPIEXEC), "-n", "2", sys.executable, "-m", "ale_xfem.cli", "run"]
     shared = subprocess.run([*command, "sod", "--explain"], capture_output=True, text=True, timeout=600)
-    refused = subprocess.run([*command, "transverse-eulerian", "--explain"], capture_output=True, text=True,
-                             timeout=600)
+    refused = subprocess.run([*command, "sliding-block", "--explain"], capture_output=True, text=True, timeout=600)
     assert shared.returncode == refused.returncode == 0
     assert shared.stdout.count("effects switched on:") == 1
     assert shared.stdout.count("on 2 MPI ranks: each steps its share of the cells") == 1
-    assert refused.stdout.count("on 2 MPI ranks: refused: mesh.motion = 'eulerian'") == 1
+    assert refused.stdout.count("on 2 MPI ranks: refused: interface.model = 'enriched'") == 1
 
 
 def test_bench_ranks_times_each_case_on_each_number_of_ranks():

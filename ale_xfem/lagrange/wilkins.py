@@ -647,7 +647,8 @@ class ExplicitWilkins:
         if self.quadrilaterals:
             self.check_corners(least_corner, x_new)
         occupied = volumes[:, self.mixed.cells] if self.mixed is not None else volume
-        if not (volume.min() > 0.0 and occupied.min() > 0.0 and np.isfinite(e_new.sum())):
+        # (on several MPI ranks a rank may hold none of the mixed cells)
+        if not (volume.min() > 0.0 and occupied.min(initial=np.inf) > 0.0 and np.isfinite(e_new.sum())):
             for name, values, allowed, good in (("volume", volumes, "> 0", lambda v: v > 0.0),
                                                 ("specific internal energy", e_new, "finite", np.isfinite)):
                 bad = np.any(~good(values) & (state.material_mass > 0.0), axis=0)

@@ -17,12 +17,16 @@ HELD_INERTIA = 1e30
 
 
 class AssembledPredictor:
-    """The compiled forms of the predictor on the current mixed cells."""
+    """The compiled forms of the predictor on the current mixed cells.  On several MPI
+    ranks every rank assembles and solves it over all the ranks' mixed cells, on the serial
+    mesh (``MixedCells.across_ranks``: the solves iterate the whole set), each cell's
+    inputs from the rank that owns it: the serial run's system, to the bit."""
 
-    def __init__(self, dolfinx_mesh, cells, petsc_options: dict | None = None):
+    def __init__(self, dolfinx_mesh, cells, n_nodes: int, petsc_options: dict | None = None):
+        """``n_nodes``: the mesh's nodes (the forms' nodal arrays)."""
         from forms.enriched_interface import InterfaceForms
 
-        self.mesh, self.petsc_options = dolfinx_mesh, petsc_options
+        self.mesh, self.n_nodes, self.petsc_options = dolfinx_mesh, n_nodes, petsc_options
         self.forms = InterfaceForms(dolfinx_mesh.comm, "none", "free", "interval")  # compiled once per run
         self.rebuild(cells)
 
@@ -43,25 +47,31 @@ class AssembledPredictor:
         (4M/dt)(ū − u^n) = 2F̄ ± (π^n + q*) (the explicit mean force holds the cell as a whole
         at π^n + q*), and the static equilibrium of the external ones; each material's
         pressure linearised about the iterate, P = π + D (V − V_iterate) + q*."""
-        if not np.array_equal(self.cells, mixed.cells):  # a remap moved an interface: new submesh
-            self.rebuild(mixed.cells)
-        system = self.system
         a, b = mixed.node_left, mixed.node_right
-        system.move(state.node_position)
+        x, u0, force = state.node_position[0], state.node_velocity[0], mean_force[0]
+        # what the system takes of each mixed cell: its nodes' positions, velocities and mean
+        # forces, their mobilities, π^n, q* and the start volumes
+        inputs = (x[a], x[b], u0[a], u0[b], force[a], force[b], mobility_a, mobility_b, state.interface_pressure,
+                  predicted.mixed_viscosity, start[2], start[3])
+        cells, ranks = mixed, mixed.across_ranks
+        if ranks is not None:  # all the ranks' mixed cells (serial numbers), each one's inputs from its owner
+            inputs, cells = ranks.whole(inputs), ranks
+        x_a, x_b, u_a, u_b, f_a, f_b, mobility_a, mobility_b, pi_n, q_star, va0, vb0 = inputs
+        a, b = cells.node_left, cells.node_right
+        if not np.array_equal(self.cells, cells.cells):  # a remap moved an interface: new submesh
+            self.rebuild(cells.cells)
+        system = self.system
+        position = np.zeros((1, self.n_nodes))  # (the system reads its cells' nodes only)
+        position[0, a], position[0, b] = x_a, x_b
+        system.move(position)
         system.vertex_order(np.stack([a, b], axis=1))
-        pi_n = state.interface_pressure
-        q_star = predicted.mixed_viscosity
-        n_nodes = state.node_position.shape[1]
-        mass = [np.zeros((1, n_nodes)), np.zeros((1, n_nodes))]
-        rhs = [np.zeros((1, n_nodes)), np.zeros((1, n_nodes))]
-        u0 = state.node_velocity[0]
-        for k, node, mobility, sign in ((0, a, mobility_a, 1.0), (1, b, mobility_b, -1.0)):
+        mass = [np.zeros((1, self.n_nodes)), np.zeros((1, self.n_nodes))]
+        rhs = [np.zeros((1, self.n_nodes)), np.zeros((1, self.n_nodes))]
+        for k, node, u, f, mobility, sign in ((0, a, u_a, f_a, mobility_a, 1.0), (1, b, u_b, f_b, mobility_b, -1.0)):
             inertia = np.where(mobility > 0, 4.0 / np.where(mobility > 0, mobility, 1.0), HELD_INERTIA)  # 4M/dt
             mass[k][0, node] = inertia
-            explicit = np.where(mobility > 0, 2.0 * mean_force[0, node] + sign * (pi_n + q_star), 0.0)
-            rhs[k][0, node] = inertia * u0[node] + explicit
-        _, _, va0, vb0, _, _ = start
-        x_a, x_b = state.node_position[0, a], state.node_position[0, b]
+            explicit = np.where(mobility > 0, 2.0 * f + sign * (pi_n + q_star), 0.0)
+            rhs[k][0, node] = inertia * u + explicit
         x_gamma = x_a + va0
         parts = (np.stack([x_a, x_gamma], axis=1)[..., None], np.stack([x_gamma, x_b], axis=1)[..., None])
         # G: α's part ends at node a (outward normal −1), β's at node b (+1)
@@ -69,6 +79,7 @@ class AssembledPredictor:
         edge_flux[0, :, 0, 0], edge_flux[1, :, 1, 0] = -1.0, 1.0
         system.set_geometry(parts, x_gamma[:, None], x_gamma[:, None], edge_flux, np.ones((a.size, 1)))
         volumes = np.stack([va0, vb0])
+        first = 0 if ranks is None else ranks.local(0)  # (a failure of the system is every cell's)
 
         def predict(va, vb, pa, pb, da, db):
             slope = np.stack([da, db])
@@ -77,8 +88,8 @@ class AssembledPredictor:
             try:
                 out = system.solve(mass, rhs)
             except RuntimeError as error:  # the KSP failed (its options, or the system): all cells
-                raise MixedCellFailure(mixed.cells, 0, f"the assembled predictor's solve, over all mixed cells: "
-                                                 f"{error}") from None
+                raise MixedCellFailure(mixed.cells, first, f"the assembled predictor's solve, over all mixed "
+                                                           f"cells: {error}") from None
             return out["interface_pressure"] - q_star  # the interface stress less the viscosity: π
 
         return predict

@@ -25,8 +25,11 @@ class EnrichedClosure(SharedClosure):
     def __init__(self, mesh, materials, mixed: MixedCells, assembled: bool = False,
                  petsc_options: dict | None = None):
         super().__init__(mesh, materials, mixed)
-        self.assembled = (AssembledPredictor(mesh.dolfinx_mesh, mixed.cells, petsc_options)
-                          if assembled else None)
+        self.assembled = None
+        if assembled:  # on the mesh of the cells the solves take (on several MPI ranks: the serial mesh)
+            ranks = mixed.across_ranks
+            whole, cells = (mesh, mixed.cells) if ranks is None else (ranks.mesh, ranks.cells)
+            self.assembled = AssembledPredictor(whole.dolfinx_mesh, cells, whole.n_nodes, petsc_options)
 
     def compiles_steps(self, step) -> bool:
         """1D mixed cells with the predictor in closed form, each step ending relaxed: the

@@ -546,12 +546,12 @@ class PressureEquilibrium:
         laws, values = np.empty((4, n)), np.empty((6, 2, n))
         progress = np.empty((4, n))
         for iteration in range(1, mixed.max_iterations + 1):
-            linearised_laws(*self.tables, *self.sides, *arrays[:6], va, vb, w0, w1, pi, values, iteration == 1,
-                            laws)
+            linearised_laws(*self.tables, *self.all_sides(), *arrays[:6], va, vb, w0, w1, pi, values,
+                            iteration == 1, laws)
             pi_new = predictor(va, vb, laws[0], laws[2], laws[1], laws[3])
             status, index, done, details = corrector(
-                *self.tables, *self.sides, *arrays[:6], offset, slope, w0, w1, mixed.nonlinear, mixed.tolerance,
-                mixed.max_density_left, mixed.max_density_right, laws, pi_new, va, vb, pi, values, progress)
+                *self.tables, *self.all_sides(), *arrays[:6], offset, slope, w0, w1, mixed.nonlinear, mixed.tolerance,
+                *self.all_density_limits(), laws, pi_new, va, vb, pi, values, progress)
             if status == CANNOT_HOLD:
                 return status, index, iteration, pi, va, vb, details, offset[index] + slope[index] * pi_new[index]
             if done:

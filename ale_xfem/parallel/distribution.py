@@ -38,11 +38,18 @@ the bit.
   pass of the traces' moves and at the end, takes the sums over the mesh in the serial
   order (:meth:`Distribution.serial_totals`) and agrees on failures; the new mixed cells are
   then solved as one set again (:meth:`Distribution.adopt_mixed`).
+- **The 1D remap.**  Every rank remaps the whole line from the serial state gathered from
+  the ranks' own cells and nodes, with the serial remapper, and keeps its share
+  (:class:`RemapOnEveryRank`): a 1D mesh of a few thousand cells remaps in the time of a
+  few of its Lagrange steps, and its interface-following windows and fall-back to the
+  general intersection need nothing of their own.
+- **The assembled 1D predictor** is assembled and solved by every rank over all the
+  ranks' mixed cells, on the serial mesh (:class:`ale_xfem.mixed.assembled_predictor.AssembledPredictor`),
+  as the closed-form solve is.
 
-What runs distributed: 1D and 2D Lagrangian meshes and 2D Eulerian and smoothed meshes,
-with pure cells, single-velocity mixed cells or (1D, Lagrangian) enriched cells with the
-closed-form predictor; other scenes (a 1D remap, 2D enriched cells, the assembled 1D
-predictor) are refused at the start with the key that needs one rank.
+What runs distributed: every 1D scene, and 2D scenes with pure cells or single-velocity
+mixed cells on Lagrangian, Eulerian and smoothed meshes; 2D enriched cells are refused at
+the start with the key that needs one rank.
 """
 
 from __future__ import annotations
@@ -104,17 +111,10 @@ def check_distributable(problem) -> None:
     effects = problem.effects
     motion = problem.scene.mesh.motion
     remapped = motion != "lagrangian" or any(name.startswith("remap_") for name in effects)
-    if remapped and problem.mesh.dimension == 1:
-        raise SceneError("mesh.motion", motion, f"'lagrangian' in 1D on {n} ranks (the 1D remap runs on one rank in "
-                         "this version: run without mpiexec)")
     interface = problem.scene.interface
-    if remapped and interface is not None and interface.model == "enriched":
+    if problem.mesh.dimension == 2 and interface is not None and interface.model == "enriched":
         raise SceneError("interface.model", interface.model,
                          f"'single_velocity' on {n} ranks (2D enriched mixed cells run on one rank in this version: "
-                         "run without mpiexec)")
-    if "interface_predictor_assembled" in effects:
-        raise SceneError("interface.predictor", "assembled",
-                         f"'closed_form' on {n} ranks (the assembled predictor runs on one rank in this version: "
                          "run without mpiexec)")
     if problem.mesh.n_cells < n:
         raise SceneError("mesh.cells", problem.scene.mesh.cells, f"at least {n} cells on {n} ranks (one a rank)")
@@ -445,7 +445,7 @@ class Distribution:
             mine["mixed"] = self.mixed_held[self.mixed_owned]
             for name in ("interface_pressure", "interface_velocity"):
                 mine[name] = getattr(state, name)[self.mixed_owned]
-        pieces = self.comm.allgather(mine)
+        pieces = self.allgather(mine)
         whole = self.problem.state
         changes = {}
         for name, shape_of in (("node_position", whole.node_position), ("node_velocity", whole.node_velocity)):
@@ -468,6 +468,39 @@ class Distribution:
                     values[piece["mixed"]] = piece[name]
                 changes[name] = values
         return state.evolved(**changes)
+
+
+class RemapOnEveryRank:
+    """A 1D remap on several ranks: every rank remaps the whole mesh with the serial
+    remapper (``remapper``, built on the serial problem), from the serial state gathered
+    from the ranks' own cells and nodes, and keeps its share.  A 1D mesh is a line of a few
+    thousand cells, whose remap costs a few Lagrange steps of it; its interface-following
+    windows and its fall-back to the general intersection then need nothing of their own on
+    ranks.  (The 2D remap is shared out: :class:`RankScope`.)  Everything else is the serial
+    remapper's (its settings and counters, the same on every rank)."""
+
+    def __init__(self, distribution: Distribution, remapper):
+        self.distribution, self.remapper = distribution, remapper
+
+    def __getattr__(self, name):
+        return getattr(self.remapper, name)
+
+    def apply(self, state, layout, mixed):
+        """Remapper.apply on the serial state; returns this rank's share of its results (the
+        new mixed cells already solved as one set over the ranks)."""
+        distribution = self.distribution
+        whole = distribution.gathered(state)
+        distribution.gather_problem()  # the serial layout and mixed cells, from the ranks' own
+        problem = distribution.problem
+        new, new_layout, new_mixed, node_mass, kinetic_change = self.remapper.apply(whole, problem.layout,
+                                                                                     problem.mixed)
+        if node_mass is None:  # nothing was remapped this step
+            return state, layout, mixed, None, 0.0
+        local_mixed = distribution.mixed = distribution.local_mixed(new_mixed)
+        cells = distribution.cells
+        return (distribution.local_state(new),
+                MaterialLayout(np.ascontiguousarray(new_layout.cell_material[:, cells]), new_layout.n_materials),
+                local_mixed, np.ascontiguousarray(node_mass[distribution.nodes]), kinetic_change)
 
 
 class RankScope(WholeMesh):
@@ -516,6 +549,9 @@ class MixedCellsOnRanks:
         """``whole``: the problem's mixed cells; ``held``: the places among them of this
         rank's, ``owned`` (among ``held``) those it owns."""
         self.distribution, self.count = distribution, whole.count
+        # the whole set's cells and (1D) internal nodes in the serial numbering, on the serial mesh
+        self.cells, self.node_left, self.node_right = whole.cells, whole.node_left, whole.node_right
+        self.mesh = distribution.problem.mesh
         self.held, self.owned_places = held, held[owned]
         self.owned = owned
         self.place = np.full(whole.count, -1, dtype=np.int64)
