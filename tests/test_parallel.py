@@ -37,8 +37,9 @@ def _run(tmp_path: Path, name: str, ranks: int, *overrides: str, frames: int = 0
     ("sod", ["mesh.cells=200", "boundaries.right=free", "t_end=0.12"], 3),
     ("sod-2d", ["mesh.cells=[24,24]"], 2),
     ("noh", ["mesh.cells=[16,16]", "mesh.cell_type=triangle", "t_end=0.2"], 3),
+    ("noh", ["mesh.cells=[16,16]", "t_end=0.2"], 2),
     ("saltzman", ["mesh.cells=[40,4]", "t_end=0.1"], 2),  # a piston's boundary reactions
-], ids=["sod-free-end-3", "sod-2d-2", "noh-triangles-3", "saltzman-2"])
+], ids=["sod-free-end-3", "sod-2d-2", "noh-triangles-3", "noh-quadrilaterals-2", "saltzman-2"])
 def test_a_run_on_several_ranks_is_the_serial_run_to_the_bit(tmp_path, name, overrides, ranks):
     """The cells and nodes of every rank take the serial run's values: the same steps,
     time steps, errors and final fields (cells.csv / profile.csv byte for byte);
@@ -135,13 +136,14 @@ def test_single_velocity_mixed_cells_across_partitions_are_the_serial_ones(tmp_p
     ("rotated-tube", ["mesh.motion=eulerian", "mesh.cells=[40,40]"], 2),
     ("rotated-tube", ["mesh.motion=smoothed", "mesh.cells=[24,24]", "mesh.cell_type=triangle", "t_end=0.05"], 3),
     ("sedov", ["mesh.cells=[30,30]", "t_end=0.3"], 2),  # smoothed
+    ("sedov", ["mesh.cells=[20,20]", "mesh.cell_type=triangle", "t_end=0.3"], 3),
     ("shock-disk", ["mesh.cells=[48,24]", "t_end=0.15"], 2),  # traces moved to neighbours
     ("transverse-eulerian", ["mesh.cells=200"], 2),  # 1D enriched cells
     ("transverse-eulerian", ["mesh.cells=200", "interface.predictor=assembled", "t_end=0.05"], 3),
     ("water-air", ["interface.model=single_velocity", "mesh.cells=201", "mesh.motion=smoothed", "t_end=1e-4"], 3),
     ("sod-two-gamma-enriched", ["mesh.motion=interface", "mesh.cells=200", "t_end=0.1"], 2),
 ], ids=["rotated-tube-eulerian-2", "rotated-tube-smoothed-triangles-3", "sedov-smoothed-2",
-        "shock-disk-smoothed-2", "1d-enriched-eulerian-2", "1d-assembled-eulerian-3", "1d-single-velocity-smoothed-3",
+        "sedov-smoothed-triangles-3", "shock-disk-smoothed-2", "1d-enriched-eulerian-2", "1d-assembled-eulerian-3", "1d-single-velocity-smoothed-3",
         "1d-interface-following-2"])
 def test_a_remapped_run_on_several_ranks_is_the_serial_run_to_the_bit(tmp_path, name, overrides, ranks):
     """Eulerian and smoothed meshes, pure and single-velocity mixed cells: each rank remaps

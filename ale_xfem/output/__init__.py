@@ -1,1 +1,1 @@
-"""Run outputs: summary.json, profile.csv / cells.csv, VTX, plots."""
+"""Run outputs: summary.json, profile.csv / cells.csv, the VTK series, plots."""
