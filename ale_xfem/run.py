@@ -123,7 +123,8 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
     each compiled chunk of steps), which lets the steps before it run compiled.
     ``compiled_chunks`` False: every step through the staged step (the same numbers; the
     tests compare the two).  With a remapped mesh, problem.layout, problem.mixed and
-    problem.node_mass follow the run (they describe the returned state)."""
+    problem.node_mass follow the run (they describe the returned state; on several MPI
+    ranks they are the ranks' own gathered, at the end and at each observed state)."""
     t_end = problem.scene.t_end if t_end is None else t_end
     max_steps = problem.scene.numerics.max_steps
     # On several MPI ranks each steps its share of the cells (ale_xfem.parallel), and the

@@ -22,7 +22,7 @@ def _run(tmp_path: Path, name: str, ranks: int, *overrides: str, frames: int = 0
     """`ale-xfem run` of a shipped scene on ``ranks`` ranks, with ``frames`` VTK frames:
     (completed process, output folder).  One rank: the command run in this process (the
     serial reference; a process of its own would only add its start-up)."""
-    out = tmp_path / f"{name}-{ranks}"
+    out = tmp_path / f"{Path(name).stem}-{ranks}"  # (a shipped scene's name, or a scene file)
     arguments = ["run", name, "--quiet", "--no-plot", "--frames", str(frames), "--out", str(out),
                  *[a for o in overrides for a in ("--set", o)]]
     if ranks == 1:
@@ -153,13 +153,32 @@ def test_a_remapped_run_on_several_ranks_is_the_serial_run_to_the_bit(tmp_path, 
     gathered states, their layouts and mixed cells too) to the bit (the meshes are large
     enough for every rank's ghost layer to end inside the mesh).  1D (Eulerian, smoothed
     and interface-following meshes; enriched cells with either predictor, single-velocity
-    cells): every rank remaps the whole line from the gathered state (RemapOnEveryRank) and
-    keeps its share, the new mixed cells solved as one set."""
+    cells; profile.csv, no frames): every rank remaps the whole line from the gathered
+    state (RemapOnEveryRank) and keeps its share, the new mixed cells solved as one set."""
+    serial = _run(tmp_path, name, 1, *overrides, frames=3)
     if "mesh.motion=interface" in overrides:  # windows remapped around the interface
-        done, out = _run(tmp_path, name, 1, *overrides)
-        assert json.loads((out / "summary.json").read_text())["remaps"]["local"] > 0
-    _the_same_run(*_run(tmp_path, name, 1, *overrides, frames=3), *_run(tmp_path, name, ranks, *overrides, frames=3),
-                  ranks)
+        assert serial[0].returncode == 0
+        assert json.loads((serial[1] / "summary.json").read_text())["remaps"]["local"] > 0
+    _the_same_run(*serial, *_run(tmp_path, name, ranks, *overrides, frames=3), ranks)
+
+
+def test_a_step_halved_after_a_remap_is_halved_on_every_rank(tmp_path):
+    """Air at 1e5 Pa, 0.2 % of its cell, struck by water at 1e9 Pa on a smoothed 1D mesh
+    (tests/test_stability.py): the remap moves Γ into the next cell, whose interface solve
+    then leaves the air's EOS domain, and the step is taken again with half the time step.
+    On 2 ranks the retry is decided on the mixed cells the last remap left, as in the serial
+    run: the same halving, steps and profile."""
+    import tomli_w
+
+    from ale_xfem.studies.stability import extreme_case
+
+    case = extreme_case("sliver", True, 0.002, "smoothed", (1.2, 1e5), (1000.0, 1e9), cells=100)
+    scene = tmp_path / "sliver.toml"
+    scene.write_bytes(tomli_w.dumps(case.data).encode())
+    serial = _run(tmp_path, str(scene), 1)
+    assert serial[0].returncode == 0
+    assert json.loads((serial[1] / "summary.json").read_text())["mixed_cells"]["halved_steps"] >= 1
+    _the_same_run(*serial, *_run(tmp_path, str(scene), 2), 2)
 
 
 def test_a_collapsed_time_step_is_reported_on_several_ranks_as_on_one(tmp_path):

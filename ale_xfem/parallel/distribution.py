@@ -177,7 +177,7 @@ class Distribution:
 
     def __init__(self, problem, comm=None, rings: int = 1):
         """``rings``: the ghost layer's depth in rings of cells around the rank's own (1: the
-        cells around its nodes, what a Lagrange step needs; a remap needs
+        cells around its nodes, what a Lagrange step and the 1D remap need; a 2D remap needs
         REMAP_GHOST_RINGS)."""
         self.comm = comm if comm is not None else world()
         self.problem = problem
@@ -223,6 +223,7 @@ class Distribution:
         # seconds in the exchanges and reductions over the ranks (waiting for the others
         # included): the run's phase_seconds["communication"]
         self.seconds = 0.0
+        self.whole_mixed = None  # all the ranks' mixed cells, serial numbers (local_mixed)
         self.mixed = self.local_mixed(problem.mixed)
 
     def local_mixed(self, whole: MixedCells | None) -> MixedCells | None:
@@ -637,8 +638,9 @@ class DistributedWilkins(ExplicitWilkins):
             raise Breakdown(*first[:4], **first[4])
 
     def breaks_mixed_cell(self, failure: Breakdown) -> bool:
-        """As ExplicitWilkins's, of the serial cell numbers (every rank decides alike)."""
-        whole = self.distribution.problem.mixed
+        """As ExplicitWilkins's, of the serial cell numbers (every rank decides alike): the
+        mixed cells of all the ranks as the last remap left them."""
+        whole = self.distribution.whole_mixed
         return whole is not None and failure.cell in whole.cells
 
     def step(self, state, dt, start=None, remapped_next=False):

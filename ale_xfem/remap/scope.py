@@ -2,8 +2,8 @@
 verdict on a failure, and (on several MPI ranks) the values its neighbours' ranks own.
 
 A serial run holds the whole mesh: :class:`WholeMesh` sums with numpy, raises a failure
-at once and refreshes nothing.  On several MPI ranks each rank remaps its share of the
-cells and a ghost layer around it (``ale_xfem.parallel``), whose outer cells miss some of
+at once and refreshes nothing.  On several MPI ranks each rank remaps its share of a 2D
+mesh's cells and a ghost layer around it (``ale_xfem.parallel``), whose outer cells miss some of
 their neighbours: a subclass there refreshes the ghost cells and nodes from their owners
 at the points :class:`ale_xfem.remap.remapper_2d.Remapper2D` names, sums the ranks' own
 entries in the serial order, and agrees on failures over the ranks.
