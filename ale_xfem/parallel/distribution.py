@@ -477,8 +477,10 @@ class RemapOnEveryRank:
     from the ranks' own cells and nodes, and keeps its share.  A 1D mesh is a line of a few
     thousand cells, whose remap costs a few Lagrange steps of it; its interface-following
     windows and its fall-back to the general intersection then need nothing of their own on
-    ranks.  (The 2D remap is shared out: :class:`RankScope`.)  Everything else is the serial
-    remapper's (its settings and counters, the same on every rank)."""
+    ranks.  An interface-following mesh gathers nothing on the steps where no rank's own
+    mixed cell has its interface near a node (most steps: nothing is remapped then).  (The
+    2D remap is shared out: :class:`RankScope`.)  Everything else is the serial remapper's
+    (its settings and counters, the same on every rank)."""
 
     def __init__(self, distribution: Distribution, remapper):
         self.distribution, self.remapper = distribution, remapper
@@ -490,6 +492,12 @@ class RemapOnEveryRank:
         """Remapper.apply on the serial state; returns this rank's share of its results (the
         new mixed cells already solved as one set over the ranks)."""
         distribution = self.distribution
+        if self.remapper.motion == "interface":  # nothing to remap unless an interface nears a node
+            if mixed is None:  # (then on every rank)
+                return state, layout, mixed, None, 0.0
+            _, near = self.remapper.near_a_node(state, mixed)
+            if not any(distribution.allgather(bool(np.isin(near, mixed.across_ranks.owned).any()))):
+                return state, layout, mixed, None, 0.0
         whole = distribution.gathered(state)
         distribution.gather_problem()  # the serial layout and mixed cells, from the ranks' own
         problem = distribution.problem

@@ -78,15 +78,21 @@ class Remapper:
             return self._follow_interfaces(state, layout, mixed)
         return self._remap_all(state, layout, mixed)
 
+    def near_a_node(self, state, mixed) -> tuple[np.ndarray, np.ndarray]:
+        """(each mixed cell's left material's fraction of it, the places among ``mixed`` of
+        those whose interface is within FOLLOW_BAND of the cell from one of its nodes):
+        what the interface-following motion looks at."""
+        x = state.node_position[0]
+        fraction = state.material_volume[0, mixed.cells] / (x[mixed.node_right] - x[mixed.node_left])
+        return fraction, np.flatnonzero((fraction < self.FOLLOW_BAND) | (fraction > 1 - self.FOLLOW_BAND))
+
     def _follow_interfaces(self, state, layout, mixed):
         if mixed is None:
             return state, layout, mixed, None, 0.0
         cells = mixed.cells
         x = state.node_position[0]
         a, b = mixed.node_left, mixed.node_right
-        volume = x[b] - x[a]
-        fraction = state.material_volume[0, cells] / volume
-        near = np.flatnonzero((fraction < self.FOLLOW_BAND) | (fraction > 1 - self.FOLLOW_BAND))
+        fraction, near = self.near_a_node(state, mixed)
         if near.size == 0:
             return state, layout, mixed, None, 0.0
         # Only the few mixed cells whose interface nears a node this step are looked at:
