@@ -319,13 +319,12 @@ def _step(stepper, state, dt, evaluation, remapped_next):
 def _remap(problem, stepper, remapper, state, evaluation, impulse, distribution=None):
     """The transport phase: remap, take the new layout, hold the walls, relax mixed cells.
     Returns (state, its evaluation, boundary impulse, kinetic energy change).  On several
-    MPI ranks (``distribution``) the rank's share: its mixed cells solved with all the
-    ranks', the walls' impulse and work summed over the ranks' own nodes."""
+    MPI ranks (``distribution``) the rank's share: the remapper hands back its mixed cells
+    solved with all the ranks' (RankScope.solved_mixed, RemapOnEveryRank), the walls'
+    impulse and work are summed over the ranks' own nodes."""
     state, layout, mixed, node_mass, kinetic_change = remapper.apply(state, stepper.layout, stepper.mixed)
     if node_mass is None:  # nothing was remapped this step
         return state, evaluation, impulse, 0.0
-    if distribution is not None and not isinstance(remapper, RemapOnEveryRank):  # (it hands its ranks' share)
-        mixed = distribution.adopt_mixed(mixed, remapper.solver_options)
     stepper.rebuild(layout, node_mass, mixed)
     if distribution is None:  # (on several ranks the problem takes the ranks' at the end)
         problem.layout, problem.mixed, problem.node_mass = layout, mixed, node_mass

@@ -37,7 +37,8 @@ the bit.
   owners (an ``IndexMap`` of the cells besides the nodes') after the fluxes, after each
   pass of the traces' moves and at the end, takes the sums over the mesh in the serial
   order (:meth:`Distribution.serial_totals`) and agrees on failures; the new mixed cells are
-  then solved as one set again (:meth:`Distribution.adopt_mixed`).
+  then solved as one set again (:meth:`Distribution.adopt_mixed`, which the remap calls
+  through its scope: ``RankScope.solved_mixed``).
 - **The 1D remap.**  Every rank remaps the whole line from the serial state gathered from
   the ranks' own cells and nodes, with the serial remapper, and keeps its share
   (:class:`RemapOnEveryRank`): a 1D mesh of a few thousand cells remaps in the time of a
@@ -538,6 +539,9 @@ class RankScope(WholeMesh):
 
     def anywhere(self, flag: bool) -> bool:
         return any(self.distribution.allgather(bool(flag)))
+
+    def solved_mixed(self, mixed, options: dict):
+        return self.distribution.adopt_mixed(mixed, options)
 
     def cell_number(self, cell: int) -> int:
         return int(self.distribution.cells[cell])

@@ -283,7 +283,7 @@ class Remapper2D:
             material_volume=slot_volume, material_density=density, material_pressure=pressure,
             material_sound_speed=sound_speed, interface_pressure=interface_pressure,
             interface_velocity=interface_velocity, **(material_fields or {}))
-        return new_state, new_layout, new_mixed, node_mass, kinetic_change
+        return new_state, new_layout, scope.solved_mixed(new_mixed, self.solver_options), node_mass, kinetic_change
 
     def _deposit(self, loss, node_mass, mass, energy, corner_mass=None):
         """The kinetic energy the remap lost at each node (n_nodes,) into the materials'

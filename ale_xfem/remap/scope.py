@@ -43,6 +43,12 @@ class WholeMesh:
         """Whether ``flag`` holds on any rank."""
         return bool(flag)
 
+    def solved_mixed(self, mixed, options: dict):
+        """The mixed cells a remap left (MixedCells or None), as the Lagrange step is to
+        solve them: here the remap's own; on several ranks every rank's, as one set
+        (``options``: the solver settings of new mixed cells)."""
+        return mixed
+
     def cell_number(self, cell: int) -> int:
         """The serial number of a cell."""
         return int(cell)
