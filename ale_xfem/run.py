@@ -80,18 +80,19 @@ class Progress:
 
 
 def make_stepper(problem: Problem, mesh=None, layout=None, node_mass=None, boundaries=None, mixed=None,
-                 stepper_class=ExplicitWilkins) -> ExplicitWilkins:
+                 stepper_class=ExplicitWilkins, closures_class=Closures) -> ExplicitWilkins:
     """The Lagrange step of a problem, its mixed cells closed as the scene asks (the
     assembled predictor's UFL forms are compiled here, once per run); ``mesh``, ``layout``,
     ``node_mass``, ``boundaries``, ``mixed``: a part of the problem's (one rank's), in place of its own,
-    stepped by ``stepper_class`` (ExplicitWilkins or a subclass)."""
+    stepped by ``stepper_class`` (ExplicitWilkins or a subclass), its mixed cells closed by
+    ``closures_class``'s (Closures or a subclass)."""
     keep_freed_memory()
     interface = problem.scene.interface
     enriched_2d = {}
     if interface is not None and interface.stabilisation is not None:  # 2D enriched mixed cells
         enriched_2d = dict(stabilisation=interface.stabilisation, slip=interface.slip,
                            nitsche_penalty=interface.nitsche_penalty or 1.0)
-    closures = Closures(problem.mesh if mesh is None else mesh, problem.materials,
+    closures = closures_class(problem.mesh if mesh is None else mesh, problem.materials,
                         assembled_predictor="interface_predictor_assembled" in problem.effects,
                         petsc_options=dict(interface.petsc_options) if interface is not None else None,
                         **enriched_2d)
@@ -147,7 +148,7 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
                                   **({} if distribution is None else distribution.remap_parts()))
             interface = problem.scene.interface
             if interface is not None and interface.model == "enriched":  # the step's masses
-                remapper.material_geometry = partial(material_geometry, problem.mesh)
+                remapper.material_geometry = partial(material_geometry, remapper.mesh)
         else:
             remapper = Remapper(problem, problem.scene.mesh.motion, problem.scene.numerics.remap_order)
             if distribution is not None:

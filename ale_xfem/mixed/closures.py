@@ -24,7 +24,7 @@ class Closures:
         self.assembled_predictor = assembled_predictor
         self.petsc_options = petsc_options
         # 2D enriched cells: their stabilisation, slip and Nitsche factor
-        self.enriched_2d = dict(stabilisation=stabilisation, slip=slip, nitsche_penalty=nitsche_penalty)
+        self.enriched_2d_options = dict(stabilisation=stabilisation, slip=slip, nitsche_penalty=nitsche_penalty)
         self.made = {}  # model → its closure
 
     def __call__(self, mixed: MixedCells) -> MixedCellClosure:
@@ -33,11 +33,15 @@ class Closures:
             closure.bind(mixed)
             return closure
         if mixed.model == "enriched" and self.mesh.dimension == 2:
-            closure = EnrichedClosure2D(self.mesh, self.materials, mixed, petsc_options=self.petsc_options,
-                                        **self.enriched_2d)
+            closure = self.enriched_2d(mixed)
         else:
             options = ({"assembled": self.assembled_predictor, "petsc_options": self.petsc_options}
                        if mixed.model == "enriched" else {})
             closure = CLOSURES[mixed.model](self.mesh, self.materials, mixed, **options)
         self.made[mixed.model] = closure
         return closure
+
+    def enriched_2d(self, mixed: MixedCells) -> MixedCellClosure:
+        """The closure of 2D enriched cells (its forms compiled here, once per run)."""
+        return EnrichedClosure2D(self.mesh, self.materials, mixed, petsc_options=self.petsc_options,
+                                 **self.enriched_2d_options)

@@ -91,6 +91,13 @@ class EnrichedClosure2D(SharedClosure):
         self.node_of_dolfinx[self.dolfinx_node] = identity
         super().__init__(mesh, materials, mixed)
 
+    @property
+    def last_step(self) -> dict:
+        """What the last interface solve left for the step's end: its mixed cells' nodes
+        (``sub``), each material's new velocities (``velocity``), the interface pressure
+        (``interface_pressure``, once :meth:`end_of_step` has run), ..."""
+        return self._last
+
     def _to_dolfinx(self, node_values):
         """A node field (..., n_nodes) in DOLFINx's node order."""
         return np.take(node_values, self.node_of_dolfinx, axis=-1)

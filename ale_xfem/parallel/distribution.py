@@ -48,15 +48,19 @@ the bit.
   ranks' mixed cells, on the serial mesh (:class:`ale_xfem.mixed.assembled_predictor.AssembledPredictor`),
   as the closed-form solve is.
 
-What runs distributed: every 1D scene, and 2D scenes with pure cells or single-velocity
-mixed cells on Lagrangian, Eulerian and smoothed meshes; 2D enriched cells are refused at
-the start with the key that needs one rank.
+- **2D enriched cells.**  Every rank solves all the ranks' mixed cells with the serial
+  closure on the serial mesh, from the serial arrays gathered from the ranks
+  (:mod:`ale_xfem.parallel.enriched_cells`); the remap moves each material's velocity and
+  masses on the rank's share, their ghost entries refreshed from their owners.
+
+Every scene runs distributed; a mesh with fewer cells than ranks is refused at the start.
 """
 
 from __future__ import annotations
 
 import time
 from dataclasses import replace
+from functools import partial
 
 import numpy as np
 
@@ -107,16 +111,9 @@ def rank() -> int:
 
 
 def check_distributable(problem) -> None:
-    """Raise SceneError naming the key that keeps ``problem`` on one rank."""
+    """Raise SceneError when ``problem`` cannot share its cells out over the ranks (fewer
+    cells than ranks)."""
     n = ranks()
-    effects = problem.effects
-    motion = problem.scene.mesh.motion
-    remapped = motion != "lagrangian" or any(name.startswith("remap_") for name in effects)
-    interface = problem.scene.interface
-    if problem.mesh.dimension == 2 and interface is not None and interface.model == "enriched":
-        raise SceneError("interface.model", interface.model,
-                         f"'single_velocity' on {n} ranks (2D enriched mixed cells run on one rank in this version: "
-                         "run without mpiexec)")
     if problem.mesh.n_cells < n:
         raise SceneError("mesh.cells", problem.scene.mesh.cells, f"at least {n} cells on {n} ranks (one a rank)")
 
@@ -291,7 +288,15 @@ class Distribution:
         if self.mixed is not None:
             mixed_values = {name: np.ascontiguousarray(getattr(state, name)[self.mixed_held])
                             for name in ("interface_pressure", "interface_velocity")}
-        return state.evolved(**mixed_values,
+        def node_values(values):
+            return None if values is None else np.ascontiguousarray(values[..., nodes])
+        material_fields = {}  # 2D enriched cells: each material's nodal velocities and masses
+        if state.material_node_velocity is not None:
+            material_fields = dict(material_node_velocity=node_values(state.material_node_velocity),
+                                   material_node_mass=node_values(state.material_node_mass),
+                                   material_node_internal=node_values(state.material_node_internal),
+                                   material_corner_mass=np.ascontiguousarray(state.material_corner_mass[..., cells]))
+        return state.evolved(**mixed_values, **material_fields,
             node_position=np.ascontiguousarray(state.node_position[:, nodes]),
             node_velocity=np.ascontiguousarray(state.node_velocity[:, nodes]),
             material_mass=cell_values(state.material_mass), material_energy=cell_values(state.material_energy),
@@ -310,8 +315,11 @@ class Distribution:
         the local problem's parts)."""
         problem = self.problem
         layout = MaterialLayout(problem.layout.cell_material[:, self.cells], problem.layout.n_materials)
+        from ale_xfem.parallel.enriched_cells import ClosuresOnRanks
+
         stepper = make_stepper(self.mesh, layout, np.ascontiguousarray(problem.node_mass[self.nodes]),
-                               self.local_boundaries(), mixed=self.mixed, stepper_class=DistributedWilkins)
+                               self.local_boundaries(), mixed=self.mixed, stepper_class=DistributedWilkins,
+                               closures_class=partial(ClosuresOnRanks, self))
         stepper.share(self)
         self.step = stepper
         return stepper
@@ -372,7 +380,7 @@ class Distribution:
                 for whole, r in zip(wholes, rows):
                     whole[:, numbers] = received[start:start + r * numbers.size].reshape(r, numbers.size)
                     start += r * numbers.size
-            totals = [float((whole[0] if nodes else whole).sum()) for whole in wholes]
+            totals = [float((whole[0] if nodes and whole.shape[0] == 1 else whole).sum()) for whole in wholes]
         else:
             self.comm.Gatherv(mine, None, root=0)
         totals = self.comm.bcast(totals, root=0)
@@ -469,7 +477,26 @@ class Distribution:
                 for piece in pieces:
                     values[piece["mixed"]] = piece[name]
                 changes[name] = values
+        if state.material_node_velocity is not None:  # 2D enriched cells' per-material fields
+            names = ("material_node_velocity", "material_node_mass", "material_node_internal")
+            changes.update(zip(names, self.whole_arrays([getattr(state, name) for name in names], "nodes")))
+            (changes["material_corner_mass"],) = self.whole_arrays((state.material_corner_mass,), "cells")
         return state.evolved(**changes)
+
+    def whole_arrays(self, fields, over: str) -> list:
+        """Arrays (..., local entries) of the rank's cells (``over`` "cells") or nodes
+        ("nodes") → the same over the serial mesh's, each entry from the rank that owns it
+        (one exchange, every rank gets them all)."""
+        cells = over == "cells"
+        owned = self.owned_cells if cells else self.owned_nodes
+        numbers = (self.cells if cells else self.nodes)[owned]
+        pieces = self.allgather((numbers, [values[..., owned] for values in fields]))
+        n = self.problem.mesh.n_cells if cells else self.problem.mesh.n_nodes
+        wholes = [np.empty(values.shape[:-1] + (n,), dtype=values.dtype) for values in fields]
+        for numbers, values in pieces:
+            for whole, piece in zip(wholes, values):
+                whole[..., numbers] = piece
+        return wholes
 
 
 class RemapOnEveryRank:

@@ -382,10 +382,18 @@ class Remapper2D:
                 else:
                     self.wall_work += float(change.sum())
             boundary.apply(mesh_velocity)
-        kinetic_after = 0.5 * np.sum(node_mass[:, None] * velocity**2)
-        kinetic_change = float(kinetic_after - kinetic_before.sum()) - self.wall_work
+        scope = self.scope
+        self.wall_impulse, self.wall_work = scope.summed(self.wall_impulse), scope.summed(self.wall_work)
+        n_nodes = node_mass.shape[1]
+        # (on several ranks: the ghost nodes' and cells' from their owners)
+        scope.nodes(velocity.reshape(-1, n_nodes), mesh_velocity, node_mass, loss, internal)
+        scope.cells(corner_mass.reshape(-1, corner_mass.shape[-1]))
+        kinetic_after, kinetic_before = scope.totals(((node_mass[:, None] * velocity**2).reshape(-1, n_nodes),
+                                                      kinetic_before), "nodes")
+        kinetic_change = float(0.5 * kinetic_after - kinetic_before) - self.wall_work
         total_node_mass = node_mass.sum(axis=0)
         self._deposit(loss, total_node_mass, mass, energy, corner_mass)
+        scope.cells(energy)
         fields = dict(material_node_velocity=velocity, material_node_mass=node_mass,
                       material_corner_mass=corner_mass, material_node_internal=internal)
         return mesh_velocity, total_node_mass, kinetic_change, fields

@@ -31,7 +31,7 @@ class WholeMesh:
 
     def totals(self, fields, over: str) -> list[float]:
         """Σ of each field over the whole mesh (``over`` "cells": (rows, n_cells), "nodes":
-        (n_nodes,)), in the serial order."""
+        (n_nodes,) or (rows, n_nodes)), in the serial order."""
         return [float(values.sum()) for values in fields]
 
     def summed(self, value):
