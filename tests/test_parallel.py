@@ -181,6 +181,29 @@ def test_2d_enriched_cells_on_several_ranks_are_the_serial_ones(tmp_path, name, 
                   ranks)
 
 
+@pytest.mark.parametrize("model", ["single_velocity", "enriched"])
+def test_a_rank_that_holds_no_mixed_cell_solves_with_the_others(tmp_path, model):
+    """The shock on the heavy disk on 3 ranks: one rank's cells and ghost layer hold no
+    mixed cell, so its remap leaves one material a cell; it takes an empty second slot (as
+    the serial remap leaves its pure cells while another cell is mixed) and solves with
+    the others: the serial run to the bit, single-velocity or enriched cells."""
+    from mpi4py import MPI
+
+    from ale_xfem.parallel.distribution import REMAP_GHOST_RINGS, cell_partition, local_cells, node_owners
+    from ale_xfem.problem.build import build_problem
+    from ale_xfem.scene import load_scene, resolve_scene_path
+
+    overrides = ["mesh.cells=[48,24]", "t_end=0.05", f"interface.model={model}"]
+    problem = build_problem(load_scene(resolve_scene_path("shock-disk"), overrides))
+    cell_nodes = problem.mesh.cell_nodes
+    owner = cell_partition(cell_nodes, 3, MPI.COMM_SELF)
+    node_owner = node_owners(cell_nodes, owner, problem.mesh.n_nodes)
+    assert any(not np.isin(problem.mixed.cells, local_cells(cell_nodes, owner, node_owner, rank,
+                                                            REMAP_GHOST_RINGS)).any() for rank in range(3))
+    _the_same_run(*_run(tmp_path, "shock-disk", 1, *overrides, frames=3),
+                  *_run(tmp_path, "shock-disk", 3, *overrides, frames=3), 3)
+
+
 def test_a_step_halved_after_a_remap_is_halved_on_every_rank(tmp_path):
     """Air at 1e5 Pa, 0.2 % of its cell, struck by water at 1e9 Pa on a smoothed 1D mesh
     (tests/test_stability.py): the remap moves Γ into the next cell, whose interface solve

@@ -166,8 +166,9 @@ class PerMesh:
         self.compute, self.kept = compute, []  # [(a weak reference to a cell_nodes array, its value)]
 
     def __call__(self, cell_nodes):
-        for reference, value in self.kept:
+        for place, (reference, value) in enumerate(self.kept):
             if reference() is cell_nodes:
+                self.kept.insert(0, self.kept.pop(place))
                 return value
         value = self.compute(cell_nodes)
         self.kept.insert(0, (weakref.ref(cell_nodes), value))

@@ -153,6 +153,26 @@ def cell_partition(cell_nodes: np.ndarray, parts: int, comm) -> np.ndarray:
     return comm.bcast(owner, root=0)
 
 
+def node_owners(cell_nodes: np.ndarray, owner: np.ndarray, n_nodes: int) -> np.ndarray:
+    """Each node's rank: the lowest among its cells' (``owner``: each cell's)."""
+    node_owner = np.full(n_nodes, owner.max() + 1, dtype=np.int64)
+    for corner in range(cell_nodes.shape[1]):
+        np.minimum.at(node_owner, cell_nodes[:, corner], owner)
+    return node_owner
+
+
+def local_cells(cell_nodes: np.ndarray, owner: np.ndarray, node_owner: np.ndarray, rank: int,
+                rings: int) -> np.ndarray:
+    """The cells ``rank`` holds (serial numbers, ascending): its own, every cell around one of
+    its nodes, and ``rings`` − 1 more rings of cells around those."""
+    local = (owner == rank) | np.any(node_owner[cell_nodes] == rank, axis=1)
+    for _ in range(rings - 1):  # one more ring: every cell around a node of the local cells
+        reached = np.zeros(node_owner.size, dtype=bool)
+        reached[cell_nodes[local]] = True
+        local |= np.any(reached[cell_nodes], axis=1)
+    return np.flatnonzero(local)
+
+
 def ghost_index_map(comm, owner: np.ndarray, held: np.ndarray, tag: int):
     """A DOLFINx IndexMap of the entries ``held`` (serial numbers, ascending) of this rank,
     ``owner`` each entry's rank (all of them): the entries numbered rank by rank, each
@@ -188,16 +208,9 @@ class Distribution:
             raise SceneError("mesh.cells", problem.scene.mesh.cells,
                              f"enough cells for every one of {size} ranks to hold some (rank "
                              f"{int(np.argmin(held))} got none)")
-        node_owner = np.full(mesh.n_nodes, size, dtype=np.int64)
-        for corner in range(cell_nodes.shape[1]):
-            np.minimum.at(node_owner, cell_nodes[:, corner], owner)
+        node_owner = node_owners(cell_nodes, owner, mesh.n_nodes)
         self.cell_owner, self.node_owner = owner, node_owner
-        local = (owner == me) | np.any(node_owner[cell_nodes] == me, axis=1)
-        for _ in range(rings - 1):  # one more ring: every cell around a node of the local cells
-            reached = np.zeros(mesh.n_nodes, dtype=bool)
-            reached[cell_nodes[local]] = True
-            local |= np.any(reached[cell_nodes], axis=1)
-        self.cells = np.flatnonzero(local)
+        self.cells = local_cells(cell_nodes, owner, node_owner, me, rings)
         self.nodes = np.unique(cell_nodes[self.cells])
         self.owned_cells = np.flatnonzero(owner[self.cells] == me)  # local indices
         self.owned_nodes = np.flatnonzero(node_owner[self.nodes] == me)
@@ -359,8 +372,8 @@ class Distribution:
     def serial_totals(self, fields, over: str) -> list[float]:
         """Σ of each field over the whole mesh in the serial order: each rank's own entries
         gathered on rank 0 (MPI Gatherv) into the serial array, summed there as one rank sums
-        it, the sums sent to every rank (``over``: "nodes", each (n_nodes,), or "cells",
-        (rows, n_cells))."""
+        it, the sums sent to every rank (``over``: "nodes", each (n_nodes,) or (rows,
+        n_nodes), or "cells", (rows, n_cells))."""
         clock = time.perf_counter()
         nodes = over == "nodes"
         owned = self.owned_nodes if nodes else self.owned_cells

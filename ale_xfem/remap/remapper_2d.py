@@ -257,6 +257,12 @@ class Remapper2D:
         count, cell_material, slot_mass, slot_volume, slot_energy = swept_kernels_2d.material_slots(
             volume, mass, energy, area, standing, TRACE)
         scope = self.scope
+        if scope.anywhere(cell_material.shape[0] == 2) and cell_material.shape[0] == 1:
+            # on several ranks: a rank whose cells all hold one material takes a second slot,
+            # empty, as the serial remap leaves its pure cells when another cell is mixed
+            cell_material = np.vstack([cell_material, np.full_like(cell_material, -1)])
+            slot_mass, slot_volume, slot_energy = (np.vstack([a, np.zeros_like(a)])
+                                                   for a in (slot_mass, slot_volume, slot_energy))
         for bad, what in ((count > 2, "three materials meet in one cell; refine the mesh"),
                           (count == 0, "no material left after the remap")):
             c = first_cell(bad)
@@ -278,12 +284,15 @@ class Remapper2D:
             v = slot_volume[:, c]
             interface_pressure = (pressure[:, c] * v).sum(axis=0) / v.sum(axis=0)
             interface_velocity = np.zeros(c.size)
+        new_mixed = scope.solved_mixed(new_mixed, self.solver_options)
+        if new_mixed is not None and interface_pressure is None:  # (on several ranks: mixed cells, none here)
+            interface_pressure, interface_velocity = np.zeros(0), np.zeros(0)
         new_state = state.evolved(
             node_position=X, node_velocity=velocity, material_mass=slot_mass, material_energy=slot_energy,
             material_volume=slot_volume, material_density=density, material_pressure=pressure,
             material_sound_speed=sound_speed, interface_pressure=interface_pressure,
             interface_velocity=interface_velocity, **(material_fields or {}))
-        return new_state, new_layout, scope.solved_mixed(new_mixed, self.solver_options), node_mass, kinetic_change
+        return new_state, new_layout, new_mixed, node_mass, kinetic_change
 
     def _deposit(self, loss, node_mass, mass, energy, corner_mass=None):
         """The kinetic energy the remap lost at each node (n_nodes,) into the materials'
