@@ -181,6 +181,26 @@ def test_2d_enriched_cells_on_several_ranks_are_the_serial_ones(tmp_path, name, 
                   ranks)
 
 
+def test_2d_enriched_steps_halved_or_stopped_on_several_ranks_as_on_one(tmp_path):
+    """The sliding block with its corrector cut to 2 iterations: 7 steps fail in a mixed
+    cell and are taken again with half the time step; cut to 1, the first step fails 13
+    times and the run stops (exit code 3).  On 2 ranks the failing cell comes out of the
+    serial closure that every rank runs, named by the rank that holds it: the same
+    halvings, the same diagnostic (serial cell, position, materials), the same fields."""
+    halved = ["t_end=0.1", "numerics.interface_max_iterations=2"]
+    serial, serial_out = _run(tmp_path, "sliding-block", 1, *halved)
+    assert json.loads((serial_out / "summary.json").read_text())["mixed_cells"]["halved_steps"] >= 1
+    _the_same_run(serial, serial_out, *_run(tmp_path, "sliding-block", 2, *halved), 2)
+    stopped = ["t_end=0.1", "numerics.interface_max_iterations=1"]
+    serial, serial_out = _run(tmp_path / "stopped", "sliding-block", 1, *stopped)
+    parallel, parallel_out = _run(tmp_path / "stopped", "sliding-block", 2, *stopped)
+    assert serial.returncode == parallel.returncode == 3
+    one, many = (json.loads((folder / "summary.json").read_text()) for folder in (serial_out, parallel_out))
+    assert "did not converge" in one["diagnostic"] and many["diagnostic"] == one["diagnostic"]
+    assert (parallel_out / "cells.csv").read_bytes() == (serial_out / "cells.csv").read_bytes()
+    assert parallel.stderr.count("error: simulation failed") == 1
+
+
 @pytest.mark.parametrize("model", ["single_velocity", "enriched"])
 def test_a_rank_that_holds_no_mixed_cell_solves_with_the_others(tmp_path, model):
     """The shock on the heavy disk on 3 ranks: one rank's cells and ghost layer hold no
