@@ -412,13 +412,8 @@ class Distribution:
         from the ranks' own (a remap changes them as the run goes)."""
         step = self.step
         layout = step.layout
-        pieces = self.allgather((self.cells[self.owned_cells], layout.cell_material[:, self.owned_cells],
-                                 self.nodes[self.owned_nodes], step.node_mass[self.owned_nodes]))
-        material = np.empty((layout.cell_material.shape[0], self.problem.mesh.n_cells),
-                            dtype=layout.cell_material.dtype)
-        node_mass = np.empty(self.problem.mesh.n_nodes)
-        for cells, values, nodes, masses in pieces:
-            material[:, cells], node_mass[nodes] = values, masses
+        (material,) = self.whole_arrays((layout.cell_material,), "cells")
+        (node_mass,) = self.whole_arrays((step.node_mass,), "nodes")
         problem = self.problem
         problem.layout = MaterialLayout(material, layout.n_materials)
         problem.node_mass = node_mass
@@ -456,44 +451,19 @@ class Distribution:
 
     def gathered(self, state: State) -> State:
         """The serial state from every rank's own cells and nodes (on every rank)."""
-        cells, nodes = self.cells[self.owned_cells], self.nodes[self.owned_nodes]
-        names = ("material_mass", "material_energy", "material_volume", "material_density", "material_pressure",
-                 "material_sound_speed")
-        mine = {"cells": cells, "nodes": nodes, "node_position": state.node_position[:, self.owned_nodes],
-                "node_velocity": state.node_velocity[:, self.owned_nodes]}
-        for name in names:
-            values = getattr(state, name)
-            mine[name] = None if values is None else values[:, self.owned_cells]
-        if self.mixed is not None:
-            mine["mixed"] = self.mixed_held[self.mixed_owned]
-            for name in ("interface_pressure", "interface_velocity"):
-                mine[name] = getattr(state, name)[self.mixed_owned]
-        pieces = self.allgather(mine)
-        whole = self.problem.state
-        changes = {}
-        for name, shape_of in (("node_position", whole.node_position), ("node_velocity", whole.node_velocity)):
-            values = np.empty_like(shape_of)
-            for piece in pieces:
-                values[:, piece["nodes"]] = piece[name]
-            changes[name] = values
-        for name in names:
-            if pieces[0][name] is None:
-                changes[name] = None
-                continue
-            values = np.empty((pieces[0][name].shape[0], whole.material_mass.shape[1]))
-            for piece in pieces:
-                values[:, piece["cells"]] = piece[name]
-            changes[name] = values
-        if self.mixed is not None:
-            for name in ("interface_pressure", "interface_velocity"):
-                values = np.empty(self.whole_mixed.count)
-                for piece in pieces:
-                    values[piece["mixed"]] = piece[name]
-                changes[name] = values
+        node_names = ["node_position", "node_velocity"]
+        cell_names = ["material_mass", "material_energy", "material_volume", "material_density",
+                      "material_pressure", "material_sound_speed"]
         if state.material_node_velocity is not None:  # 2D enriched cells' per-material fields
-            names = ("material_node_velocity", "material_node_mass", "material_node_internal")
-            changes.update(zip(names, self.whole_arrays([getattr(state, name) for name in names], "nodes")))
-            (changes["material_corner_mass"],) = self.whole_arrays((state.material_corner_mass,), "cells")
+            node_names += ["material_node_velocity", "material_node_mass", "material_node_internal"]
+            cell_names += ["material_corner_mass"]
+        present = [name for name in cell_names if getattr(state, name) is not None]
+        changes = dict.fromkeys(cell_names)
+        changes.update(zip(node_names, self.whole_arrays([getattr(state, name) for name in node_names], "nodes")))
+        changes.update(zip(present, self.whole_arrays([getattr(state, name) for name in present], "cells")))
+        if self.mixed is not None:  # each mixed cell's from its owner
+            changes["interface_pressure"], changes["interface_velocity"] = self.mixed.across_ranks.whole(
+                (state.interface_pressure, state.interface_velocity))
         return state.evolved(**changes)
 
     def whole_arrays(self, fields, over: str) -> list:
