@@ -412,8 +412,7 @@ class Distribution:
         from the ranks' own (a remap changes them as the run goes)."""
         step = self.step
         layout = step.layout
-        (material,) = self.whole_arrays((layout.cell_material,), "cells")
-        (node_mass,) = self.whole_arrays((step.node_mass,), "nodes")
+        (node_mass,), (material,) = self.whole_arrays((step.node_mass,), (layout.cell_material,))
         problem = self.problem
         problem.layout = MaterialLayout(material, layout.n_materials)
         problem.node_mass = node_mass
@@ -459,26 +458,29 @@ class Distribution:
             cell_names += ["material_corner_mass"]
         present = [name for name in cell_names if getattr(state, name) is not None]
         changes = dict.fromkeys(cell_names)
-        changes.update(zip(node_names, self.whole_arrays([getattr(state, name) for name in node_names], "nodes")))
-        changes.update(zip(present, self.whole_arrays([getattr(state, name) for name in present], "cells")))
+        node_values, cell_values = self.whole_arrays([getattr(state, name) for name in node_names],
+                                                     [getattr(state, name) for name in present])
+        changes.update(zip(node_names, node_values))
+        changes.update(zip(present, cell_values))
         if self.mixed is not None:  # each mixed cell's from its owner
             changes["interface_pressure"], changes["interface_velocity"] = self.mixed.across_ranks.whole(
                 (state.interface_pressure, state.interface_velocity))
         return state.evolved(**changes)
 
-    def whole_arrays(self, fields, over: str) -> list:
-        """Arrays (..., local entries) of the rank's cells (``over`` "cells") or nodes
-        ("nodes") → the same over the serial mesh's, each entry from the rank that owns it
-        (one exchange, every rank gets them all)."""
-        cells = over == "cells"
-        owned = self.owned_cells if cells else self.owned_nodes
-        numbers = (self.cells if cells else self.nodes)[owned]
-        pieces = self.allgather((numbers, [values[..., owned] for values in fields]))
-        n = self.problem.mesh.n_cells if cells else self.problem.mesh.n_nodes
-        wholes = [np.empty(values.shape[:-1] + (n,), dtype=values.dtype) for values in fields]
-        for numbers, values in pieces:
-            for whole, piece in zip(wholes, values):
-                whole[..., numbers] = piece
+    def whole_arrays(self, node_fields=(), cell_fields=()) -> tuple[list, list]:
+        """Arrays (..., local entries) of the rank's nodes and of its cells → the same over the
+        serial mesh's, each entry from the rank that owns it, in one exchange (every rank gets
+        them all): (the node fields', the cell fields')."""
+        pieces = self.allgather((self.nodes[self.owned_nodes], [values[..., self.owned_nodes] for values in node_fields],
+                                 self.cells[self.owned_cells], [values[..., self.owned_cells] for values in cell_fields]))
+        mesh = self.problem.mesh
+        wholes = ([np.empty(values.shape[:-1] + (mesh.n_nodes,), dtype=values.dtype) for values in node_fields],
+                  [np.empty(values.shape[:-1] + (mesh.n_cells,), dtype=values.dtype) for values in cell_fields])
+        for piece in pieces:
+            for kind in (0, 1):
+                numbers, values = piece[2 * kind], piece[2 * kind + 1]
+                for whole, part in zip(wholes[kind], values):
+                    whole[..., numbers] = part
         return wholes
 
 

@@ -72,9 +72,8 @@ class EnrichedCellsOnRanks(SharedClosure):
     def implicit_solve(self, step, state, first, predicted, mean_force, dt, dt_over_node_mass):
         distribution, ranks = self.distribution, self.mixed.across_ranks
         whole_state = self.whole_state = distribution.gathered(state)
-        cell_material, first_force, predicted_force = distribution.whole_arrays(
-            (step.layout.cell_material, first.corner_force, predicted.corner_force), "cells")
-        (dt_over_mass,) = distribution.whole_arrays((dt_over_node_mass,), "nodes")
+        (dt_over_mass,), (cell_material, first_force, predicted_force) = distribution.whole_arrays(
+            (dt_over_node_mass,), (step.layout.cell_material, first.corner_force, predicted.corner_force))
         self.whole_step.layout = SimpleNamespace(cell_material=cell_material)
         viscosity = ranks.whole((first.mixed_viscosity, predicted.mixed_viscosity))
         whole_force = np.zeros((mean_force.shape[0], dt_over_mass.size))
@@ -97,8 +96,7 @@ class EnrichedCellsOnRanks(SharedClosure):
         rank's mixed cells' volumes and details, and its cells' energies (the pure cells
         beside the mixed ones take the work of their forces on each material's velocity)."""
         distribution = self.distribution
-        (whole_x,) = distribution.whole_arrays((x_new,), "nodes")
-        (whole_e,) = distribution.whole_arrays((e_new[:1],), "cells")
+        (whole_x,), (whole_e,) = distribution.whole_arrays((x_new,), (e_new[:1],))
         try:
             va, vb, details = self.whole.end_of_step(self.whole_state, first, predicted, whole_x, whole_e, solution)
         except Breakdown as failure:
