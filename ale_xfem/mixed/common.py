@@ -126,11 +126,18 @@ class SharedClosure(MixedCellClosure):
         before = state.node_position[0, a] + state.material_volume[0, cells]
         return (x_new[0, a] + va - before) / dt
 
+    def remapped_slots(self, step, solution, cell_volume, e_new, vb):
+        """The mixed cells' part of the state a remap reads: their materials' energies put in
+        ``e_new``'s two slots (in place), and the (2, n_cells) volumes (slot 1: ``vb``)."""
+        cells = self.mixed.cells
+        va, _, details = solution
+        e_new[0, cells], e_new[1, cells] = details[0], details[1]
+        return self.slot_volumes(step.two_slots, cell_volume, va, vb)
+
     def state_for_remap(self, step, state, solution, x_new, u_new, cell_volume, e_new, dt):
         cells = self.mixed.cells
-        va, vb, details = solution
-        e_new[0, cells], e_new[1, cells] = details[0], details[1]
-        volumes = self.slot_volumes(step.two_slots, cell_volume, va, cell_volume[cells] - va)
+        va, _, details = solution
+        volumes = self.remapped_slots(step, solution, cell_volume, e_new, cell_volume[cells] - va)
         interface = dict(interface_pressure=0.5 * (details[2] + details[3]),
                          interface_velocity=self.interface_velocity(state, x_new, va, dt))
         return volumes, interface

@@ -374,9 +374,7 @@ class EnrichedClosure2D(SharedClosure):
 
     def state_for_remap(self, step, state, solution, x_new, u_new, cell_volume, e_new, dt):
         cells = self.mixed.cells
-        va, vb, details = solution
-        e_new[0, cells], e_new[1, cells] = details[0], details[1]
-        volumes = self.slot_volumes(step.two_slots, cell_volume, va, vb)
+        volumes = self.remapped_slots(step, solution, cell_volume, e_new, solution[1])
         fields = dict(interface_pressure=self._last["interface_pressure"], interface_velocity=np.zeros(cells.size))
         fields.update(self._material_fields(u_new))
         return volumes, fields

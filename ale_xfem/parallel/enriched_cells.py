@@ -110,9 +110,7 @@ class EnrichedCellsOnRanks(SharedClosure):
         energies and interface pressure, each material's velocity (the serial solve's on the
         mixed cells' nodes, the mesh's elsewhere) and the start's masses."""
         cells = self.mixed.cells
-        va, vb, details = solution
-        e_new[0, cells], e_new[1, cells] = details[0], details[1]
-        volumes = self.slot_volumes(step.two_slots, cell_volume, va, vb)
+        volumes = self.remapped_slots(step, solution, cell_volume, e_new, solution[1])
         last = self.whole.last_step
         (interface_pressure,) = self.mixed.across_ranks.mine((last["interface_pressure"],))
         velocity = np.stack([u_new[:2]] * 2)
