@@ -181,6 +181,34 @@ def test_2d_enriched_cells_on_several_ranks_are_the_serial_ones(tmp_path, name, 
                   ranks)
 
 
+def test_a_gather_within_a_reach_takes_its_cells_and_their_nodes_only():
+    """Distribution.whole_arrays restricted to a Reach (what the 2D enriched cells on ranks
+    gather: a strip along the interface): the reach's cells and their nodes carry the
+    rank's values, every other entry is zero (here on one rank, whose numbers are the
+    serial ones)."""
+    from mpi4py import MPI
+
+    from ale_xfem.parallel.distribution import Distribution
+    from ale_xfem.problem.build import build_problem
+    from ale_xfem.scene import load_scene, resolve_scene_path
+
+    problem = build_problem(load_scene(resolve_scene_path("sliding-block"), []))
+    mesh = problem.mesh
+    distribution = Distribution(problem, comm=MPI.COMM_SELF)
+    chosen = np.zeros(mesh.n_cells, dtype=bool)
+    chosen[[0, mesh.n_cells // 2, mesh.n_cells - 1]] = True
+    reach = distribution.reach(chosen)
+    assert np.array_equal(reach.cells, np.flatnonzero(chosen))
+    nodes = np.zeros(mesh.n_nodes, dtype=bool)
+    nodes[mesh.cell_nodes[chosen]] = True
+    position, mass = problem.state.node_position, problem.state.material_mass
+    (whole_position,), (whole_mass,) = distribution.whole_arrays((position,), (mass,), reach)
+    assert np.array_equal(whole_position[:, nodes], position[:, nodes]) and not whole_position[:, ~nodes].any()
+    assert np.array_equal(whole_mass[:, chosen], mass[:, chosen]) and not whole_mass[:, ~chosen].any()
+    (everything,), _ = distribution.whole_arrays((position,))
+    assert np.array_equal(everything, position)
+
+
 def test_2d_enriched_steps_halved_or_stopped_on_several_ranks_as_on_one(tmp_path):
     """The sliding block with its corrector cut to 2 iterations: 7 steps fail in a mixed
     cell and are taken again with half the time step; cut to 1, the first step fails 13

@@ -98,6 +98,11 @@ class EnrichedClosure2D(SharedClosure):
         (``interface_pressure``, once :meth:`end_of_step` has run), ..."""
         return self._last
 
+    @property
+    def band(self) -> np.ndarray:
+        """(n_cells,) bool: the cells the interface system is bound to (:meth:`bind`)."""
+        return self._in_band
+
     def _to_dolfinx(self, node_values):
         """A node field (..., n_nodes) in DOLFINx's node order."""
         return np.take(node_values, self.node_of_dolfinx, axis=-1)

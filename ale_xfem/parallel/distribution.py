@@ -49,8 +49,9 @@ the bit.
   as the closed-form solve is.
 
 - **2D enriched cells.**  Every rank solves all the ranks' mixed cells with the serial
-  closure on the serial mesh, from the serial arrays gathered from the ranks
-  (:mod:`ale_xfem.parallel.enriched_cells`); the remap moves each material's velocity and
+  closure on the serial mesh, from the serial arrays gathered from the ranks within the
+  strip along the interface that the closure reads (:meth:`Distribution.reach`,
+  :mod:`ale_xfem.parallel.enriched_cells`); the remap moves each material's velocity and
   masses on the rank's share, their ghost entries refreshed from their owners.
 
 Every scene runs distributed; a mesh with fewer cells than ranks is refused at the start.
@@ -59,7 +60,7 @@ Every scene runs distributed; a mesh with fewer cells than ranks is refused at t
 from __future__ import annotations
 
 import time
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from functools import partial
 
 import numpy as np
@@ -448,8 +449,9 @@ class Distribution:
             total = total + other
         return total
 
-    def gathered(self, state: State) -> State:
-        """The serial state from every rank's own cells and nodes (on every rank)."""
+    def gathered(self, state: State, reach: "Reach | None" = None) -> State:
+        """The serial state from every rank's own cells and nodes (on every rank); within
+        ``reach`` only (:meth:`reach`; the other entries zero) if given."""
         node_names = ["node_position", "node_velocity"]
         cell_names = ["material_mass", "material_energy", "material_volume", "material_density",
                       "material_pressure", "material_sound_speed"]
@@ -459,7 +461,7 @@ class Distribution:
         present = [name for name in cell_names if getattr(state, name) is not None]
         changes = dict.fromkeys(cell_names)
         node_values, cell_values = self.whole_arrays([getattr(state, name) for name in node_names],
-                                                     [getattr(state, name) for name in present])
+                                                     [getattr(state, name) for name in present], reach)
         changes.update(zip(node_names, node_values))
         changes.update(zip(present, cell_values))
         if self.mixed is not None:  # each mixed cell's from its owner
@@ -467,21 +469,45 @@ class Distribution:
                 (state.interface_pressure, state.interface_velocity))
         return state.evolved(**changes)
 
-    def whole_arrays(self, node_fields=(), cell_fields=()) -> tuple[list, list]:
+    def whole_arrays(self, node_fields=(), cell_fields=(), reach: "Reach | None" = None) -> tuple[list, list]:
         """Arrays (..., local entries) of the rank's nodes and of its cells → the same over the
         serial mesh's, each entry from the rank that owns it, in one exchange (every rank gets
-        them all): (the node fields', the cell fields')."""
-        pieces = self.allgather((self.nodes[self.owned_nodes], [values[..., self.owned_nodes] for values in node_fields],
-                                 self.cells[self.owned_cells], [values[..., self.owned_cells] for values in cell_fields]))
+        them all): (the node fields', the cell fields').  ``reach`` (:meth:`reach`): only its
+        cells' and nodes' entries are exchanged, the others are zero."""
+        nodes, cells, fill = self.owned_nodes, self.owned_cells, np.empty
+        if reach is not None:
+            nodes, cells, fill = reach.owned_nodes, reach.owned_cells, np.zeros
+        pieces = self.allgather((self.nodes[nodes], [values[..., nodes] for values in node_fields],
+                                 self.cells[cells], [values[..., cells] for values in cell_fields]))
         mesh = self.problem.mesh
-        wholes = ([np.empty(values.shape[:-1] + (mesh.n_nodes,), dtype=values.dtype) for values in node_fields],
-                  [np.empty(values.shape[:-1] + (mesh.n_cells,), dtype=values.dtype) for values in cell_fields])
+        wholes = ([fill(values.shape[:-1] + (mesh.n_nodes,), dtype=values.dtype) for values in node_fields],
+                  [fill(values.shape[:-1] + (mesh.n_cells,), dtype=values.dtype) for values in cell_fields])
         for piece in pieces:
             for kind in (0, 1):
                 numbers, values = piece[2 * kind], piece[2 * kind + 1]
                 for whole, part in zip(wholes[kind], values):
                     whole[..., numbers] = part
         return wholes
+
+    def reach(self, cells: np.ndarray) -> "Reach":
+        """A gather restricted to the serial ``cells`` ((n_cells,) bool) and their nodes, on
+        this rank (:class:`Reach`)."""
+        nodes = np.zeros(self.problem.mesh.n_nodes, dtype=bool)
+        nodes[self.problem.mesh.cell_nodes[cells]] = True
+        return Reach(cells=np.flatnonzero(cells[self.cells]),
+                     owned_cells=self.owned_cells[cells[self.cells[self.owned_cells]]],
+                     owned_nodes=self.owned_nodes[nodes[self.nodes[self.owned_nodes]]])
+
+
+@dataclass(frozen=True)
+class Reach:
+    """The part of the mesh a gather is restricted to, as this rank holds it (local
+    numbers): its cells on the rank (``cells``), and those the rank owns of its cells and
+    nodes (``owned_cells``, ``owned_nodes``: what the rank sends)."""
+
+    cells: np.ndarray
+    owned_cells: np.ndarray
+    owned_nodes: np.ndarray
 
 
 class RemapOnEveryRank:

@@ -14,8 +14,14 @@ each material's velocity.  The step's per-cell hooks (the viscosity's medium, th
 view, the start's relaxation) act on the rank's own mixed cells as for the other closures
 (``MixedCells.across_ranks``).
 
-What it costs: a gather of the state's fields a step, and the closure's passes over the
-whole mesh on every rank — the mixed cells' part of a step does not shrink with the ranks.
+The gathers take only what the serial closure reads (:class:`ale_xfem.parallel.distribution.Reach`):
+the band of cells its interface system is bound to and ``REACH_RINGS`` rings of cells
+around the mixed cells, a strip along the interface; the serial arrays' other entries are
+zero, and the closure's results there are neither read nor kept.
+
+What it costs: a gather of the strip's fields a step, and the closure's work (its solve,
+and its passes over the serial mesh's arrays) on every rank — the mixed cells' part of a
+step does not shrink with the ranks.
 """
 
 from __future__ import annotations
@@ -28,6 +34,13 @@ from ale_xfem.lagrange.breakdown import Breakdown
 from ale_xfem.mixed.closures import Closures
 from ale_xfem.mixed.common import SharedClosure
 from ale_xfem.mixed.enriched_2d import EnrichedClosure2D
+from ale_xfem.model.mesh import cells_around
+
+# the rings of cells around the mixed cells whose fields the serial closure reads (besides
+# its band): a mixed cell's nodes take the forces, materials and masses of the cells around
+# them (one ring), and the pure cells next to those nodes work on each material's velocity
+# (the same ring); one ring more is kept in hand
+REACH_RINGS = 2
 
 
 class EnrichedCellsOnRanks(SharedClosure):
@@ -51,7 +64,16 @@ class EnrichedCellsOnRanks(SharedClosure):
 
     def bind(self, mixed) -> None:
         super().bind(mixed)
-        self.whole.bind(self.distribution.whole_mixed)
+        whole = self.distribution.whole_mixed
+        self.whole.bind(whole)
+        # what the serial closure reads of the serial arrays: the band its system is bound
+        # to, and REACH_RINGS rings of cells around the mixed cells
+        reached = whole.cells
+        for _ in range(REACH_RINGS):
+            reached = cells_around(self.distribution.problem.mesh, reached)
+        cells = self.whole.band.copy()
+        cells[reached] = True
+        self.reach = self.distribution.reach(cells)
 
     def _local_nodes(self, serial):
         """(places among ``serial`` (serial node numbers) of the nodes this rank holds,
@@ -71,9 +93,9 @@ class EnrichedCellsOnRanks(SharedClosure):
 
     def implicit_solve(self, step, state, first, predicted, mean_force, dt, dt_over_node_mass):
         distribution, ranks = self.distribution, self.mixed.across_ranks
-        whole_state = self.whole_state = distribution.gathered(state)
+        whole_state = self.whole_state = distribution.gathered(state, self.reach)
         (dt_over_mass,), (cell_material, first_force, predicted_force) = distribution.whole_arrays(
-            (dt_over_node_mass,), (step.layout.cell_material, first.corner_force, predicted.corner_force))
+            (dt_over_node_mass,), (step.layout.cell_material, first.corner_force, predicted.corner_force), self.reach)
         self.whole_step.layout = SimpleNamespace(cell_material=cell_material)
         viscosity = ranks.whole((first.mixed_viscosity, predicted.mixed_viscosity))
         whole_force = np.zeros((mean_force.shape[0], dt_over_mass.size))
@@ -96,12 +118,13 @@ class EnrichedCellsOnRanks(SharedClosure):
         rank's mixed cells' volumes and details, and its cells' energies (the pure cells
         beside the mixed ones take the work of their forces on each material's velocity)."""
         distribution = self.distribution
-        (whole_x,), (whole_e,) = distribution.whole_arrays((x_new,), (e_new[:1],))
+        (whole_x,), (whole_e,) = distribution.whole_arrays((x_new,), (e_new[:1],), self.reach)
         try:
             va, vb, details = self.whole.end_of_step(self.whole_state, first, predicted, whole_x, whole_e, solution)
         except Breakdown as failure:
             raise self._local_breakdown(failure) from None
-        e_new[0] = whole_e[0, distribution.cells]
+        reached = self.reach.cells
+        e_new[0, reached] = whole_e[0, distribution.cells[reached]]
         va, vb, *details = self.mixed.across_ranks.mine((va, vb, *details))
         return va, vb, tuple(details)
 
