@@ -30,7 +30,8 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--xt", action="store_true",
                      help="also write <name>-xt.png, the x–t diagram of density (1D)")
     run.add_argument("--frames", type=int, default=20,
-                     help="2D: states written to the VTK series <name>.pvd (ParaView, pyvista), evenly "
+                     help="2D: states written to the VTK series <name>.pvd (ParaView, pyvista) and the "
+                          "VTX files <name>-cells.bp, <name>-velocity.bp (ParaView, adios2), evenly "
                           "spaced in time (default 20; 0: none)")
     run.add_argument("--explain", action="store_true",
                      help="print which effects the scene switches on and why (which key), and exit "
@@ -346,21 +347,23 @@ def _run(args) -> int:
 
         history = XTHistory()
     series = None
-    if scene.dimension == 2 and args.frames > 0 and root:
-        from ale_xfem.output.cells_2d import VTKSeries
+    if scene.dimension == 2 and args.frames > 0:
+        from ale_xfem.output.cells_2d import Frames, VTKFiles
+        from ale_xfem.output.vtx import VTXFiles
 
-        series = VTKSeries(problem, out, args.frames)
+        # the VTX files written by every rank (each its share of the cells), the VTK series
+        # by rank 0
+        series = Frames(scene.t_end, args.frames, ([VTKFiles(problem, out)] if root else [])
+                        + [VTXFiles(problem, out)])
     observe = history.observe if history else series.observe if series else None
-    # the VTK series wants the states at its frame times only: the steps between them may
-    # run in compiled chunks (the x–t history wants every state)
+    # the frames want the states at their times only: the steps between them may run in
+    # compiled chunks (the x–t history wants every state)
     observe_from = series.observe_from if series and not history else None
     result = simulate(problem, progress, observe=observe, observe_from=observe_from)
+    if series is not None:  # (every rank: the VTX files are written together)
+        series.finish(result.state, problem)
     if not root:
         return EXIT_OK if result.status == "ok" else EXIT_BREAKDOWN
-    if series is not None:
-        if series.written == 0 or series.times[min(series.next, series.times.size - 1)] > result.state.time:
-            series.write(result.state, problem)  # the last state (a failed run's last good one)
-        series.close()
     write_outputs(problem, result, out, plot=not args.no_plot)
     if history is not None:
         from ale_xfem.output.plots import plot_xt

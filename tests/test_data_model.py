@@ -214,3 +214,35 @@ def test_a_rectangle_numbered_as_a_grid_reads_its_corners_from_views_and_maps_ba
     np.testing.assert_allclose(centres, problem.mesh.cell_centroids(position), atol=1e-14)
     np.testing.assert_allclose(written.cell_data["density"], expected, rtol=1e-14)
     assert np.ptp(expected) > 0.1  # Noh's cells differ
+
+
+@pytest.mark.parametrize("cell", ["quadrilateral", "triangle"])
+def test_the_vtx_files_hold_each_cells_fields_and_each_nodes_velocity(tmp_path, cell):
+    """The VTX files (ParaView's ADIOS2 reader; ale_xfem/output/vtx.py) of a moved state:
+    read back by the serial cell numbers and node numbers they carry, each cell's nodes are
+    the mesh's, each cell field is the VTK series' (cells_2d.cell_fields) and each node's
+    velocity and position the state's."""
+    from vtx_files import read_cells, read_velocity
+
+    from ale_xfem.output.cells_2d import cell_fields
+    from ale_xfem.output.vtx import VTXFiles
+    from ale_xfem.problem import build_problem
+    from ale_xfem.run import simulate
+    from ale_xfem.scene import load_scene, resolve_scene_path
+
+    problem = build_problem(load_scene(resolve_scene_path("noh"), ["mesh.cells=[6,4]", f"mesh.cell_type={cell}"]))
+    state = simulate(problem, stop_after_steps=3).state
+    position = state.node_position
+    state.node_velocity[:] = np.stack([position[0], 2.0 * position[1]])
+    files = VTXFiles(problem, tmp_path)
+    files.write(state, problem)
+    files.close()
+    (cells,), (nodes,) = read_cells(tmp_path / "noh-cells.bp"), read_velocity(tmp_path / "noh-velocity.bp")
+    assert cells["time"] == nodes["time"] == state.time
+    np.testing.assert_array_equal(cells["cell"], np.arange(problem.mesh.n_cells))
+    np.testing.assert_array_equal(cells["cell_nodes"], problem.mesh.cell_nodes)  # (going round)
+    np.testing.assert_array_equal(cells["position"][:, :2], position.T)
+    for name, values in cell_fields(problem, state).items():
+        np.testing.assert_array_equal(cells[name], values, err_msg=name)
+    np.testing.assert_array_equal(nodes["velocity"][:, :2], state.node_velocity.T)
+    np.testing.assert_allclose(nodes["position"][:, :2], position.T, rtol=0.0, atol=1e-15)

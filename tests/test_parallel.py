@@ -15,6 +15,8 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from vtx_files import read_cells, read_velocity
+
 MPIEXEC = Path(sys.executable).parent / "mpiexec"  # the launcher of the MPI the wheels install
 
 
@@ -90,6 +92,24 @@ def _the_same_run(serial, serial_out, parallel, parallel_out, ranks):
     assert frames == sorted(p.name for p in parallel_out.glob("*.vtu"))
     for frame in frames:
         assert (parallel_out / frame).read_bytes() == (serial_out / frame).read_bytes(), frame
+    # the VTX files every rank writes its share of: the same frames, fields and velocities
+    # by serial cell and node, in one block a rank
+    series = sorted(p.name for p in serial_out.glob("*-cells.bp"))
+    assert series == sorted(p.name for p in parallel_out.glob("*-cells.bp")) and len(series) == (1 if frames else 0)
+    for name in series:
+        one, many = read_cells(serial_out / name), read_cells(parallel_out / name)
+        assert len(one) == len(many) == len(frames)
+        for alone, shared in zip(one, many):
+            assert (alone["blocks"], shared["blocks"]) == (1, ranks)
+            assert alone.keys() == shared.keys()
+            for key in alone.keys() - {"blocks"}:
+                assert np.array_equal(shared[key], alone[key]), key
+        velocity = name.replace("-cells.bp", "-velocity.bp")
+        one, many = read_velocity(serial_out / velocity), read_velocity(parallel_out / velocity)
+        for alone, shared in zip(one, many, strict=True):
+            assert alone["time"] == shared["time"] and shared["blocks"] == ranks
+            assert np.array_equal(shared["velocity"], alone["velocity"])
+            np.testing.assert_allclose(shared["position"], alone["position"], rtol=0, atol=1e-15)
 
 
 @pytest.mark.parametrize("predictor", ["closed_form", "assembled"])

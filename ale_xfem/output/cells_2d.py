@@ -1,5 +1,6 @@
-"""2D run outputs: ``cells.csv`` for scripts, a VTK time series for ParaView and pyvista,
-and a PNG picture: the density on the deformed mesh with the boundaries between materials,
+"""2D run outputs: ``cells.csv`` for scripts, a VTK time series for ParaView and pyvista
+(the frames of a run, :class:`Frames`, which also go to the VTX files of
+:mod:`ale_xfem.output.vtx`), and a PNG picture: the density on the deformed mesh with the boundaries between materials,
 and, where the scene has an exact solution that still holds, a cut against it.
 
 ``cells.csv`` has a row per cell per material present, columns
@@ -113,25 +114,18 @@ def cell_fields(problem, state) -> dict[str, np.ndarray]:
     return fields
 
 
-class VTKSeries:
-    """Writes the state at chosen times to ``<folder>/<name>.pvd`` and its ``.vtu`` files
-    (module docstring), the mesh moving with the nodes; the collection is rewritten with
-    each frame, so a run that breaks down leaves a readable series.  ``observe(state,
-    problem)`` fits :func:`ale_xfem.run.simulate`'s observer: it writes the first state at
-    or after each of ``frames`` + 1 evenly spaced times from 0 to t_end; ``observe_from()``
-    says from which time it wants a state again (so that the steps before may run without
-    it)."""
+class Frames:
+    """The states a series of frames keeps — the first state at or after each of ``frames``
+    + 1 evenly spaced times from 0 to ``t_end`` — handed to each of ``writers`` (objects
+    with ``write(state, problem)`` and ``close()``).  ``observe(state, problem)`` fits
+    :func:`ale_xfem.run.simulate`'s observer; ``observe_from()`` says from which time it
+    wants a state again (so that the steps before may run without it)."""
 
-    def __init__(self, problem, folder: Path, frames: int = 20):
-        self.folder = Path(folder)
-        self.folder.mkdir(parents=True, exist_ok=True)
-        self.name = problem.scene.name
-        self.path = self.folder / f"{self.name}.pvd"
-        self.grid = vtk_grid(problem.mesh, problem.state.node_position)
-        self.times = np.linspace(0.0, problem.scene.t_end, frames + 1)
+    def __init__(self, t_end: float, frames: int, writers):
+        self.times = np.linspace(0.0, t_end, frames + 1)
+        self.writers = list(writers)
         self.next = 0
         self.written = 0
-        self.entries = []  # (time, file name)
 
     def observe_from(self) -> float:
         """The time from which :meth:`observe` writes a state again (inf: never)."""
@@ -144,16 +138,45 @@ class VTKSeries:
                 self.next += 1
 
     def write(self, state, problem) -> None:
+        for writer in self.writers:
+            writer.write(state, problem)
+        self.written += 1
+
+    def finish(self, state, problem) -> None:
+        """Write the run's last state (a failed run's last good one) unless it was written,
+        and close the writers."""
+        if self.written == 0 or self.times[min(self.next, self.times.size - 1)] > state.time:
+            self.write(state, problem)
+        self.close()
+
+    def close(self) -> None:
+        for writer in self.writers:
+            writer.close()
+
+
+class VTKFiles:
+    """Writes states to ``<folder>/<name>.pvd`` and its ``.vtu`` files (module docstring),
+    the mesh moving with the nodes; the collection is rewritten with each frame, so a run
+    that breaks down leaves a readable series."""
+
+    def __init__(self, problem, folder: Path):
+        self.folder = Path(folder)
+        self.folder.mkdir(parents=True, exist_ok=True)
+        self.name = problem.scene.name
+        self.path = self.folder / f"{self.name}.pvd"
+        self.grid = vtk_grid(problem.mesh, problem.state.node_position)
+        self.entries = []  # (time, file name)
+
+    def write(self, state, problem) -> None:
         grid = self.grid
         grid.points[:, :2] = state.node_position.T
         grid.point_data["velocity"] = np.column_stack([state.node_velocity[0], state.node_velocity[1],
                                                        np.zeros(problem.mesh.n_nodes)])
         for key, values in cell_fields(problem, state).items():
             grid.cell_data[key] = values
-        file = f"{self.name}_{self.written:04d}.vtu"
+        file = f"{self.name}_{len(self.entries):04d}.vtu"
         grid.save(str(self.folder / file))
         self.entries.append((float(state.time), file))
-        self.written += 1
         datasets = "\n".join(f'    <DataSet timestep="{time!r}" part="0" file="{name}"/>'
                              for time, name in self.entries)
         self.path.write_text('<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1">\n'
@@ -161,6 +184,23 @@ class VTKSeries:
 
     def close(self) -> None:
         """Nothing is held open: each frame is complete on disk."""
+
+
+class VTKSeries(Frames):
+    """The VTK series alone (:class:`VTKFiles`) at ``frames`` + 1 times (:class:`Frames`)."""
+
+    def __init__(self, problem, folder: Path, frames: int = 20):
+        self.files = VTKFiles(problem, folder)
+        super().__init__(problem.scene.t_end, frames, [self.files])
+
+    @property
+    def entries(self) -> list:
+        """(time, file name) of each frame written."""
+        return self.files.entries
+
+    @property
+    def path(self) -> Path:
+        return self.files.path
 
 
 def material_edges(problem) -> tuple[np.ndarray, np.ndarray]:
