@@ -33,6 +33,11 @@ def _parser() -> argparse.ArgumentParser:
                      help="2D: states written to the VTK series <name>.pvd (ParaView, pyvista) and the "
                           "VTX files <name>-cells.bp, <name>-velocity.bp (ParaView, adios2), evenly "
                           "spaced in time (default 20; 0: none)")
+    run.add_argument("--interface-solve", default="replicated", metavar="HOW",
+                     help="on several MPI ranks, how 2D enriched mixed cells' interface system is solved: "
+                          "replicated (default: every rank the whole system, the serial run to the bit) or "
+                          "distributed (one system shared out over the ranks, assembled and factorised by "
+                          "PETSc over them: the serial run to round-off)")
     run.add_argument("--explain", action="store_true",
                      help="print which effects the scene switches on and why (which key), and exit "
                           "without running")
@@ -286,8 +291,8 @@ def _stability(args) -> int:
 
 
 def _run(args) -> int:
-    from ale_xfem.parallel.distribution import (REMAP_GHOST_RINGS, check_distributable, launched_by_mpiexec, rank,
-                                                ranks)
+    from ale_xfem.parallel.distribution import (INTERFACE_SOLVES, REMAP_GHOST_RINGS, check_distributable,
+                                                has_2d_enriched_cells, launched_by_mpiexec, rank, ranks)
     from ale_xfem.scene import SceneError, load_scene, resolve_scene_path
 
     # on several MPI ranks (mpiexec) every rank runs this; rank 0 alone writes and speaks
@@ -312,6 +317,11 @@ def _run(args) -> int:
         if root:
             print(f"error: --frames = {args.frames}: an integer >= 0", file=sys.stderr)
         return EXIT_BAD_INPUT
+    if args.interface_solve not in INTERFACE_SOLVES:
+        if root:
+            print(f"error: --interface-solve = {args.interface_solve}: one of {', '.join(INTERFACE_SOLVES)}",
+                  file=sys.stderr)
+        return EXIT_BAD_INPUT
     try:
         problem = build_problem(scene)  # 2D: region coverage is checked on the mesh
         if ranks() > 1 and not args.explain:
@@ -319,6 +329,12 @@ def _run(args) -> int:
     except SceneError as error:
         if root:
             print(f"error: {error}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    if args.interface_solve != "replicated" and (ranks() == 1 or not has_2d_enriched_cells(problem)):
+        if root:  # (nothing it could act on)
+            print(f"error: --interface-solve = {args.interface_solve}: acts on 2D enriched mixed cells "
+                  "(interface.model = \"enriched\" in 2D) on several MPI ranks; this run has "
+                  + (f"{ranks()} rank" if ranks() == 1 else "no 2D enriched mixed cells"), file=sys.stderr)
         return EXIT_BAD_INPUT
     if args.explain and not root:
         return EXIT_OK
@@ -336,6 +352,8 @@ def _run(args) -> int:
                       + ((f" ({REMAP_GHOST_RINGS} cells deep: each remaps its share)" if problem.mesh.dimension == 2
                           else "; each remaps the whole line, gathered, and keeps its share") if remapped else "")
                       + ("; the mixed cells' solves take every rank's cells as one set" if mixed else "")
+                      + ("; the 2D enriched cells' interface system shared out over the ranks (assembled and "
+                         "factorised by PETSc over them)" if args.interface_solve == "distributed" else "")
                       + " (ale_xfem.parallel)")
             except SceneError as error:
                 print(f"on {ranks()} MPI ranks: refused: {error}")
@@ -359,7 +377,8 @@ def _run(args) -> int:
     # the frames want the states at their times only: the steps between them may run in
     # compiled chunks (the x–t history wants every state)
     observe_from = series.observe_from if series and not history else None
-    result = simulate(problem, progress, observe=observe, observe_from=observe_from)
+    result = simulate(problem, progress, observe=observe, observe_from=observe_from,
+                      interface_solve=args.interface_solve)
     if series is not None:  # (every rank: the VTX files are written together)
         series.finish(result.state, problem)
     if not root:

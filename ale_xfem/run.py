@@ -24,7 +24,7 @@ from ale_xfem.mixed.cut_cells_2d import material_geometry
 from ale_xfem.model.plic import reconstruct_state
 from ale_xfem.model.state import State, material_masses, totals
 from ale_xfem.parallel.distribution import (REMAP_GHOST_RINGS, Distribution, RemapOnEveryRank, check_distributable,
-                                            ranks)
+                                            has_2d_enriched_cells, ranks)
 from ale_xfem.problem.build import Problem
 from ale_xfem.remap.failure import RemapFailure
 from ale_xfem.remap.remapper_1d import Remapper
@@ -49,6 +49,7 @@ class RunResult:
     remaps: dict | None = None  # with a remap: how many were done, and how
     mixed_cells: dict | None = None
     ranks: int = 1  # the MPI ranks it ran on
+    interface_solve: str | None = None  # on several ranks with 2D enriched cells: how their system was solved
 
     @property
     def zone_cycles_per_second(self) -> float:
@@ -115,7 +116,7 @@ MIXED_CELL_RETRIES = 12
 
 def simulate(problem: Problem, progress: Progress | None = None, t_end: float | None = None,
              stop_after_steps: int | None = None, observe=None, observe_from=None,
-             compiled_chunks: bool = True) -> RunResult:
+             compiled_chunks: bool = True, interface_solve: str = "replicated") -> RunResult:
     """Run to t_end (the scene's by default).  ``stop_after_steps`` ends the run early as a
     normal stop (benchmarks); numerics.max_steps reached first is a failure.  ``observe``:
     called with each new state (and the initial one), e.g. to track extremes;
@@ -123,7 +124,9 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
     again — it is then called only with the states from that time on (and the last one of
     each compiled chunk of steps), which lets the steps before it run compiled.
     ``compiled_chunks`` False: every step through the staged step (the same numbers; the
-    tests compare the two).  With a remapped mesh, problem.layout, problem.mixed and
+    tests compare the two).  ``interface_solve``: on several MPI ranks, how 2D enriched
+    cells' interface system is solved (ale_xfem.parallel.distribution.INTERFACE_SOLVES).
+    With a remapped mesh, problem.layout, problem.mixed and
     problem.node_mass follow the run (they describe the returned state; on several MPI
     ranks they are the ranks' own gathered, at the end and at each observed state)."""
     t_end = problem.scene.t_end if t_end is None else t_end
@@ -137,7 +140,7 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
         # a 2D remap reads further than a Lagrange step: a deeper ghost layer (the 1D remap
         # takes the whole mesh on every rank: RemapOnEveryRank)
         distribution = Distribution(problem, rings=REMAP_GHOST_RINGS if remapped and problem.mesh.dimension == 2
-                                    else 1)
+                                    else 1, interface_solve=interface_solve)
         stepper = distribution.stepper(partial(make_stepper, problem))
     else:
         stepper = make_stepper(problem)
@@ -267,7 +270,9 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
     if distribution is not None:  # within the others: exchanges and reductions, the most any rank spent
         phases["communication"] = -distribution.least(-distribution.seconds)
     result = RunResult(status, state, steps, wall, diagnostic, dt_min=float(dt_min if steps else 0.0),
-                       dt_max=float(dt_max), phase_seconds=phases, ranks=ranks())
+                       dt_max=float(dt_max), phase_seconds=phases, ranks=ranks(),
+                       interface_solve=interface_solve if distribution is not None and has_2d_enriched_cells(problem)
+                       else None)
     result.conservation = conservation(start_totals, totals(state, problem.node_mass),
                                        boundary_work, boundary_impulse, scale)
     # each material's own mass: the worst relative change (a remap moves them one by one)

@@ -25,6 +25,18 @@ REUSE_CHANGE, REUSE_BACKWARD_ERROR, REUSE_ROUNDS = 0.02, 1e-14, 12
 _PREFIXES = itertools.count()  # each system's own options prefix
 
 
+def _land():
+    from mpi4py import MPI
+
+    return MPI.LAND
+
+
+def _max():
+    from mpi4py import MPI
+
+    return MPI.MAX
+
+
 def petsc_reason(error) -> str:
     """The one line of a PETSc error that says why (its message is a traceback, one frame a
     line, the reason last)."""
@@ -52,6 +64,8 @@ class BoundSystem:
                  symmetric: bool = False):
         self._compiled = (compiled_bilinear, compiled_linear)
         self._symmetric = symmetric
+        self._comm = mesh.comm
+        self._parallel = mesh.comm.size > 1  # a mesh shared out over MPI ranks: rows on each
         self._space, self._mesh, self._coefficients = space, mesh, coefficient_map
         self.integrate_over(subdomains or {})
         self.matrix = dolfinx.fem.petsc.create_matrix(self.bilinear)
@@ -121,6 +135,8 @@ class BoundSystem:
         with self.vector.localForm() as local:
             local.set(0.0)
         dolfinx.fem.petsc.assemble_vector(self.vector, self.linear)
+        if self._parallel:  # the ghost entries' contributions to their owners' rows
+            self.vector.ghostUpdate(addv=PETSc.InsertMode.ADD, mode=PETSc.ScatterMode.REVERSE)
         return self.vector.getArray(readonly=False)
 
     def solve(self, right_side, what: str, constraint=None):
@@ -161,7 +177,8 @@ class BoundSystem:
         old, new = self._factored[1], operator.getDiagonal().array
         with np.errstate(divide="ignore", invalid="ignore"):  # (zero stays zero on multiplier rows)
             change = np.where(old == new, 0.0, np.abs(new / old - 1.0))
-        return float(np.max(change, initial=0.0))
+        change = float(np.max(change, initial=0.0))
+        return self._comm.allreduce(change, op=_max()) if self._parallel else change
 
     def solve_with_diagonal(self, right_side, what: str, constraint, rows, diagonal):
         """Solve again the operator of the last :meth:`solve` (the same ``constraint``) with
@@ -178,7 +195,8 @@ class BoundSystem:
         else:
             operator, right, solution, residual, correction = self._reduced
             pointer, columns, _ = constraint.getValuesCSR()
-            rows = columns[pointer[rows]]  # their columns of C: their unknowns in the reduced system
+            # their columns of C: their unknowns in the reduced system (this rank's, local)
+            rows = columns[pointer[rows]] - constraint.getOwnershipRangeColumn()[0]
         entries = operator.getDiagonal()
         entries.array[rows] = diagonal
         operator.setDiagonal(entries)
@@ -217,13 +235,27 @@ class BoundSystem:
                     pointer, columns, values = operator.getValuesCSR()
                     csr = (np.repeat(np.arange(pointer.size - 1), np.diff(pointer)), columns, np.abs(values))
                 rows, columns, magnitude = csr
-                x, b = solution.getArray(readonly=True), right.getArray(readonly=True)
-                scale = np.bincount(rows, magnitude * np.abs(x[columns]), minlength=x.size) + np.abs(b)
-                if np.all(np.abs(residual.getArray(readonly=True)) <= REUSE_BACKWARD_ERROR * scale):
+                x, b = self._whole(solution), right.getArray(readonly=True)
+                scale = np.bincount(rows, magnitude * np.abs(x[columns]), minlength=b.size) + np.abs(b)
+                within = bool(np.all(np.abs(residual.getArray(readonly=True)) <= REUSE_BACKWARD_ERROR * scale))
+                if self._parallel:  # (every rank goes on, or none)
+                    within = self._comm.allreduce(within, op=_land())
+                if within:
                     return True
             return False
         finally:
             preconditioner.setReusePreconditioner(False)
+
+    def _whole(self, vector) -> np.ndarray:
+        """A vector's entries on every rank (its own on one)."""
+        if not self._parallel:
+            return vector.getArray(readonly=True)
+        scatter, whole = PETSc.Scatter.toAll(vector)
+        scatter.scatter(vector, whole, PETSc.InsertMode.INSERT, PETSc.ScatterMode.FORWARD)
+        values = whole.getArray(readonly=True).copy()
+        scatter.destroy()
+        whole.destroy()
+        return values
 
     def _reduce(self, constraint, result=None):
         """Cᵀ A C (into ``result``, made by the last call with this ``constraint``): where C
@@ -235,9 +267,13 @@ class BoundSystem:
             pointer, columns, values = constraint.getValuesCSR()
             rows = np.flatnonzero(np.diff(pointer) > 0)
             chosen = None
-            if (rows.size == constraint.getSize()[1] and np.all(np.diff(pointer) <= 1)
-                    and np.array_equal(columns, np.arange(rows.size)) and np.all(values == 1.0)):
-                chosen = PETSc.IS().createGeneral(rows.astype(PETSc.IntType), comm=self._mesh.comm)
+            first_row, first_column = constraint.getOwnershipRange()[0], constraint.getOwnershipRangeColumn()[0]
+            selects = bool(rows.size == constraint.getLocalSize()[1] and np.all(np.diff(pointer) <= 1)
+                           and np.array_equal(columns, first_column + np.arange(rows.size)) and np.all(values == 1.0))
+            if self._parallel:  # (every rank takes the submatrix, or none)
+                selects = self._comm.allreduce(selects, op=_land())
+            if selects:
+                chosen = PETSc.IS().createGeneral((first_row + rows).astype(PETSc.IntType), comm=self._mesh.comm)
             if self._selection is not None and self._selection[1] is not None:
                 self._selection[1].destroy()
             self._selection = (constraint, chosen)

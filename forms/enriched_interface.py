@@ -80,6 +80,13 @@ _MATERIAL_COEFFICIENTS = ("mass", "part", "edge_flux", "compliance", "offset", "
 _CELL_COEFFICIENTS = ("normal", "interface", "weight", "penalty")
 
 
+def _land():
+    """MPI's logical and (a reduction every rank agrees on)."""
+    from mpi4py import MPI
+
+    return MPI.LAND
+
+
 def nitsche_weights(volume, stiffness, interface_length, penalty_factor: float):
     """(w_α (n,), γ (n,)) of the weighted Nitsche terms (module docstring): volume (2, n) the
     parts' areas V_m, stiffness (2, n) κ_m = ρ_m c_m² dt; w_α = (V_α/κ_α) / Σ_k (V_k/κ_k),
@@ -247,9 +254,16 @@ class InterfaceSystem:
     matrix and vectors are created here once and refilled at every solve, the forms are
     re-created (not compiled) at each activation, the KSP for each new set of unknowns.  Per-cell inputs and outputs are over
     the active cells in the order given to :meth:`activate`.  ``petsc_options``: the KSP and
-    PC settings (default: a direct LDLᵀ solve by MUMPS, the forms being symmetric)."""
+    PC settings (default: a direct LDLᵀ solve by MUMPS, the forms being symmetric).
 
-    def __init__(self, mesh, cells, forms: InterfaceForms, petsc_options: dict | None = None):
+    ``numbering``: (the number of each of ``mesh``'s geometry nodes, of each of its cells)
+    in the callers' numbering, the "parent" nodes and cells of every input and output
+    (default: the mesh's own).  On a mesh shared out over MPI ranks (each rank its own
+    cells, no ghost cells) each rank binds its cells, the system is assembled and solved by
+    PETSc over all of them, a node's rows are the rank's that owns it, and the outputs are
+    the rank's: its active cells' values and its own nodes' velocities."""
+
+    def __init__(self, mesh, cells, forms: InterfaceForms, petsc_options: dict | None = None, numbering=None):
         self.forms = forms
         tdim = mesh.topology.dim
         gdim = self.gdim = forms.gdim
@@ -257,12 +271,18 @@ class InterfaceSystem:
         cells = np.asarray(cells, dtype=np.int32)
         self.submesh, entity_map, _, geometry_map = dolfinx.mesh.create_submesh(mesh, tdim, cells)
         sub = self.submesh
+        self.parallel = mesh.comm.size > 1
         n_sub = sub.topology.index_map(tdim).size_local
+        node_number, cell_number = (None, None) if numbering is None else numbering
         # the parent cell of each submesh cell
         self.parent_cell = np.asarray(entity_map.sub_topology_to_topology(np.arange(n_sub, dtype=np.int32),
                                                                           inverse=False), dtype=np.int64)
+        if cell_number is not None:
+            self.parent_cell = np.asarray(cell_number, dtype=np.int64)[self.parent_cell]
         self._sub_order = np.argsort(self.parent_cell)
         self.geometry_map = np.asarray(geometry_map)
+        if node_number is not None:
+            self.geometry_map = np.asarray(node_number, dtype=np.int64)[self.geometry_map]
         self.sub_nodes = np.asarray(sub.geometry.dofmaps[0])  # (n_sub, k) submesh geometry nodes
         self.parent_nodes = self.geometry_map[self.sub_nodes]  # (n_sub, k) parent node of each vertex
         self._vertex_weights_at = None  # (the submesh's vertices, their weights) of the last call
@@ -306,8 +326,12 @@ class InterfaceSystem:
         # the parent node of each velocity block (submesh vertex) of the collapsed P1 spaces,
         # and the cell dofs of the DG spaces, in submesh cell order
         V1_cells = np.asarray(V1.dofmap.list)
-        self.velocity_parent = np.empty(V1.dofmap.index_map.size_local, dtype=np.int64)
+        self._V1 = V1
+        self.velocity_parent = np.empty(V1.dofmap.index_map.size_local + V1.dofmap.index_map.num_ghosts,
+                                        dtype=np.int64)
         self.velocity_parent[V1_cells] = self.parent_nodes
+        # the unknowns this rank owns (the first ones of its local numbering: PETSc's rows)
+        self.owned = self.space.dofmap.index_map.size_local * self.space.dofmap.index_map_bs
         # each material's velocity rows (block, component) and the parent node of each block
         # (the collapsed subspaces number their blocks their own way)
         self.velocity_block, self.block_parent = [], []
@@ -333,7 +357,7 @@ class InterfaceSystem:
         self.vertex_area = None
         self._vertex_permutation = None
         self._last_constraint = None  # C of the last solve, kept across steps (_kept_constraint)
-        self.activate(cells)
+        self.activate(cells if cell_number is None else np.asarray(cell_number, dtype=np.int64)[cells])
 
     def _subdomains(self, active):
         return {dolfinx.fem.IntegralType.cell: [(ACTIVE, np.sort(np.asarray(active, dtype=np.int32)))]}
@@ -434,8 +458,9 @@ class InterfaceSystem:
         self._set_mass(mass)
         array = self.system.assemble()
         for m in range(2):
+            blocks, parents = self._owned_blocks(m)
             for d in range(self.gdim):
-                array[self.velocity_block[m][:, d]] += rhs[m][d][self.block_parent[m]]
+                array[blocks[:, d]] += rhs[m][d][parents]
         # Massless bubbles and nearly massless external nodes weigh their rows by the parts'
         # small stiffness against masses of order 4M/dt: BoundSystem.solve refines
         # the same unknowns over a step's iterations (the same matrix C: the factorisation's
@@ -473,6 +498,20 @@ class InterfaceSystem:
         values = self.system.solve_with_diagonal(right, "interface system", self._unknowns[1], dofs, new_diagonal)
         return self._unpacked(values, velocity_shape)
 
+    def _owned_blocks(self, m):
+        """Material m's velocity blocks whose rows this rank owns (all of them on one rank),
+        and their parent nodes."""
+        blocks, parents = self.velocity_block[m], self.block_parent[m]
+        if not self.parallel:
+            return blocks, parents
+        owned = blocks[:, 0] < self.owned
+        return blocks[owned], parents[owned]
+
+    @property
+    def owned_nodes(self) -> np.ndarray:
+        """The parent nodes whose velocities this rank solves for (its rows)."""
+        return self._owned_blocks(0)[1]
+
     def _active_pressure_dofs(self):
         return np.concatenate([self.pressure_dofs[m][self.active] for m in range(2)])
 
@@ -486,7 +525,8 @@ class InterfaceSystem:
         out = {"velocity": [], "pressure": np.empty((2, n))}
         for m in range(2):
             velocity = np.zeros(velocity_shape)
-            velocity[:, self.block_parent[m]] = values[self.velocity_block[m]].T
+            blocks, parents = self._owned_blocks(m)
+            velocity[:, parents] = values[blocks].T
             out["velocity"].append(velocity)
             out["pressure"][m, self.input_index] = values[self.pressure_dofs[m][self.active]]
         if self.multiplier_dofs is not None:
@@ -523,10 +563,22 @@ class InterfaceSystem:
         self.vertex_area[:] = 0.0
         np.add.at(self.vertex_area, self._velocity_cells[self.active].ravel(),
                   self._vertex_weights()[self.active].ravel())
+        if self.parallel:  # a node's cells on other ranks too: their sum, on each rank
+            self.vertex_area[:] = self._summed_over_ranks(self._V1.dofmap.index_map, 1, self.vertex_area)
         for m, side in enumerate("ab"):
             density = np.divide(mass[m][:, self.velocity_parent], self.vertex_area,
                                 out=np.zeros((self.gdim, self.velocity_parent.size)), where=self.vertex_area > 0)
             self.functions[f"mass_{side}"].x.array.reshape(-1, self.gdim)[:] = density.T
+
+    @staticmethod
+    def _summed_over_ranks(index_map, block_size, values):
+        """``values`` (the local entries of an index map's blocks) summed over the ranks that
+        hold each entry, on every one of them."""
+        vector = dolfinx.la.vector(index_map, bs=block_size)
+        vector.array[:] = values
+        vector.scatter_reverse(dolfinx.la.InsertMode.add)
+        vector.scatter_forward()
+        return vector.array.copy()
 
     def _constraint(self, tied, sliding=None, tie_normal=None):
         """The unknowns solved for, as a PETSc matrix C whose columns span them
@@ -543,16 +595,18 @@ class InterfaceSystem:
         two normals) the whole velocity is one (a normal-only tie let a kink at rest move by
         0.01).  Exact, not a stiff spring: a spring 10⁸ times the inertia left a residual at
         the round-off of its diagonal, a force that moved momentum by 10⁻¹⁰ of M V."""
-        nodes = np.zeros(0, dtype=np.int64) if tied is None else self._active_parent[tied[self._active_parent]]
-        if nodes.size == 0 and self.active.size == self.parent_cell.size:
-            return None
+        if not self.parallel:
+            active_nodes = self._active_parent
+            nodes = np.zeros(0, dtype=np.int64) if tied is None else active_nodes[tied[active_nodes]]
+            if nodes.size == 0 and self.active.size == self.parent_cell.size:
+                return None
         from petsc4py import PETSc
 
         gdim, blocks = self.gdim, self.velocity_block
-        size = self.system.matrix.getSize()[0]
-        active_node = np.zeros(self.velocity_parent.max() + 1, dtype=bool)
+        dofs = self.space.dofmap.index_map
+        active_node = np.zeros(np.max(self.velocity_parent, initial=-1) + 1, dtype=bool)
         active_node[self._active_parent] = True
-        kept = np.zeros(size, dtype=bool)  # the active cells' unknowns
+        kept = np.zeros((dofs.size_local + dofs.num_ghosts) * self.space.dofmap.index_map_bs, dtype=bool)
         for m in range(2):
             kept[blocks[m][active_node[self.block_parent[m]]].ravel()] = True
             kept[self.pressure_dofs[m][self.active]] = True
@@ -560,9 +614,20 @@ class InterfaceSystem:
                 kept[self.bubble_dofs[m][self.active]] = True
         if self.multiplier_dofs is not None:
             kept[self.multiplier_dofs[self.active].ravel()] = True
+        comm = self.system.matrix.getComm().tompi4py()
+        if self.parallel:
+            # an unknown is kept when any rank's active cells reach it; a rank's rows are its
+            # own unknowns, and the tied nodes among its own nodes
+            kept = self._summed_over_ranks(dofs, self.space.dofmap.index_map_bs, kept.astype(float)) > 0.0
+            own_blocks, own_nodes = self._owned_blocks(0)
+            active_nodes = own_nodes[kept[own_blocks[:, 0]]]
+            nodes = np.zeros(0, dtype=np.int64) if tied is None else active_nodes[tied[active_nodes]]
+            if comm.allreduce(nodes.size == 0 and self.active.size == self.parent_cell.size, op=_land()):
+                return None
+        kept = kept[:self.owned]
         block = []
         for m in range(2):  # each material's velocity block of each tied node
-            where = np.full(self.block_parent[m].max() + 1, -1, dtype=np.int64)
+            where = np.full(np.max(self.block_parent[m], initial=-1) + 1, -1, dtype=np.int64)
             where[self.block_parent[m]] = np.arange(self.block_parent[m].size)
             block.append(where[nodes])
         slides = np.zeros(nodes.size, dtype=bool)
@@ -607,9 +672,13 @@ class InterfaceSystem:
         rows, columns, values = np.concatenate(rows), np.concatenate(columns), np.concatenate(values)
         order = np.lexsort((columns, rows))
         rows, columns, values = rows[order], columns[order], values[order]
+        size = self.owned
         pointer = np.zeros(size + 1, dtype=PETSc.IntType)
         np.cumsum(np.bincount(rows, minlength=size), out=pointer[1:])
-        return PETSc.Mat().createAIJ(size=(size, column), csr=(pointer, columns.astype(PETSc.IntType), values),
+        # the columns numbered rank after rank (PETSc's rows are too)
+        first = comm.exscan(column) if self.parallel else 0
+        return PETSc.Mat().createAIJ(size=((size, self.system.matrix.getSize()[0]), (column, comm.allreduce(column))),
+                                     csr=(pointer, (columns + (first or 0)).astype(PETSc.IntType), values),
                                      comm=self.system.matrix.getComm())
 
     def _kept_constraint(self, constraint):
@@ -624,7 +693,10 @@ class InterfaceSystem:
             return constraint
         pointer, columns, values = constraint.getValuesCSR()
         last_pointer, last_columns, _ = last.getValuesCSR()
-        if not (np.array_equal(pointer, last_pointer) and np.array_equal(columns, last_columns)):
+        same = np.array_equal(pointer, last_pointer) and np.array_equal(columns, last_columns)
+        if self.parallel:  # (every rank keeps it, or none)
+            same = constraint.getComm().tompi4py().allreduce(bool(same), op=_land())
+        if not same:
             last.destroy()
             return constraint
         last.setValuesCSR(pointer, columns, values)

@@ -25,7 +25,7 @@ MAY_IMPORT = {
     "mixed": {"model", "lagrange", "forms", "geometry", "eos"},
     "problem": {"scene", "model", "exact", "geometry", "eos", "mixed"},
     "remap": {"model", "geometry"},
-    "parallel": {"model", "lagrange", "mixed", "remap", "scene"},
+    "parallel": {"model", "lagrange", "mixed", "remap", "scene", "forms"},
     "run": {"problem", "model", "lagrange", "mixed", "remap", "parallel"},
     "output": {"run", "problem", "model", "geometry", "scene"},
     "studies": {"run", "problem", "scene", "output", "model", "exact", "eos", "geometry", "mixed", "forms"},

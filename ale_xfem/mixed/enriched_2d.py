@@ -71,16 +71,20 @@ def held_nodes(step, nodes, d: int) -> np.ndarray:
 class EnrichedClosure2D(SharedClosure):
     """2D mixed cells with doubled velocities (module docstring).  ``stabilisation``:
     bubble | nitsche | none; ``slip``: free | stick; ``nitsche_penalty``: Nitsche's
-    dimensionless factor; ``petsc_options``: the interface system's KSP (default MUMPS)."""
+    dimensionless factor; ``petsc_options``: the interface system's KSP (default MUMPS);
+    ``system``: what binds the interface system to a band of cells (InterfaceSystem's
+    arguments; default InterfaceSystem: on several MPI ranks, one shared out over them)."""
 
     implicit = True
 
     def __init__(self, mesh, materials, mixed: MixedCells, stabilisation: str = "bubble",
-                 slip: str = "free", nitsche_penalty: float = 1.0, petsc_options: dict | None = None):
+                 slip: str = "free", nitsche_penalty: float = 1.0, petsc_options: dict | None = None,
+                 system=InterfaceSystem):
         if len(materials) != 2:
             raise ValueError("2D enriched mixed cells need exactly two materials")
         self.forms = InterfaceForms(mesh.dolfinx_mesh.comm, stabilisation, slip, mesh.cell_type.name)
         self.nitsche_penalty, self.petsc_options = nitsche_penalty, petsc_options
+        self.bound_system = system
         self.system, self._system_cells, self._in_band = None, None, None
         self._last = None
         # the interface system speaks DOLFINx's numbering of nodes and cells (a structured
@@ -120,7 +124,7 @@ class EnrichedClosure2D(SharedClosure):
             if self.system is None or not np.all(self._in_band[mixed.cells]):
                 self._in_band = self._band(mixed.cells)
                 band = np.flatnonzero(self._in_band)
-                self.system = InterfaceSystem(mesh.dolfinx_mesh, dolfinx_cell(band), self.forms, self.petsc_options)
+                self.system = self.bound_system(mesh.dolfinx_mesh, dolfinx_cell(band), self.forms, self.petsc_options)
                 mixed.stats["bands"] += 1
             self.system.activate(dolfinx_cell(mixed.cells))
             self.system.vertex_order(self.dolfinx_node[mesh.cell_nodes[mixed.cells]])

@@ -51,7 +51,8 @@ the bit.
 - **2D enriched cells.**  Every rank solves all the ranks' mixed cells with the serial
   closure on the serial mesh, from the serial arrays gathered from the ranks within the
   strip along the interface that the closure reads (:meth:`Distribution.reach`,
-  :mod:`ale_xfem.parallel.enriched_cells`); the remap moves each material's velocity and
+  :mod:`ale_xfem.parallel.enriched_cells`; or, with ``interface_solve = "distributed"``,
+  their interface system shared out over the ranks: :mod:`ale_xfem.parallel.interface_system`); the remap moves each material's velocity and
   masses on the rank's share, their ghost entries refreshed from their owners.
 
 Every scene runs distributed; a mesh with fewer cells than ranks is refused at the start.
@@ -82,6 +83,20 @@ from ale_xfem.scene import SceneError
 # traces' moves (RankScope), so those passes need no more.  The tests' runs were the serial
 # ones with 3 rings and not with 2; one ring more is kept in hand.
 REMAP_GHOST_RINGS = 4
+
+
+# How the interface system of 2D enriched mixed cells is solved on several ranks: every
+# rank the whole system (the serial run to the bit), or one system shared out over the
+# ranks, assembled and factorised by PETSc over them (parallel/interface_system.py: the
+# serial run to round-off)
+INTERFACE_SOLVES = ("replicated", "distributed")
+
+
+def has_2d_enriched_cells(problem) -> bool:
+    """Whether ``problem``'s mixed cells are 2D enriched cells (their interface system is
+    what ``interface_solve`` chooses how to solve)."""
+    interface = problem.scene.interface
+    return problem.mesh.dimension == 2 and interface is not None and interface.model == "enriched"
 
 
 def launched_by_mpiexec() -> bool:
@@ -194,11 +209,13 @@ class Distribution:
     indices, sorted) and nodes (``nodes``), the local problem's mesh, and the exchange of
     nodal fields with the other ranks."""
 
-    def __init__(self, problem, comm=None, rings: int = 1):
+    def __init__(self, problem, comm=None, rings: int = 1, interface_solve: str = "replicated"):
         """``rings``: the ghost layer's depth in rings of cells around the rank's own (1: the
         cells around its nodes, what a Lagrange step and the 1D remap need; a 2D remap needs
-        REMAP_GHOST_RINGS)."""
+        REMAP_GHOST_RINGS).  ``interface_solve``: how 2D enriched cells' interface system is
+        solved (:data:`INTERFACE_SOLVES`)."""
         self.comm = comm if comm is not None else world()
+        self.interface_solve = interface_solve
         self.problem = problem
         size, me = self.comm.size, self.comm.rank
         mesh = problem.mesh

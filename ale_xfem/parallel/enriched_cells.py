@@ -21,11 +21,17 @@ zero, and the closure's results there are neither read nor kept.
 
 What it costs: a gather of the strip's fields a step, and the closure's work (its solve,
 and its passes over the serial mesh's arrays) on every rank — the mixed cells' part of a
-step does not shrink with the ranks.
+step does not shrink with the ranks.  With ``interface_solve = "distributed"``
+(``Distribution.interface_solve``, the run's ``--interface-solve``) the closure's interface
+system is one system shared out over the ranks instead
+(:class:`ale_xfem.parallel.interface_system.DistributedInterfaceSystem`): each rank
+assembles its own cells' terms and MUMPS factorises over the ranks — the serial run to
+round-off, not to the bit.
 """
 
 from __future__ import annotations
 
+from functools import partial
 from types import SimpleNamespace
 
 import numpy as np
@@ -35,6 +41,8 @@ from ale_xfem.mixed.closures import Closures
 from ale_xfem.mixed.common import SharedClosure
 from ale_xfem.mixed.enriched_2d import EnrichedClosure2D
 from ale_xfem.model.mesh import cells_around
+from ale_xfem.parallel.interface_system import DistributedInterfaceSystem
+from forms.enriched_interface import InterfaceSystem
 
 # the rings of cells around the mixed cells whose fields the serial closure reads (besides
 # its band): a mixed cell's nodes take the forces, materials and masses of the cells around
@@ -54,7 +62,9 @@ class EnrichedCellsOnRanks(SharedClosure):
         self.distribution = distribution
         problem = distribution.problem
         # the serial closure (its forms compiled here, once per run)
-        self.whole = EnrichedClosure2D(problem.mesh, materials, distribution.whole_mixed, **options)
+        system = {"replicated": InterfaceSystem,
+                  "distributed": partial(DistributedInterfaceSystem, distribution)}[distribution.interface_solve]
+        self.whole = EnrichedClosure2D(problem.mesh, materials, distribution.whole_mixed, system=system, **options)
         # what the serial closure reads of a step: the serial mesh's corners, the walls and
         # pistons in serial node numbers, and the layout (gathered at each solve)
         self.whole_step = SimpleNamespace(corners=problem.mesh.corners, layout=None,
