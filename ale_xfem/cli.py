@@ -34,7 +34,8 @@ def _parser() -> argparse.ArgumentParser:
                           "VTX files <name>-cells.bp, <name>-velocity.bp (ParaView, adios2), evenly "
                           "spaced in time (default 20; 0: none)")
     run.add_argument("--interface-solve", default="replicated", metavar="HOW",
-                     help="on several MPI ranks, how 2D enriched mixed cells' interface system is solved: "
+                     help="on several MPI ranks, how enriched mixed cells' interface system (2D, or the 1D "
+                          "assembled predictor) is solved: "
                           "replicated (default: every rank the whole system, the serial run to the bit) or "
                           "distributed (one system shared out over the ranks, assembled and factorised by "
                           "PETSc over them: the serial run to round-off)")
@@ -292,7 +293,7 @@ def _stability(args) -> int:
 
 def _run(args) -> int:
     from ale_xfem.parallel.distribution import (INTERFACE_SOLVES, REMAP_GHOST_RINGS, check_distributable,
-                                                has_2d_enriched_cells, launched_by_mpiexec, rank, ranks)
+                                                has_interface_system, launched_by_mpiexec, rank, ranks)
     from ale_xfem.scene import SceneError, load_scene, resolve_scene_path
 
     # on several MPI ranks (mpiexec) every rank runs this; rank 0 alone writes and speaks
@@ -330,11 +331,12 @@ def _run(args) -> int:
         if root:
             print(f"error: {error}", file=sys.stderr)
         return EXIT_BAD_INPUT
-    if args.interface_solve != "replicated" and (ranks() == 1 or not has_2d_enriched_cells(problem)):
+    if args.interface_solve != "replicated" and (ranks() == 1 or not has_interface_system(problem)):
         if root:  # (nothing it could act on)
-            print(f"error: --interface-solve = {args.interface_solve}: acts on 2D enriched mixed cells "
-                  "(interface.model = \"enriched\" in 2D) on several MPI ranks; this run has "
-                  + (f"{ranks()} rank" if ranks() == 1 else "no 2D enriched mixed cells"), file=sys.stderr)
+            print(f"error: --interface-solve = {args.interface_solve}: acts on an assembled interface system "
+                  "(interface.model = \"enriched\" in 2D, or in 1D with interface.predictor = \"assembled\") on "
+                  "several MPI ranks; this run has "
+                  + (f"{ranks()} rank" if ranks() == 1 else "none"), file=sys.stderr)
         return EXIT_BAD_INPUT
     if args.explain and not root:
         return EXIT_OK
@@ -352,7 +354,7 @@ def _run(args) -> int:
                       + ((f" ({REMAP_GHOST_RINGS} cells deep: each remaps its share)" if problem.mesh.dimension == 2
                           else "; each remaps the whole line, gathered, and keeps its share") if remapped else "")
                       + ("; the mixed cells' solves take every rank's cells as one set" if mixed else "")
-                      + ("; the 2D enriched cells' interface system shared out over the ranks (assembled and "
+                      + ("; the enriched cells' interface system shared out over the ranks (assembled and "
                          "factorised by PETSc over them)" if args.interface_solve == "distributed" else "")
                       + " (ale_xfem.parallel)")
             except SceneError as error:

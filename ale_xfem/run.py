@@ -24,7 +24,7 @@ from ale_xfem.mixed.cut_cells_2d import material_geometry
 from ale_xfem.model.plic import reconstruct_state
 from ale_xfem.model.state import State, material_masses, totals
 from ale_xfem.parallel.distribution import (REMAP_GHOST_RINGS, Distribution, RemapOnEveryRank, check_distributable,
-                                            has_2d_enriched_cells, ranks)
+                                            has_interface_system, ranks)
 from ale_xfem.problem.build import Problem
 from ale_xfem.remap.failure import RemapFailure
 from ale_xfem.remap.remapper_1d import Remapper
@@ -49,7 +49,7 @@ class RunResult:
     remaps: dict | None = None  # with a remap: how many were done, and how
     mixed_cells: dict | None = None
     ranks: int = 1  # the MPI ranks it ran on
-    interface_solve: str | None = None  # on several ranks with 2D enriched cells: how their system was solved
+    interface_solve: str | None = None  # on several ranks, with an interface system: how it was solved
 
     @property
     def zone_cycles_per_second(self) -> float:
@@ -124,8 +124,8 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
     again — it is then called only with the states from that time on (and the last one of
     each compiled chunk of steps), which lets the steps before it run compiled.
     ``compiled_chunks`` False: every step through the staged step (the same numbers; the
-    tests compare the two).  ``interface_solve``: on several MPI ranks, how 2D enriched
-    cells' interface system is solved (ale_xfem.parallel.distribution.INTERFACE_SOLVES).
+    tests compare the two).  ``interface_solve``: on several MPI ranks, how enriched cells'
+    interface system is solved (ale_xfem.parallel.distribution.INTERFACE_SOLVES).
     With a remapped mesh, problem.layout, problem.mixed and
     problem.node_mass follow the run (they describe the returned state; on several MPI
     ranks they are the ranks' own gathered, at the end and at each observed state)."""
@@ -271,7 +271,7 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
         phases["communication"] = -distribution.least(-distribution.seconds)
     result = RunResult(status, state, steps, wall, diagnostic, dt_min=float(dt_min if steps else 0.0),
                        dt_max=float(dt_max), phase_seconds=phases, ranks=ranks(),
-                       interface_solve=interface_solve if distribution is not None and has_2d_enriched_cells(problem)
+                       interface_solve=interface_solve if distribution is not None and has_interface_system(problem)
                        else None)
     result.conservation = conservation(start_totals, totals(state, problem.node_mass),
                                        boundary_work, boundary_impulse, scale)

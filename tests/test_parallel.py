@@ -206,10 +206,11 @@ SHARED_OUT = ["--interface-solve", "distributed"]
 
 
 def _cells_table(folder: Path) -> np.ndarray:
-    """cells.csv's numbers (its material column left out)."""
+    """cells.csv's (2D) or profile.csv's (1D) numbers (their material column left out)."""
     import csv
 
-    rows = list(csv.reader((folder / "cells.csv").open()))
+    table = folder / "cells.csv" if (folder / "cells.csv").exists() else folder / "profile.csv"
+    rows = list(csv.reader(table.open()))
     keep = [i for i, name in enumerate(rows[0]) if name != "material"]
     return np.array([[row[i] for i in keep] for row in rows[1:]], dtype=float)
 
@@ -225,7 +226,7 @@ def _round_off_apart(serial, serial_out, parallel, parallel_out, ranks):
     assert (many["ranks"], many["interface_solve"]) == (ranks, "distributed") and "interface_solve" not in one
     for key in ("status", "steps"):
         assert many[key] == one[key], key
-    mismatch = one["mixed_cells"].pop("volume_mismatch"), many["mixed_cells"].pop("volume_mismatch")
+    mismatch = one["mixed_cells"].pop("volume_mismatch", 0.0), many["mixed_cells"].pop("volume_mismatch", 0.0)
     assert many["mixed_cells"] == one["mixed_cells"]  # the same solves, iterations, relaxations
     assert mismatch[1] == pytest.approx(mismatch[0], rel=1e-9)
     for key in ("mass", "material_mass"):
@@ -243,15 +244,17 @@ def _round_off_apart(serial, serial_out, parallel, parallel_out, ranks):
                             "t_end=0.05"], 3),
     ("spinning-disk", ["interface.model=enriched", "interface.stabilisation=nitsche", "t_end=0.2"], 2),
     ("shock-disk", ["mesh.cells=[48,24]", "t_end=0.05", "interface.model=enriched"], 3),
+    ("sod-two-gamma-enriched", ["mesh.cells=200", "interface.predictor=assembled"], 3),
 ], ids=["sliding-block-bubbles-2", "sheared-tube-bubbles-triangles-3", "spinning-disk-nitsche-2",
-        "shock-disk-a-rank-without-mixed-cells-3"])
+        "shock-disk-a-rank-without-mixed-cells-3", "1d-assembled-predictor-3"])
 def test_2d_enriched_cells_whose_system_is_shared_out_are_the_serial_ones_to_round_off(tmp_path, name, overrides,
                                                                                        ranks):
-    """`--interface-solve distributed`: the interface system of 2D enriched cells on a band
-    of cells each rank keeps its own of (parallel/interface_system.py), assembled and
+    """`--interface-solve distributed`: the interface system of 2D enriched cells (and the
+    1D enriched cells' assembled predictor) on a band of cells each rank keeps its own of
+    (parallel/interface_system.py), assembled and
     factorised by PETSc over the ranks (MUMPS), each rank's share of the solution sent to
     the others.  The serial run's steps, solves and corrector iterations; the fields apart
-    by round-off only: within 10⁻⁹ of each cells.csv column's largest value.  (The system's
+    by round-off only: within 10⁻⁹ of each cells.csv (profile.csv) column's largest value.  (The system's
     own sensitivity sets that scale: the serial run with MUMPS's AMD ordering instead of
     its default, `--set 'interface.petsc_options={mat_mumps_icntl_7=0}'`, moves the sliding
     block's densities by 6.7 × 10⁻¹¹ of their largest at t = 0.1; two ranks move them by
@@ -274,20 +277,22 @@ def test_2d_enriched_cells_whose_system_is_shared_out_are_the_serial_ones_to_1e_
 
 
 def test_the_interface_solve_is_refused_where_it_cannot_act(tmp_path, capsys):
-    """`--interface-solve distributed` on one rank, or on several without 2D enriched cells,
-    and a value that is not a way of solving: one line, exit code 2, nothing written."""
+    """`--interface-solve distributed` on one rank, or on several without an assembled
+    interface system (2D enriched cells, or 1D ones with the assembled predictor), and a
+    value that is not a way of solving: one line, exit code 2, nothing written."""
     from ale_xfem.cli import main
 
     out = tmp_path / "out"
     assert main(["run", "sliding-block", "--interface-solve", "distributed", "--out", str(out)]) == 2
-    assert "--interface-solve = distributed: acts on 2D enriched mixed cells" in capsys.readouterr().err
+    assert "--interface-solve = distributed: acts on an assembled interface system" in capsys.readouterr().err
     assert main(["run", "sliding-block", "--interface-solve", "whole", "--out", str(out)]) == 2
     assert capsys.readouterr().err.strip() == "error: --interface-solve = whole: one of replicated, distributed"
     parallel, folder = _run(tmp_path, "sod-2d", 2, "mesh.cells=[8,8]", options=SHARED_OUT)
     assert parallel.returncode == 2 and not folder.exists()
     assert parallel.stderr.strip().splitlines() == [
-        "error: --interface-solve = distributed: acts on 2D enriched mixed cells (interface.model = \"enriched\" "
-        "in 2D) on several MPI ranks; this run has no 2D enriched mixed cells"]
+        "error: --interface-solve = distributed: acts on an assembled interface system (interface.model = "
+        "\"enriched\" in 2D, or in 1D with interface.predictor = \"assembled\") on several MPI ranks; this run "
+        "has none"]
     assert not out.exists()
 
 

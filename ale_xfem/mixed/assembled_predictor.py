@@ -20,22 +20,24 @@ class AssembledPredictor:
     """The compiled forms of the predictor on the current mixed cells.  On several MPI
     ranks every rank assembles and solves it over all the ranks' mixed cells, on the serial
     mesh (``MixedCells.across_ranks``: the solves iterate the whole set), each cell's
-    inputs from the rank that owns it: the serial run's system, to the bit."""
+    inputs from the rank that owns it: the serial run's system, to the bit — or, bound by a
+    ``system`` shared out over the ranks (``ale-xfem run --interface-solve distributed``),
+    assembled and factorised over them: the serial run's to round-off."""
 
-    def __init__(self, dolfinx_mesh, cells, n_nodes: int, petsc_options: dict | None = None):
-        """``n_nodes``: the mesh's nodes (the forms' nodal arrays)."""
-        from forms.enriched_interface import InterfaceForms
+    def __init__(self, dolfinx_mesh, cells, n_nodes: int, petsc_options: dict | None = None, system=None):
+        """``n_nodes``: the mesh's nodes (the forms' nodal arrays); ``system``: what binds
+        the forms to the cells (InterfaceSystem's arguments; None: InterfaceSystem)."""
+        from forms.enriched_interface import InterfaceForms, InterfaceSystem
 
         self.mesh, self.n_nodes, self.petsc_options = dolfinx_mesh, n_nodes, petsc_options
+        self.bound_system = InterfaceSystem if system is None else system
         self.forms = InterfaceForms(dolfinx_mesh.comm, "none", "free", "interval")  # compiled once per run
         self.rebuild(cells)
 
     def rebuild(self, cells):
         """Bind the compiled forms to the current mixed cells (no compilation)."""
-        from forms.enriched_interface import InterfaceSystem
-
         self.cells = cells
-        self.system = InterfaceSystem(self.mesh, cells, self.forms, self.petsc_options)
+        self.system = self.bound_system(self.mesh, cells, self.forms, self.petsc_options)
 
     def predictor_for(self, mixed, state, predicted, mean_force, dt, mobility_a, mobility_b, start):
         """The predictor as the assembled FE system: returns a callable (iterate → material

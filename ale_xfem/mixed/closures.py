@@ -26,6 +26,9 @@ class Closures:
         # 2D enriched cells: their stabilisation, slip and Nitsche factor
         self.enriched_2d_options = dict(stabilisation=stabilisation, slip=slip, nitsche_penalty=nitsche_penalty)
         self.made = {}  # model → its closure
+        # what binds an enriched closure's assembled system to its cells (None: its own
+        # InterfaceSystem; on several MPI ranks, possibly one shared out over them)
+        self.interface_system = None
 
     def __call__(self, mixed: MixedCells) -> MixedCellClosure:
         closure = self.made.get(mixed.model)
@@ -35,8 +38,8 @@ class Closures:
         if mixed.model == "enriched" and self.mesh.dimension == 2:
             closure = self.enriched_2d(mixed)
         else:
-            options = ({"assembled": self.assembled_predictor, "petsc_options": self.petsc_options}
-                       if mixed.model == "enriched" else {})
+            options = ({"assembled": self.assembled_predictor, "petsc_options": self.petsc_options,
+                        "system": self.interface_system} if mixed.model == "enriched" else {})
             closure = CLOSURES[mixed.model](self.mesh, self.materials, mixed, **options)
         self.made[mixed.model] = closure
         return closure

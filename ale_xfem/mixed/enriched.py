@@ -18,18 +18,19 @@ from ale_xfem.model.mixed_cells import MixedCells
 class EnrichedClosure(SharedClosure):
     """Mixed cells with doubled velocities and an implicit interface pressure.
     ``assembled``: the predictor is the FE system assembled from the UFL forms (compiled
-    here, once per run), not its closed form."""
+    here, once per run), not its closed form, its system bound by ``system``
+    (AssembledPredictor's)."""
 
     implicit = True
 
     def __init__(self, mesh, materials, mixed: MixedCells, assembled: bool = False,
-                 petsc_options: dict | None = None):
+                 petsc_options: dict | None = None, system=None):
         super().__init__(mesh, materials, mixed)
         self.assembled = None
         if assembled:  # on the mesh of the cells the solves take (on several MPI ranks: the serial mesh)
             ranks = mixed.across_ranks
             whole, cells = (mesh, mixed.cells) if ranks is None else (ranks.mesh, ranks.cells)
-            self.assembled = AssembledPredictor(whole.dolfinx_mesh, cells, whole.n_nodes, petsc_options)
+            self.assembled = AssembledPredictor(whole.dolfinx_mesh, cells, whole.n_nodes, petsc_options, system)
 
     def compiles_steps(self, step) -> bool:
         """1D mixed cells with the predictor in closed form, each step ending relaxed: the

@@ -46,7 +46,8 @@ the bit.
   general intersection need nothing of their own.
 - **The assembled 1D predictor** is assembled and solved by every rank over all the
   ranks' mixed cells, on the serial mesh (:class:`ale_xfem.mixed.assembled_predictor.AssembledPredictor`),
-  as the closed-form solve is.
+  as the closed-form solve is; or, with ``interface_solve = "distributed"``, shared out
+  over the ranks (:mod:`ale_xfem.parallel.interface_system`).
 
 - **2D enriched cells.**  Every rank solves all the ranks' mixed cells with the serial
   closure on the serial mesh, from the serial arrays gathered from the ranks within the
@@ -85,18 +86,21 @@ from ale_xfem.scene import SceneError
 REMAP_GHOST_RINGS = 4
 
 
-# How the interface system of 2D enriched mixed cells is solved on several ranks: every
+# How the interface system of enriched mixed cells (2D, or the 1D assembled predictor) is solved on several ranks: every
 # rank the whole system (the serial run to the bit), or one system shared out over the
 # ranks, assembled and factorised by PETSc over them (parallel/interface_system.py: the
 # serial run to round-off)
 INTERFACE_SOLVES = ("replicated", "distributed")
 
 
-def has_2d_enriched_cells(problem) -> bool:
-    """Whether ``problem``'s mixed cells are 2D enriched cells (their interface system is
-    what ``interface_solve`` chooses how to solve)."""
+def has_interface_system(problem) -> bool:
+    """Whether ``problem``'s mixed cells solve an assembled interface system (what
+    ``interface_solve`` chooses how to solve): 2D enriched cells, or 1D enriched cells whose
+    predictor is assembled."""
     interface = problem.scene.interface
-    return problem.mesh.dimension == 2 and interface is not None and interface.model == "enriched"
+    if interface is None or interface.model != "enriched":
+        return False
+    return problem.mesh.dimension == 2 or interface.predictor == "assembled"
 
 
 def launched_by_mpiexec() -> bool:

@@ -62,8 +62,7 @@ class EnrichedCellsOnRanks(SharedClosure):
         self.distribution = distribution
         problem = distribution.problem
         # the serial closure (its forms compiled here, once per run)
-        system = {"replicated": InterfaceSystem,
-                  "distributed": partial(DistributedInterfaceSystem, distribution)}[distribution.interface_solve]
+        system = interface_system(distribution) or InterfaceSystem
         self.whole = EnrichedClosure2D(problem.mesh, materials, distribution.whole_mixed, system=system, **options)
         # what the serial closure reads of a step: the serial mesh's corners, the walls and
         # pistons in serial node numbers, and the layout (gathered at each solve)
@@ -159,13 +158,24 @@ class EnrichedCellsOnRanks(SharedClosure):
         raise RuntimeError("2D enriched mixed cells need a remapped mesh (refused at load)")
 
 
+def interface_system(distribution):
+    """What binds enriched cells' assembled interface system to its cells on this run's
+    ranks: one system shared out over them (``interface_solve = "distributed"``), or None
+    (every rank its own whole system)."""
+    if distribution.interface_solve == "distributed":
+        return partial(DistributedInterfaceSystem, distribution)
+    return None
+
+
 class ClosuresOnRanks(Closures):
     """The closures of one rank's mixed cells: Closures', with the 2D enriched cells solved
-    over all the ranks' (:class:`EnrichedCellsOnRanks`)."""
+    over all the ranks' (:class:`EnrichedCellsOnRanks`), and the enriched cells' assembled
+    systems shared out over the ranks if the run asks (:func:`interface_system`)."""
 
     def __init__(self, distribution, *args, **kwargs):
         super().__init__(*args, **kwargs)
         self.distribution = distribution
+        self.interface_system = interface_system(distribution)
 
     def enriched_2d(self, mixed):
         return EnrichedCellsOnRanks(self.distribution, self.mesh, self.materials, mixed,

@@ -1,8 +1,10 @@
-"""The interface system of 2D enriched mixed cells assembled and solved by PETSc over the
-MPI ranks, on a band of cells shared out as the run's cells are.
+"""The interface system of enriched mixed cells (2D, and the 1D assembled predictor)
+assembled and solved by PETSc over the MPI ranks, on a band of cells shared out as the
+run's cells are.
 
 On several ranks every rank runs the serial closure of the enriched cells
-(:mod:`ale_xfem.parallel.enriched_cells`), whose interface system
+(:mod:`ale_xfem.parallel.enriched_cells`; in 1D the assembled predictor over every rank's
+mixed cells), whose interface system
 (:class:`forms.enriched_interface.InterfaceSystem`) would then be assembled and factorised
 whole on every rank.  :class:`DistributedInterfaceSystem` takes its place: it speaks the
 serial system's interface — inputs and outputs over all the active cells and over the
@@ -72,6 +74,7 @@ class DistributedInterfaceSystem:
         self.cell_nodes = np.asarray(mesh.geometry.dofmaps[0], dtype=np.int64)
         self.n_nodes = mesh.geometry.x.shape[0]
         self.own, self.count, self._cells, self._nodes, self._normal = None, 0, None, None, None
+        self.activate(cells)  # (as InterfaceSystem: all the band's cells, until told otherwise)
 
     # -- the active cells ----------------------------------------------------------------
 
