@@ -62,6 +62,7 @@ class DistributedInterfaceSystem:
 
     def __init__(self, distribution, mesh, cells, forms, petsc_options: dict | None = None):
         self.comm = distribution.comm
+        self.allgather = distribution.allgather  # (timed as the run's communication)
         serial = distribution.problem.mesh
         # each DOLFINx cell's rank (the run's partition is in the mesh arrays' numbering)
         self.owner = np.empty_like(distribution.cell_owner)
@@ -139,7 +140,7 @@ class DistributedInterfaceSystem:
     def _gathered_cells(self, arrays):
         """Arrays (..., this rank's active cells) → (..., all the active cells), from every
         rank (one exchange)."""
-        pieces = self.comm.allgather((self.own, arrays))
+        pieces = self.allgather((self.own, arrays))
         wholes = [np.empty(np.shape(a)[:-1] + (self.count,)) for a in arrays]
         for own, values in pieces:
             for whole, part in zip(wholes, values):
@@ -153,7 +154,7 @@ class DistributedInterfaceSystem:
         cell_keys = [key for key in ("pressure", "interface_pressure") if key in out]
         bubbles = len(out.get("bubble", ()))
         local = ([v[:, nodes] for v in out["velocity"]], [out[key] for key in cell_keys] + list(out.get("bubble", ())))
-        pieces = self.comm.allgather((nodes, self.own, local))
+        pieces = self.allgather((nodes, self.own, local))
         shape = np.shape(out["velocity"][0])
         velocity = [np.zeros(shape) for _ in out["velocity"]]
         cells = [np.empty(np.shape(a)[:-1] + (self.count,)) for a in local[1]]
