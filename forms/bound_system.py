@@ -318,6 +318,19 @@ class BoundSystem:
             self.solver.solve(residual, correction)
             solution.axpy(1.0, correction)
 
+    def destroy(self) -> None:
+        """Free the system's PETSc objects now.  On a mesh shared out over MPI ranks every
+        rank calls it together: there garbage collection would only park them (PETSc frees
+        a parallel object collectively), and a run that binds new systems would keep every
+        old one's factors."""
+        self._forget_reduced()
+        if self._selection is not None and self._selection[1] is not None:
+            self._selection[1].destroy()
+        self._selection, self._factored, self._operator = None, None, None
+        for thing in (self.solver, self.matrix, self.vector, self.solution, self.residual, self.correction):
+            thing.destroy()
+        self._forget_options()
+
     def _forget_options(self) -> None:
         database = PETSc.Options()
         for name in self._options:

@@ -498,6 +498,14 @@ class InterfaceSystem:
         values = self.system.solve_with_diagonal(right, "interface system", self._unknowns[1], dofs, new_diagonal)
         return self._unpacked(values, velocity_shape)
 
+    def destroy(self) -> None:
+        """Free the system's PETSc objects now (:meth:`forms.bound_system.BoundSystem.destroy`;
+        on a mesh shared out over ranks, every rank together)."""
+        self.system.destroy()
+        if self._last_constraint is not None:
+            self._last_constraint.destroy()
+            self._last_constraint = None
+
     def _owned_blocks(self, m):
         """Material m's velocity blocks whose rows this rank owns (all of them on one rank),
         and their parent nodes."""

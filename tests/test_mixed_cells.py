@@ -779,3 +779,21 @@ def test_the_compiled_enriched_steps_are_the_staged_steps_to_the_bit(scene, over
     assert watched.mixed_cells == stepwise.mixed_cells and watched.conservation == stepwise.conservation
     if scene == "sliver":
         assert chunked.mixed_cells["halved_steps"] >= 1 and len(chunked_steps) > 1
+
+
+def test_a_rebound_assembled_system_frees_its_petsc_objects():
+    """Binding the assembled predictor's forms to new mixed cells destroys the old system's
+    PETSc objects (matrix, vectors, solver) at once: on a mesh shared out over MPI ranks
+    garbage collection would only park them, and a remapped run binds a new system at each
+    move of an interface."""
+    from ale_xfem.mixed.assembled_predictor import AssembledPredictor
+
+    problem = build_problem(load_scene(resolve_scene_path("sod-two-gamma-enriched"), ["mesh.cells=40"]))
+    mesh = problem.mesh
+    predictor = AssembledPredictor(mesh.dolfinx_mesh, np.array([10]), mesh.n_nodes)
+    old = predictor.system.system
+    held = (old.matrix, old.vector, old.solution, old.solver)
+    assert all(thing.handle != 0 for thing in held)
+    predictor.rebuild(np.array([11]))
+    assert all(thing.handle == 0 for thing in held)
+    assert predictor.system.system.matrix.handle != 0

@@ -37,6 +37,8 @@ class AssembledPredictor:
     def rebuild(self, cells):
         """Bind the compiled forms to the current mixed cells (no compilation)."""
         self.cells = cells
+        if getattr(self, "system", None) is not None:  # (its PETSc objects freed now: InterfaceSystem.destroy)
+            self.system.destroy()
         self.system = self.bound_system(self.mesh, cells, self.forms, self.petsc_options)
 
     def predictor_for(self, mixed, state, predicted, mean_force, dt, mobility_a, mobility_b, start):

@@ -358,7 +358,7 @@ def enriched_geometry(mesh, position, volume, mass, cells) -> EnrichedGeometry:
     k, n_cells, n_nodes = cell_nodes.shape[1], cell_nodes.shape[0], position.shape[1]
     cells = np.asarray(cells)
     # (a cell of no area: the cells a gather on several ranks leaves out, whose entries are
-    # zero and never read: parallel/enriched_cells.py)
+    # zero; what is made of them is not used: parallel/enriched_cells.py)
     total = volume[0] + volume[1]
     fraction = np.divide(volume[0], total, out=np.zeros(n_cells), where=total > 0.0)
     cell_material = np.where(mass[1] > 0.0, 1, 0)

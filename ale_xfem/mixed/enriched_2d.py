@@ -124,6 +124,8 @@ class EnrichedClosure2D(SharedClosure):
             if self.system is None or not np.all(self._in_band[mixed.cells]):
                 self._in_band = self._band(mixed.cells)
                 band = np.flatnonzero(self._in_band)
+                if self.system is not None:  # (its PETSc objects freed now, not parked: InterfaceSystem.destroy)
+                    self.system.destroy()
                 self.system = self.bound_system(mesh.dolfinx_mesh, dolfinx_cell(band), self.forms, self.petsc_options)
                 mixed.stats["bands"] += 1
             self.system.activate(dolfinx_cell(mixed.cells))

@@ -37,7 +37,7 @@ def summary(problem: Problem, result: RunResult) -> dict:
         "dt": {"min": result.dt_min, "max": result.dt_max},
         "phase_seconds": result.phase_seconds,
     }
-    if result.interface_solve is not None:  # (several MPI ranks, 2D enriched cells)
+    if result.interface_solve is not None:  # (several MPI ranks, an assembled interface system)
         data["interface_solve"] = result.interface_solve
     if result.remaps is not None:
         data["remaps"] = result.remaps

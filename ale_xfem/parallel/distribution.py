@@ -216,7 +216,7 @@ class Distribution:
     def __init__(self, problem, comm=None, rings: int = 1, interface_solve: str = "replicated"):
         """``rings``: the ghost layer's depth in rings of cells around the rank's own (1: the
         cells around its nodes, what a Lagrange step and the 1D remap need; a 2D remap needs
-        REMAP_GHOST_RINGS).  ``interface_solve``: how 2D enriched cells' interface system is
+        REMAP_GHOST_RINGS).  ``interface_solve``: how enriched cells' assembled interface system is
         solved (:data:`INTERFACE_SOLVES`)."""
         self.comm = comm if comm is not None else world()
         self.interface_solve = interface_solve

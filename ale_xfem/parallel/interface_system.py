@@ -113,6 +113,10 @@ class DistributedInterfaceSystem:
     def move(self, node_position) -> None:
         self.local.move(node_position)
 
+    def destroy(self) -> None:
+        """Free the system's PETSc objects now (every rank together)."""
+        self.local.destroy()
+
     # -- the solves ----------------------------------------------------------------------
 
     def solve(self, mass, rhs, tied=None, sliding=None, tie_normal=None):
