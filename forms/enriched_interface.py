@@ -80,6 +80,16 @@ _MATERIAL_COEFFICIENTS = ("mass", "part", "edge_flux", "compliance", "offset", "
 _CELL_COEFFICIENTS = ("normal", "interface", "weight", "penalty")
 
 
+def unit_mean_normals(cell_nodes, normal, n_nodes: int) -> np.ndarray:
+    """(n_nodes, gdim): at each node the unit mean of the ``normal`` (n, gdim) of the cells
+    around it among the cells whose nodes are ``cell_nodes`` (n, k); zero where they cancel
+    or no cell is."""
+    total = np.zeros((n_nodes, normal.shape[1]))
+    np.add.at(total, np.asarray(cell_nodes).ravel(), np.repeat(normal, np.shape(cell_nodes)[1], axis=0))
+    size = np.linalg.norm(total, axis=1)[:, None]
+    return np.divide(total, size, out=np.zeros_like(total), where=size > 0)
+
+
 def _land():
     """MPI's logical and (a reduction every rank agrees on)."""
     from mpi4py import MPI
@@ -717,11 +727,7 @@ class InterfaceSystem:
         """(n_parent_nodes, 2): the unit mean of the normals of the active cells around each
         node (zero off them)."""
         normal = self.functions["normal"].x.array.reshape(-1, self.gdim)[self._dg0v[self.active]]  # (n, 2)
-        parents = self.parent_nodes[self.active].ravel()
-        total = np.zeros((self.parent_nodes.max() + 1, self.gdim))
-        np.add.at(total, parents, np.repeat(normal, self.parent_nodes.shape[1], axis=0))
-        size = np.linalg.norm(total, axis=1)[:, None]
-        return np.divide(total, size, out=np.zeros_like(total), where=size > 0)
+        return unit_mean_normals(self.parent_nodes[self.active], normal, self.parent_nodes.max() + 1)
 
     def move(self, node_position) -> None:
         """Follow the mesh: node_position (gdim, n_parent_nodes)."""

@@ -24,7 +24,7 @@ import numpy as np
 
 import dolfinx_solver  # noqa: F401  (before dolfinx: it loads MPI and PETSc)
 import dolfinx
-from forms.enriched_interface import InterfaceSystem
+from forms.enriched_interface import InterfaceSystem, unit_mean_normals
 
 
 def band_mesh(comm, mesh, cells, owner):
@@ -135,11 +135,7 @@ class DistributedInterfaceSystem:
 
     def _mean_normals(self) -> np.ndarray:
         """(2, n_nodes): the unit mean of the normals of the active cells around each node."""
-        k = self.cell_nodes.shape[1]
-        total = np.zeros((self.n_nodes, 2))
-        np.add.at(total, self.cell_nodes[self._cells].ravel(), np.repeat(self._normal, k, axis=0))
-        size = np.linalg.norm(total, axis=1)[:, None]
-        return np.divide(total, size, out=np.zeros_like(total), where=size > 0).T
+        return unit_mean_normals(self.cell_nodes[self._cells], self._normal, self.n_nodes).T
 
     def _gathered_cells(self, arrays):
         """Arrays (..., this rank's active cells) → (..., all the active cells), from every
