@@ -11,6 +11,7 @@ import sys
 from pathlib import Path
 
 EXIT_OK, EXIT_BAD_INPUT, EXIT_BREAKDOWN = 0, 2, 3
+EXIT_DEFECT = 1  # an error of the program itself (Python's own code for an uncaught exception)
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -123,7 +124,28 @@ def main(argv: list[str] | None = None) -> int:
         return _bench(args)
     if args.command == "study":
         return _study(args)
-    return _run(args)
+    return _run_on_every_rank(args)
+
+
+def _run_on_every_rank(args) -> int:
+    """``run``; launched by mpiexec among several ranks, an error that escapes one rank (a
+    defect: breakdowns and bad input are agreed by all) aborts them all, its traceback
+    printed, instead of leaving the others waiting for it in an exchange."""
+    from ale_xfem.parallel.distribution import launched_by_mpiexec
+
+    if not launched_by_mpiexec():
+        return _run(args)
+    try:
+        return _run(args)
+    except BaseException:  # (SystemExit and KeyboardInterrupt too: the others would wait)
+        import traceback
+
+        from ale_xfem.parallel.distribution import rank, world
+
+        print(f"error on MPI rank {rank()}: every rank stopped\n{traceback.format_exc()}", file=sys.stderr,
+              flush=True)
+        world().Abort(EXIT_DEFECT)
+        raise
 
 
 def _list() -> int:

@@ -413,6 +413,31 @@ def test_a_breakdown_on_one_rank_stops_every_rank_with_the_serial_diagnostic(tmp
     assert parallel.stderr.count("error: simulation failed") == 1  # said once, by rank 0
 
 
+def test_an_error_on_one_rank_stops_every_rank(tmp_path):
+    """A defect that raises on one rank only (here the time loop made to fail on rank 1)
+    stops the whole run at once with the rank's traceback, instead of leaving the other
+    ranks waiting for it in an exchange: exit code 1 within the timeout."""
+    script = tmp_path / "failing.py"
+    script.write_text(
+        "import sys\n"
+        "import ale_xfem.run as run\n"
+        "from ale_xfem.cli import main\n"
+        "from ale_xfem.parallel.distribution import rank\n"
+        "simulate = run.simulate\n"
+        "def failing(*args, **kwargs):\n"
+        "    if rank() == 1:\n"
+        "        raise ValueError('a defect on rank 1')\n"
+        "    return simulate(*args, **kwargs)\n"
+        "run.simulate = failing\n"
+        "sys.exit(main(sys.argv[1:]))\n")
+    command = [str(MPIEXEC), "-n", "2", sys.executable, str(script), "run", "sod-2d", "--set", "mesh.cells=[8,8]",
+               "--quiet", "--no-plot", "--frames", "0", "--out", str(tmp_path / "out")]
+    done = subprocess.run(command, capture_output=True, text=True, timeout=60)
+    assert done.returncode == 1, done.stderr
+    assert "error on MPI rank 1: every rank stopped" in done.stderr
+    assert "ValueError: a defect on rank 1" in done.stderr
+
+
 def test_a_scene_with_fewer_cells_than_ranks_is_refused_once(tmp_path):
     """Every rank needs a cell: Sod on 2 cells on 3 ranks stops before anything runs, exit
     code 2, one line naming the key, its value and what is allowed, and no output."""
