@@ -25,16 +25,23 @@ REUSE_CHANGE, REUSE_BACKWARD_ERROR, REUSE_ROUNDS = 0.02, 1e-14, 12
 _PREFIXES = itertools.count()  # each system's own options prefix
 
 
-def _land():
+def every_rank(comm, flag) -> bool:
+    """Whether ``flag`` holds on every rank of ``comm`` (what a decision that leads into a
+    collective call must be: all ranks take it, or none); one rank's own flag on one."""
+    if comm.size == 1:
+        return bool(flag)
     from mpi4py import MPI
 
-    return MPI.LAND
+    return comm.allreduce(bool(flag), op=MPI.LAND)
 
 
-def _max():
+def largest_over_ranks(comm, value: float) -> float:
+    """The largest of every rank's ``value`` (its own on one rank)."""
+    if comm.size == 1:
+        return value
     from mpi4py import MPI
 
-    return MPI.MAX
+    return comm.allreduce(value, op=MPI.MAX)
 
 
 def petsc_reason(error) -> str:
@@ -178,7 +185,7 @@ class BoundSystem:
         with np.errstate(divide="ignore", invalid="ignore"):  # (zero stays zero on multiplier rows)
             change = np.where(old == new, 0.0, np.abs(new / old - 1.0))
         change = float(np.max(change, initial=0.0))
-        return self._comm.allreduce(change, op=_max()) if self._parallel else change
+        return largest_over_ranks(self._comm, change)
 
     def solve_with_diagonal(self, right_side, what: str, constraint, rows, diagonal):
         """Solve again the operator of the last :meth:`solve` (the same ``constraint``) with
@@ -237,10 +244,8 @@ class BoundSystem:
                 rows, columns, magnitude = csr
                 x, b = self._whole(solution), right.getArray(readonly=True)
                 scale = np.bincount(rows, magnitude * np.abs(x[columns]), minlength=b.size) + np.abs(b)
-                within = bool(np.all(np.abs(residual.getArray(readonly=True)) <= REUSE_BACKWARD_ERROR * scale))
-                if self._parallel:  # (every rank goes on, or none)
-                    within = self._comm.allreduce(within, op=_land())
-                if within:
+                if every_rank(self._comm, np.all(np.abs(residual.getArray(readonly=True))
+                                                 <= REUSE_BACKWARD_ERROR * scale)):
                     return True
             return False
         finally:
@@ -270,9 +275,7 @@ class BoundSystem:
             first_row, first_column = constraint.getOwnershipRange()[0], constraint.getOwnershipRangeColumn()[0]
             selects = bool(rows.size == constraint.getLocalSize()[1] and np.all(np.diff(pointer) <= 1)
                            and np.array_equal(columns, first_column + np.arange(rows.size)) and np.all(values == 1.0))
-            if self._parallel:  # (every rank takes the submatrix, or none)
-                selects = self._comm.allreduce(selects, op=_land())
-            if selects:
+            if every_rank(self._comm, selects):
                 chosen = PETSc.IS().createGeneral((first_row + rows).astype(PETSc.IntType), comm=self._mesh.comm)
             if self._selection is not None and self._selection[1] is not None:
                 self._selection[1].destroy()

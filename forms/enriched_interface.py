@@ -65,7 +65,7 @@ import dolfinx
 import numpy as np
 import ufl
 
-from forms.bound_system import BoundSystem
+from forms.bound_system import BoundSystem, every_rank
 from forms.cut_quadrature import RULES, CutQuadrature, bilinear_map
 
 STABILISATIONS = ("none", "bubble", "nitsche")
@@ -88,13 +88,6 @@ def unit_mean_normals(cell_nodes, normal, n_nodes: int) -> np.ndarray:
     np.add.at(total, np.asarray(cell_nodes).ravel(), np.repeat(normal, np.shape(cell_nodes)[1], axis=0))
     size = np.linalg.norm(total, axis=1)[:, None]
     return np.divide(total, size, out=np.zeros_like(total), where=size > 0)
-
-
-def _land():
-    """MPI's logical and (a reduction every rank agrees on)."""
-    from mpi4py import MPI
-
-    return MPI.LAND
 
 
 def nitsche_weights(volume, stiffness, interface_length, penalty_factor: float):
@@ -281,7 +274,6 @@ class InterfaceSystem:
         cells = np.asarray(cells, dtype=np.int32)
         self.submesh, entity_map, _, geometry_map = dolfinx.mesh.create_submesh(mesh, tdim, cells)
         sub = self.submesh
-        self.parallel = mesh.comm.size > 1
         n_sub = sub.topology.index_map(tdim).size_local
         node_number, cell_number = (None, None) if numbering is None else numbering
         # the parent cell of each submesh cell
@@ -520,8 +512,6 @@ class InterfaceSystem:
         """Material m's velocity blocks whose rows this rank owns (all of them on one rank),
         and their parent nodes."""
         blocks, parents = self.velocity_block[m], self.block_parent[m]
-        if not self.parallel:
-            return blocks, parents
         owned = blocks[:, 0] < self.owned
         return blocks[owned], parents[owned]
 
@@ -581,8 +571,8 @@ class InterfaceSystem:
         self.vertex_area[:] = 0.0
         np.add.at(self.vertex_area, self._velocity_cells[self.active].ravel(),
                   self._vertex_weights()[self.active].ravel())
-        if self.parallel:  # a node's cells on other ranks too: their sum, on each rank
-            self.vertex_area[:] = self._summed_over_ranks(self._V1.dofmap.index_map, 1, self.vertex_area)
+        # (a node's cells on other ranks too: their sum, on each rank)
+        self.vertex_area[:] = self._summed_over_ranks(self._V1.dofmap.index_map, 1, self.vertex_area)
         for m, side in enumerate("ab"):
             density = np.divide(mass[m][:, self.velocity_parent], self.vertex_area,
                                 out=np.zeros((self.gdim, self.velocity_parent.size)), where=self.vertex_area > 0)
@@ -591,7 +581,9 @@ class InterfaceSystem:
     @staticmethod
     def _summed_over_ranks(index_map, block_size, values):
         """``values`` (the local entries of an index map's blocks) summed over the ranks that
-        hold each entry, on every one of them."""
+        hold each entry, on every one of them (themselves on one rank)."""
+        if index_map.comm.size == 1:
+            return values
         vector = dolfinx.la.vector(index_map, bs=block_size)
         vector.array[:] = values
         vector.scatter_reverse(dolfinx.la.InsertMode.add)
@@ -613,11 +605,6 @@ class InterfaceSystem:
         two normals) the whole velocity is one (a normal-only tie let a kink at rest move by
         0.01).  Exact, not a stiff spring: a spring 10⁸ times the inertia left a residual at
         the round-off of its diagonal, a force that moved momentum by 10⁻¹⁰ of M V."""
-        if not self.parallel:
-            active_nodes = self._active_parent
-            nodes = np.zeros(0, dtype=np.int64) if tied is None else active_nodes[tied[active_nodes]]
-            if nodes.size == 0 and self.active.size == self.parent_cell.size:
-                return None
         from petsc4py import PETSc
 
         gdim, blocks = self.gdim, self.velocity_block
@@ -632,16 +619,18 @@ class InterfaceSystem:
                 kept[self.bubble_dofs[m][self.active]] = True
         if self.multiplier_dofs is not None:
             kept[self.multiplier_dofs[self.active].ravel()] = True
+        # an unknown is kept when any rank's active cells reach it (on several ranks); a
+        # rank's rows are its own unknowns, and the tied nodes among its own active nodes,
+        # in the order of the velocity space's blocks
+        kept = self._summed_over_ranks(dofs, self.space.dofmap.index_map_bs, kept.astype(float)) > 0.0
+        material_block = np.full(np.max(self.block_parent[0], initial=-1) + 1, -1, dtype=np.int64)
+        material_block[self.block_parent[0]] = np.arange(self.block_parent[0].size)
+        own_parents = self.velocity_parent[:self._V1.dofmap.index_map.size_local]
+        active_nodes = own_parents[kept[blocks[0][material_block[own_parents], 0]]]
+        nodes = np.zeros(0, dtype=np.int64) if tied is None else active_nodes[tied[active_nodes]]
         comm = self.system.matrix.getComm().tompi4py()
-        if self.parallel:
-            # an unknown is kept when any rank's active cells reach it; a rank's rows are its
-            # own unknowns, and the tied nodes among its own nodes
-            kept = self._summed_over_ranks(dofs, self.space.dofmap.index_map_bs, kept.astype(float)) > 0.0
-            own_blocks, own_nodes = self._owned_blocks(0)
-            active_nodes = own_nodes[kept[own_blocks[:, 0]]]
-            nodes = np.zeros(0, dtype=np.int64) if tied is None else active_nodes[tied[active_nodes]]
-            if comm.allreduce(nodes.size == 0 and self.active.size == self.parent_cell.size, op=_land()):
-                return None
+        if every_rank(comm, nodes.size == 0 and self.active.size == self.parent_cell.size):
+            return None
         kept = kept[:self.owned]
         block = []
         for m in range(2):  # each material's velocity block of each tied node
@@ -694,7 +683,7 @@ class InterfaceSystem:
         pointer = np.zeros(size + 1, dtype=PETSc.IntType)
         np.cumsum(np.bincount(rows, minlength=size), out=pointer[1:])
         # the columns numbered rank after rank (PETSc's rows are too)
-        first = comm.exscan(column) if self.parallel else 0
+        first = comm.exscan(column)  # (None on the first rank)
         return PETSc.Mat().createAIJ(size=((size, self.system.matrix.getSize()[0]), (column, comm.allreduce(column))),
                                      csr=(pointer, (columns + (first or 0)).astype(PETSc.IntType), values),
                                      comm=self.system.matrix.getComm())
@@ -712,9 +701,7 @@ class InterfaceSystem:
         pointer, columns, values = constraint.getValuesCSR()
         last_pointer, last_columns, _ = last.getValuesCSR()
         same = np.array_equal(pointer, last_pointer) and np.array_equal(columns, last_columns)
-        if self.parallel:  # (every rank keeps it, or none)
-            same = constraint.getComm().tompi4py().allreduce(bool(same), op=_land())
-        if not same:
+        if not every_rank(constraint.getComm().tompi4py(), same):  # (every rank keeps it, or none)
             last.destroy()
             return constraint
         last.setValuesCSR(pointer, columns, values)

@@ -73,18 +73,18 @@ class EnrichedClosure2D(SharedClosure):
     bubble | nitsche | none; ``slip``: free | stick; ``nitsche_penalty``: Nitsche's
     dimensionless factor; ``petsc_options``: the interface system's KSP (default MUMPS);
     ``system``: what binds the interface system to a band of cells (InterfaceSystem's
-    arguments; default InterfaceSystem: on several MPI ranks, one shared out over them)."""
+    arguments; None: InterfaceSystem; on several MPI ranks, one shared out over them)."""
 
     implicit = True
 
     def __init__(self, mesh, materials, mixed: MixedCells, stabilisation: str = "bubble",
                  slip: str = "free", nitsche_penalty: float = 1.0, petsc_options: dict | None = None,
-                 system=InterfaceSystem):
+                 system=None):
         if len(materials) != 2:
             raise ValueError("2D enriched mixed cells need exactly two materials")
         self.forms = InterfaceForms(mesh.dolfinx_mesh.comm, stabilisation, slip, mesh.cell_type.name)
         self.nitsche_penalty, self.petsc_options = nitsche_penalty, petsc_options
-        self.bound_system = system
+        self.bound_system = InterfaceSystem if system is None else system
         self.system, self._system_cells, self._in_band = None, None, None
         self._last = None
         # the interface system speaks DOLFINx's numbering of nodes and cells (a structured

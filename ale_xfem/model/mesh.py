@@ -437,6 +437,32 @@ class MeshArrays:
         return np.flatnonzero(predicate(self.node_position))
 
 
+def distributed_mesh(comm, cell_numbers, topology, x, element, keep: bool = True):
+    """A DOLFINx mesh on ``comm`` of the cells this rank hands in — ``topology``: each cell's
+    nodes (rows of ``x``, every node's coordinates, the same array on every rank) in
+    DOLFINx's order; ``cell_numbers``: their numbers — without ghost cells: each rank keeps
+    the cells it hands in (``keep``) or DOLFINx's partitioner shares them out.  Returns (the
+    mesh, the number of each of its geometry nodes (its row of ``x``), of each of its
+    cells)."""
+    import dolfinx
+
+    size, rank = comm.size, comm.rank
+    partitioner = None
+    if keep:
+        def partitioner(partition_comm, parts, cell_types, cell_lists):  # each cell stays
+            count = sum(np.asarray(c).size for c in cell_lists) // topology.shape[1]
+            destinations = dolfinx.graph.adjacencylist(np.full(count, partition_comm.rank, dtype=np.int32))
+            return getattr(destinations, "_cpp_object", destinations)
+    # every rank hands a block of the nodes in (their input numbers: their rows of x)
+    first, last = x.shape[0] * rank // size, x.shape[0] * (rank + 1) // size
+    mesh = dolfinx.mesh.create_mesh(comm, np.asarray(topology, dtype=np.int64), element, x[first:last],
+                                    partitioner)
+    held = mesh.topology.index_map(mesh.topology.dim).size_local
+    handed = np.concatenate(comm.allgather(np.asarray(cell_numbers, dtype=np.int64)))  # in rank order
+    cell_number = handed[np.asarray(mesh.topology.original_cell_index[:held], dtype=np.int64)]
+    return mesh, np.asarray(mesh.geometry.input_global_indices, dtype=np.int64), cell_number
+
+
 def from_dolfinx(mesh) -> MeshArrays:
     """Read node and cell arrays from a DOLFINx mesh with P1 geometry."""
     name = mesh.topology.cell_name()

@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ale_xfem.model.mesh import distributed_mesh
 from ale_xfem.output.cells_2d import cell_fields
 
 ENGINE = "BP5"
@@ -43,14 +44,12 @@ class VTXFiles:
             cell_nodes = cell_nodes[:, [0, 1, 3, 2]]  # going round → DOLFINx's tensor-product order
         root = comm.rank == 0
         element = ufl.Mesh(basix.ufl.element("Lagrange", mesh.cell_type.name, 1, shape=(2,)))
-        self.mesh = dolfinx.mesh.create_mesh(
-            comm, cell_nodes if root else np.empty((0, cell_nodes.shape[1]), dtype=np.int64), element,
-            mesh.node_position.T if root else np.empty((0, 2)))
-        # rank 0 handed every cell and node in the serial order: their input indices are the
-        # serial numbers
-        owned = self.mesh.topology.index_map(2).size_local
-        self.cells = np.asarray(self.mesh.topology.original_cell_index[:owned], dtype=np.int64)
-        self.geometry_nodes = np.asarray(self.mesh.geometry.input_global_indices, dtype=np.int64)
+        # rank 0 hands every cell in, DOLFINx's partitioner shares them out
+        self.mesh, self.geometry_nodes, self.cells = distributed_mesh(
+            comm, np.arange(mesh.n_cells) if root else np.zeros(0, dtype=np.int64),
+            cell_nodes if root else np.empty((0, cell_nodes.shape[1]), dtype=np.int64), mesh.node_position.T,
+            element, keep=False)
+        owned = self.cells.size
         cells_space = dolfinx.fem.functionspace(self.mesh, ("DG", 0))
         velocity_space = dolfinx.fem.functionspace(self.mesh, ("Lagrange", 1, (2,)))
         # a P1 dof lies on a geometry node (a P1 mesh): the serial node of each dof

@@ -42,7 +42,6 @@ from ale_xfem.mixed.common import SharedClosure
 from ale_xfem.mixed.enriched_2d import EnrichedClosure2D
 from ale_xfem.model.mesh import cells_around
 from ale_xfem.parallel.interface_system import DistributedInterfaceSystem
-from forms.enriched_interface import InterfaceSystem
 
 # the rings of cells around the mixed cells whose fields the serial closure reads (besides
 # its band): a mixed cell's nodes take the forces, materials and masses of the cells around
@@ -62,8 +61,8 @@ class EnrichedCellsOnRanks(SharedClosure):
         self.distribution = distribution
         problem = distribution.problem
         # the serial closure (its forms compiled here, once per run)
-        system = interface_system(distribution) or InterfaceSystem
-        self.whole = EnrichedClosure2D(problem.mesh, materials, distribution.whole_mixed, system=system, **options)
+        self.whole = EnrichedClosure2D(problem.mesh, materials, distribution.whole_mixed,
+                                       system=interface_system(distribution), **options)
         # what the serial closure reads of a step: the serial mesh's corners, the walls and
         # pistons in serial node numbers, and the layout (gathered at each solve)
         self.whole_step = SimpleNamespace(corners=problem.mesh.corners, layout=None,

@@ -23,7 +23,7 @@ from __future__ import annotations
 import numpy as np
 
 import dolfinx_solver  # noqa: F401  (before dolfinx: it loads MPI and PETSc)
-import dolfinx
+from ale_xfem.model.mesh import distributed_mesh
 from forms.enriched_interface import InterfaceSystem, unit_mean_normals
 
 
@@ -32,25 +32,9 @@ def band_mesh(comm, mesh, cells, owner):
     by the rank ``owner`` gives it (``owner``: each of ``mesh``'s cells' rank), without
     ghost cells: (the mesh, the serial number of each of its geometry nodes, of each of its
     cells)."""
-    size, rank = comm.size, comm.rank
-    mine = cells[owner[cells] == rank]
-    topology = np.asarray(mesh.geometry.dofmaps[0], dtype=np.int64)[mine]
-    gdim = mesh.geometry.dim
-    x = mesh.geometry.x
-    # every rank hands a block of the serial nodes (their input numbers the serial ones)
-    first, last = x.shape[0] * rank // size, x.shape[0] * (rank + 1) // size
-
-    def kept_here(partition_comm, parts, cell_types, cell_lists):
-        count = sum(np.asarray(c).size for c in cell_lists) // topology.shape[1]
-        destinations = dolfinx.graph.adjacencylist(np.full(count, partition_comm.rank, dtype=np.int32))
-        return getattr(destinations, "_cpp_object", destinations)
-
-    band = dolfinx.mesh.create_mesh(comm, topology, mesh.ufl_domain(), x[first:last, :gdim], kept_here)
-    held = band.topology.index_map(band.topology.dim).size_local
-    offset = comm.exscan(mine.size) or 0
-    cell_number = mine[np.asarray(band.topology.original_cell_index[:held], dtype=np.int64) - offset]
-    node_number = np.asarray(band.geometry.input_global_indices, dtype=np.int64)
-    return band, node_number, cell_number
+    mine = cells[owner[cells] == comm.rank]
+    return distributed_mesh(comm, mine, np.asarray(mesh.geometry.dofmaps[0])[mine],
+                            mesh.geometry.x[:, :mesh.geometry.dim], mesh.ufl_domain(), keep=True)
 
 
 class DistributedInterfaceSystem:
