@@ -39,18 +39,22 @@ def limited_slopes(value, inverse_spacing, bounded, width, same_material):  # pr
     slope = np.zeros(n)
     if n < 3:
         return slope
-    for j in range(1, n - 1):
-        if not (same_material[j - 1] and same_material[j]):
-            continue
-        left = (value[j] - value[j - 1]) * inverse_spacing[j - 1]
-        right = (value[j + 1] - value[j]) * inverse_spacing[j]
-        if bounded:
+    # (two loops without a branch, which vectorise: a slope across Γ is formed and dropped)
+    if bounded:
+        for j in range(1, n - 1):
+            left = (value[j] - value[j - 1]) * inverse_spacing[j - 1]
+            right = (value[j + 1] - value[j]) * inverse_spacing[j]
             bound = abs(value[j]) * (2.0 / width[j])
             low = minimum(maximum(right, -bound), 0.0)
             high = minimum(maximum(right, 0.0), bound)
-            slope[j] = minimum(maximum(left, low), high)
-        else:
-            slope[j] = minmod(left, right)
+            limited = minimum(maximum(left, low), high)
+            slope[j] = limited if same_material[j - 1] & same_material[j] else 0.0
+    else:
+        for j in range(1, n - 1):
+            left = (value[j] - value[j - 1]) * inverse_spacing[j - 1]
+            right = (value[j + 1] - value[j]) * inverse_spacing[j]
+            limited = minmod(left, right)
+            slope[j] = limited if same_material[j - 1] & same_material[j] else 0.0
     return slope
 
 
@@ -106,52 +110,63 @@ def pure_cells(x, X, mass, specific_energy, corner, u, order, slots, heat):  # p
     srho, seps = piece_slopes(centre, width, rho, eps, order, np.ones(max(n - 1, 0), dtype=np.bool_))
 
     # nodes 1 … n − 1 move by d; those moving by more than half a neighbouring cell are
-    # redone in windows by the caller
+    # redone in windows by the caller.  (Every loop below is written without a branch or a
+    # running reduction, the ends taken apart, so that the compiler vectorises it: the
+    # selects read both candidates, the formulas are those of the numpy code, in its order.)
     inner = max(n - 1, 0)
     d, half_d = np.empty(inner), np.empty(inner)
-    largest, smallest = 0.0, 0.0
+    any_far = False
     for k in range(inner):
         d[k] = X[k + 1] - x[k + 1]
         half_d[k] = 0.5 * d[k]
-        largest = maximum(largest, half_d[k])
-        smallest = minimum(smallest, half_d[k])
-    narrowest = np.inf
-    for j in range(n):
-        narrowest = minimum(narrowest, width[j])
+        # |d| > w/2 for the narrower neighbour: the numpy code first compared the largest
+        # |d|/2 with a quarter of the narrowest cell, which finds a far node exactly when one is
+        any_far |= abs(d[k]) > 0.5 * minimum(width[k], width[k + 1])
     far = np.empty(inner, dtype=np.int64)
     far_count = 0
-    if maximum(largest, -smallest) > 0.25 * narrowest:
+    if any_far:
         for k in range(inner):
             if abs(d[k]) > 0.5 * minimum(width[k], width[k + 1]):
                 far[far_count] = k + 1
                 far_count += 1
 
-    # cell fluxes through the nodes, from each node's donor cell
+    # cell fluxes through the nodes, from each node's donor cell (the right one when d > 0)
     flux_mass, flux_energy = np.empty(inner), np.empty(inner)
     for k in range(inner):
         right_donor = d[k] > 0.0
-        donor = k + 1 if right_donor else k
         offset = half_d[k] + x[k + 1]
-        offset -= centre[donor]  # x_k + d/2 − c_D
+        offset -= centre[k + 1] if right_donor else centre[k]  # x_k + d/2 − c_D
         minus_d = -d[k]
-        flux = srho[donor] * offset
-        flux += rho[donor]
+        flux = (srho[k + 1] if right_donor else srho[k]) * offset
+        flux += rho[k + 1] if right_donor else rho[k]
         flux_mass[k] = flux * minus_d
-        flux = seps[donor] * offset
-        flux += eps[donor]
+        flux = (seps[k + 1] if right_donor else seps[k]) * offset
+        flux += eps[k + 1] if right_donor else eps[k]
         flux_energy[k] = flux * minus_d
     new_mass, new_energy = np.zeros((slots, n)), np.zeros((slots, n))
-    for j in range(n):
-        m, e = mass[j], energy[j]
-        if j > 0:
-            m += flux_mass[j - 1]
-            e += flux_energy[j - 1]
-        if j < n - 1:
-            m -= flux_mass[j]
-            e -= flux_energy[j]
-        new_mass[0, j], new_energy[0, j] = m, e
+    for j in range(n):  # the cell's own mass, what its left node brings, what its right one takes
+        new_mass[0, j], new_energy[0, j] = mass[j], energy[j]
+    if n > 1:
+        new_mass[0, 0] -= flux_mass[0]
+        new_energy[0, 0] -= flux_energy[0]
+        for j in range(1, n - 1):
+            m = mass[j] + flux_mass[j - 1]
+            new_mass[0, j] = m - flux_mass[j]
+            e = energy[j] + flux_energy[j - 1]
+            new_energy[0, j] = e - flux_energy[j]
+        new_mass[0, n - 1] += flux_mass[n - 2]
+        new_energy[0, n - 1] += flux_energy[n - 2]
 
-    # nodal momentum through the dual faces
+    # nodal momentum through the dual faces: cell j's part beside node j moves by the node's
+    # displacement (the mean of its two faces' half displacements), from the side it leaves
+    delta_of = np.empty(n)
+    if n == 1 or inner == 0:
+        delta_of[0] = 0.0
+    else:
+        delta_of[0] = half_d[0]
+        for j in range(1, n - 1):
+            delta_of[j] = half_d[j - 1] + half_d[j]
+        delta_of[n - 1] = half_d[inner - 1]
     swept, moment, from_left = np.empty(n), np.empty(n), np.empty(n, dtype=np.bool_)
     scale_left, scale_right = np.empty(n), np.empty(n)
     for j in range(n):
@@ -162,14 +177,7 @@ def pure_cells(x, X, mass, specific_energy, corner, u, order, slots, heat):  # p
         mass_right = mass[j] - mass_left
         scale_left[j] = corner[0, j] / mass_left
         scale_right[j] = corner[1, j] / mass_right
-        if n == 1 or inner == 0:
-            delta = 0.0
-        elif j == 0:
-            delta = half_d[0]
-        elif j == n - 1:
-            delta = half_d[inner - 1]
-        else:
-            delta = half_d[j - 1] + half_d[j]
+        delta = delta_of[j]
         left = delta < 0.0
         from_left[j] = left
         half_delta = 0.5 * delta
@@ -192,42 +200,41 @@ def pure_cells(x, X, mass, specific_energy, corner, u, order, slots, heat):  # p
         m -= cube
         moment[j] = m * scale
         swept[j] = s * scale
+    # each node's limited velocity slope (zero at the ends), then what each lump carries
+    # from its donor node (node j when it leaves to the left, j + 1 otherwise)
     moved = np.empty((components, n))
+    tau = np.zeros(n + 1)
     for c in range(components):
-        for j in range(n):
-            i = j if from_left[j] else j + 1
-            if order == 2:
-                if i == 0 or i == n:
-                    tau = 0.0
-                else:
-                    tau = minmod((u[c, i] - u[c, i - 1]) / width[i - 1], (u[c, i + 1] - u[c, i]) / width[i])
-                value = tau * moment[j]
-            else:
+        if order == 2:
+            for i in range(1, n):
+                tau[i] = minmod((u[c, i] - u[c, i - 1]) / width[i - 1], (u[c, i + 1] - u[c, i]) / width[i])
+            for j in range(n):
+                value = (tau[j] if from_left[j] else tau[j + 1]) * moment[j]
+                value += (u[c, j] if from_left[j] else u[c, j + 1]) * swept[j]
+                moved[c, j] = value
+        else:
+            for j in range(n):
                 value = 0.0
-            value += u[c, i] * swept[j]
-            moved[c, j] = value
+                value += (u[c, j] if from_left[j] else u[c, j + 1]) * swept[j]
+                moved[c, j] = value
 
     old_node_mass, node_mass = np.empty(n + 1), np.empty(n + 1)
-    for k in range(n + 1):
-        old = corner[0, k] if k < n else 0.0
-        if k > 0:
-            old += corner[1, k - 1]
+    old_node_mass[0] = corner[0, 0]
+    node_mass[0] = old_node_mass[0] - swept[0]
+    for k in range(1, n):
+        old = corner[0, k] + corner[1, k - 1]
         old_node_mass[k] = old
-        new = old
-        if k < n:
-            new -= swept[k]
-        if k > 0:
-            new += swept[k - 1]
-        node_mass[k] = new
+        new = old - swept[k]
+        node_mass[k] = new + swept[k - 1]
+    old_node_mass[n] = 0.0 + corner[1, n - 1]
+    node_mass[n] = old_node_mass[n] + swept[n - 1]
     momentum = np.empty((components, n + 1))
     for c in range(components):
-        for k in range(n + 1):
-            p = u[c, k] * old_node_mass[k]
-            if k < n:
-                p -= moved[c, k]
-            if k > 0:
-                p += moved[c, k - 1]
-            momentum[c, k] = p
+        momentum[c, 0] = u[c, 0] * old_node_mass[0] - moved[c, 0]
+        for k in range(1, n):
+            p = u[c, k] * old_node_mass[k] - moved[c, k]
+            momentum[c, k] = p + moved[c, k - 1]
+        momentum[c, n] = u[c, n] * old_node_mass[n] + moved[c, n - 1]
     # ½ M u², less what is handed over, plus what comes in
     kinetic_start, kinetic = np.empty(n + 1), np.zeros(n + 1)
     for k in range(n + 1):
@@ -243,22 +250,20 @@ def pure_cells(x, X, mass, specific_energy, corner, u, order, slots, heat):  # p
             for c in range(1, components):
                 energy_of_lump += moved[c, j] * moved[c, j]
             energy_of_lump *= 0.5
-            energy_of_lump = energy_of_lump / swept[j] if swept[j] != 0.0 else 0.0
+            quotient = energy_of_lump / swept[j]
+            energy_of_lump = quotient if swept[j] != 0.0 else 0.0
             lump[j] = math.copysign(energy_of_lump, swept[j])
-        for k in range(n + 1):
-            balance = kinetic_start[k]
-            if k < n:
-                balance -= lump[k]
-            if k > 0:
-                balance += lump[k - 1]
-            kinetic[k] = balance
+        kinetic[0] = kinetic_start[0] - lump[0]
+        for k in range(1, n):
+            balance = kinetic_start[k] - lump[k]
+            kinetic[k] = balance + lump[k - 1]
+        kinetic[n] = kinetic_start[n] + lump[n - 1]
 
     # right corner of new cell j: R_j + what the face moved into it − the node's swept mass
     # in the part beside the node
     corner_new = np.zeros((2, n))
-    for j in range(n):
+    for j in range(n - 1):
         right = corner[1, j] + swept[j]
-        if j < n - 1:
-            right -= (scale_left[j + 1] if d[j] > 0.0 else scale_right[j]) * flux_mass[j]
-        corner_new[1, j] = right
+        corner_new[1, j] = right - (scale_left[j + 1] if d[j] > 0.0 else scale_right[j]) * flux_mass[j]
+    corner_new[1, n - 1] = corner[1, n - 1] + swept[n - 1]
     return new_mass, new_energy, corner_new, node_mass, momentum, kinetic_start, kinetic, far[:far_count]
