@@ -526,6 +526,22 @@ def material_node_velocities(cell_nodes, corner_mass, node_mass, owner, momentum
                 total += corner_mass[m, i, c]
                 old += old_corner_mass[m, i, c]
             cell_mass[m, c], old_cell_mass[m, c] = total, old
+    # each cell's mean velocity of the material and the new-mass-weighted mean of its
+    # corners' deviations, the same for its k corners: formed once a cell (formed for each
+    # corner, their divisions took most of the kernel's time)
+    mean_velocity, spread = np.empty((2, 2, n_cells)), np.empty((2, 2, n_cells))
+    share = np.empty(k)
+    for m in range(2):
+        for c in range(n_cells):
+            mass = cell_mass[m, c]
+            for r in range(k):
+                share[r] = corner_mass[m, r, c] / mass if mass > 0 else 0.0
+            for d in range(2):
+                mean_velocity[m, d, c] = momentum[d, m, c] / mass if mass > 0 else 0.0
+                total = share[0] * deviation[m, d, 0, c]
+                for r in range(1, k):
+                    total = total + share[r] * deviation[m, d, r, c]
+                spread[m, d, c] = total
     velocity = np.zeros((2, 2, n_nodes))
     node_momentum = np.empty(n_nodes)
     for m in range(2):
@@ -533,13 +549,7 @@ def material_node_velocities(cell_nodes, corner_mass, node_mass, owner, momentum
             node_momentum[:] = 0.0
             for i in range(k):
                 for c in range(n_cells):
-                    mass = cell_mass[m, c]
-                    mean = momentum[d, m, c] / mass if mass > 0 else 0.0
-                    spread = 0.0
-                    for r in range(k):
-                        share = corner_mass[m, r, c] / mass if mass > 0 else 0.0
-                        spread = share * deviation[m, d, r, c] if r == 0 else spread + share * deviation[m, d, r, c]
-                    corner_velocity = mean + deviation[m, d, i, c] - spread
+                    corner_velocity = mean_velocity[m, d, c] + deviation[m, d, i, c] - spread[m, d, c]
                     node_momentum[cell_nodes[c, i]] += corner_mass[m, i, c] * corner_velocity
             for node in range(n_nodes):
                 if node_mass[m, node] > 0:
