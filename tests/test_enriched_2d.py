@@ -384,6 +384,56 @@ def test_the_compiled_node_materials_give_the_numpy_bits(cell):
         assert np.any(two) and np.any(~two) and len(np.unique(owner)) == n_materials
 
 
+def _enriched_geometry_of(case):
+    """enriched_geometry of an InterfaceCase's state: each material's areas and masses."""
+    from ale_xfem.mixed.cut_cells_2d import enriched_geometry
+    from ale_xfem.studies.interface import DENSITY
+
+    mesh, mixed = case.mesh, case.mixed
+    area = mesh.cell_volumes(mesh.node_position)
+    volume = np.zeros((2, mesh.n_cells))
+    for m in range(2):
+        volume[m, case.cell_material == m] = area[case.cell_material == m]
+        volume[m, mixed] = case.cut.volume[m]
+    mass = np.stack([DENSITY[m] * volume[m] for m in range(2)])
+    return enriched_geometry(mesh, mesh.node_position, volume, mass, mixed), mass
+
+
+@pytest.mark.parametrize("cell", ["triangle", "quadrilateral"])
+def test_the_enriched_geometry_of_a_kinked_and_a_diagonal_interface(cell):
+    """enriched_geometry (what the step and the remap hand each material's momentum to the
+    nodes with) on an interface along mesh edges left of (½, ½) and through cells right of
+    it: each material's nodal masses and the nodes carrying them as the study's case builds
+    them apart from it (ale_xfem.studies.interface), the pure cells' corner masses m_K/k and
+    the mixed cells' condensed ones; the nodes with pure cells of both materials are tied,
+    and where Γ runs along mesh edges into them they do not slide (their two velocities are
+    one).  On a line through mesh nodes across the cells' diagonals, Γ reaches its tied
+    nodes through cut cells only: they slide (only their normal velocities are tied)."""
+    case = InterfaceCase(12, "kink", cell=cell)
+    geometry, mass = _enriched_geometry_of(case)
+    mesh, x, mixed = case.mesh, case.mesh.node_position, case.mixed
+    np.testing.assert_allclose(geometry.node_mass, case.node_mass, rtol=1e-13, atol=1e-16)
+    np.testing.assert_array_equal(geometry.internal, case.internal)
+    np.testing.assert_array_equal(geometry.tied, case.tied)
+    k = mesh.cell_nodes.shape[1]
+    for m in range(2):
+        pure = case.cell_material == m
+        np.testing.assert_array_equal(geometry.corner_mass[m][:, pure],
+                                      np.broadcast_to(mass[m, pure] / k, (k, np.count_nonzero(pure))))
+        np.testing.assert_allclose(geometry.corner_mass[m][:, mixed], case.condensed[m].T, rtol=1e-13, atol=1e-16)
+    along = (np.abs(x[1] - 0.5) < 1e-12) & (x[0] < 0.5 + 1e-12)  # Γ on mesh edges
+    assert np.count_nonzero(along) == 7 and np.array_equal(geometry.tied, along)
+    assert not geometry.sliding.any()
+
+    diagonal = InterfaceCase(12, "line", offset=np.sqrt(0.5), angle=np.pi / 4, cell=cell)  # x + y = 1
+    geometry, _ = _enriched_geometry_of(diagonal)
+    x = diagonal.mesh.node_position
+    on_line = (np.abs(x[0] + x[1] - 1.0) < 1e-12) & (np.minimum(x[0], x[1]) > 1e-12)
+    assert np.count_nonzero(on_line) == 11
+    np.testing.assert_array_equal(geometry.tied, on_line)
+    np.testing.assert_array_equal(geometry.sliding, on_line)
+
+
 @pytest.mark.parametrize("stabilisation", ["none", "bubble"])
 def test_resolving_with_new_compliances_equals_assembling_them(stabilisation):
     """InterfaceSystem.resolve (the corrector's later iterations) changes only the pressure

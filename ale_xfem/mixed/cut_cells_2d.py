@@ -375,25 +375,29 @@ def enriched_geometry(mesh, position, volume, mass, cells) -> EnrichedGeometry:
     owner, tied = node_materials(cell_nodes, n_nodes, cell_material, slot_volume, slots)
     condensed, internal_in_cell = condensed_masses(cut, cell_nodes, owner, mass[:, cells],
                                                    np.stack([alpha, 1 - alpha]))
-    corner_mass = np.zeros((2, k, n_cells))
-    internal = np.zeros((2, n_nodes), dtype=bool)
-    for m in range(2):
-        pure = cell_material == m
-        corner_mass[m][:, pure] = mass[m, pure] / k
-        corner_mass[m][:, cells] = condensed[m].T
-        internal[m, cell_nodes[pure].ravel()] = True
-        internal[m, cell_nodes[cells][internal_in_cell[m]]] = True
-    node_mass = _node_sums(cell_nodes, corner_mass, n_nodes)
+    corner_mass, internal, node_mass = _material_corner_masses(
+        np.ascontiguousarray(cell_nodes, dtype=np.int64), cell_material, mass, cells, condensed, internal_in_cell,
+        n_nodes)
     # a tied node slides (its normal parts tied only, under free slip) unless Γ reaches it
     # along a mesh edge between pure cells of the two materials (a kink: forms/enriched_interface.py)
-    a, b, plus, minus = _edges(cell_nodes)
-    inner = minus >= 0
-    left, right = cell_material[plus[inner]], cell_material[np.maximum(minus[inner], 0)]
-    along = (left >= 0) & (right >= 0) & (left != right)
-    on_edge = np.zeros(n_nodes, dtype=bool)
-    on_edge[a[inner][along]] = True
-    on_edge[b[inner][along]] = True
+    on_edge = _on_material_edges(*_edges(cell_nodes), cell_material, n_nodes)
     return EnrichedGeometry(cut, owner, tied, tied & ~on_edge, corner_mass, node_mass, internal)
+
+
+@numba.njit(cache=True)
+def _on_material_edges(a, b, plus, minus, cell_material, n_nodes):  # pragma: no cover (compiled)
+    """(n_nodes,) bool: the ends of the inner mesh edges (a → b between cells ``plus`` and
+    ``minus``, −1 on the boundary) that join pure cells of two materials (``cell_material``,
+    −1 for mixed cells)."""
+    on_edge = np.zeros(n_nodes, dtype=np.bool_)
+    for e in range(a.size):
+        if minus[e] < 0:
+            continue
+        left, right = cell_material[plus[e]], cell_material[minus[e]]
+        if left >= 0 and right >= 0 and left != right:
+            on_edge[a[e]] = True
+            on_edge[b[e]] = True
+    return on_edge
 
 
 def material_geometry(mesh, position, volume, mass, cells):
@@ -411,6 +415,37 @@ def material_geometry(mesh, position, volume, mass, cells):
     corner_mass = np.repeat(mass[:, None, :] / k, k, axis=1)
     node_mass = _node_sums(mesh.cell_nodes, corner_mass, position.shape[1])
     return corner_mass, node_mass, np.argmax(node_mass, axis=0), node_mass > 0.0
+
+
+@numba.njit(cache=True)
+def _material_corner_masses(cell_nodes, cell_material, mass, cells, condensed, internal_in_cell,
+                            n_nodes):  # pragma: no cover (compiled)
+    """Each material's corner masses (2, k, n_cells): a pure cell's m_K/k at each corner,
+    a mixed cell's ``condensed`` ones (2, n, k); which nodes carry each material's mass (2,
+    n_nodes: the nodes of its pure cells, and its internal nodes of the mixed cells,
+    ``internal_in_cell`` (2, n, k)); and the nodal masses (2, n_nodes), summed corner by
+    corner, each over the cells in order (:func:`_node_sums`' order)."""
+    n_cells, k = cell_nodes.shape
+    corner_mass = np.zeros((2, k, n_cells))
+    internal = np.zeros((2, n_nodes), dtype=np.bool_)
+    node_mass = np.zeros((2, n_nodes))
+    for m in range(2):
+        for c in range(n_cells):
+            if cell_material[c] == m:
+                share = mass[m, c] / k
+                for i in range(k):
+                    corner_mass[m, i, c] = share
+                    internal[m, cell_nodes[c, i]] = True
+        for j in range(cells.size):
+            c = cells[j]
+            for i in range(k):
+                corner_mass[m, i, c] = condensed[m, j, i]
+                if internal_in_cell[m, j, i]:
+                    internal[m, cell_nodes[c, i]] = True
+        for i in range(k):
+            for c in range(n_cells):
+                node_mass[m, cell_nodes[c, i]] += corner_mass[m, i, c]
+    return corner_mass, internal, node_mass
 
 
 def _node_sums(cell_nodes, corner_mass, n_nodes):
