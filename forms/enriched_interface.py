@@ -65,7 +65,7 @@ import dolfinx
 import numpy as np
 import ufl
 
-from forms.bound_system import BoundSystem, every_rank
+from forms.bound_system import BoundSystem, FormBinder, every_rank
 from forms.cut_quadrature import RULES, CutQuadrature, bilinear_map
 
 STABILISATIONS = ("none", "bubble", "nitsche")
@@ -315,9 +315,7 @@ class InterfaceSystem:
         self.ubar = [dolfinx.fem.Function(V1) for _ in range(2)]
         work_map = dict(coefficient_map)
         work_map.update({forms.work_coefficients[f"ubar_{side}"]: self.ubar[m] for m, side in enumerate("ab")})
-        self._work_maps = [{coefficient: function for coefficient, function in work_map.items()
-                            if coefficient in compiled.ufl_form.coefficients()} for compiled in forms.work]
-        self._DG0 = DG0
+        self._work_binders = [FormBinder(compiled, [DG0], self.submesh, work_map) for compiled in forms.work]
         self.work_forms = []
         # MUMPS: it pivots where the multiplier rows have no diagonal (PETSc's own LU does not);
         # the forms are symmetric (tests/test_enriched_2d.py checks it), so LDLᵀ; the matrix's
@@ -380,8 +378,7 @@ class InterfaceSystem:
         self.active, self.input_index = sub[order], order
         subdomains = self._subdomains(self.active)
         self.system.integrate_over(subdomains)
-        self.work_forms = [dolfinx.fem.create_form(compiled, [self._DG0], self.submesh, subdomains, used, {})
-                           for compiled, used in zip(self.forms.work, self._work_maps)]
+        self.work_forms = [binder.over(subdomains) for binder in self._work_binders]
         self._active_parent = self.velocity_parent[np.unique(self._velocity_cells[self.active])]
         self._vertex_permutation = None
         self._unknowns = None

@@ -384,6 +384,36 @@ def test_the_compiled_node_materials_give_the_numpy_bits(cell):
         assert np.any(two) and np.any(~two) and len(np.unique(owner)) == n_materials
 
 
+def test_a_form_binder_makes_create_forms_forms_and_names_a_missing_coefficient():
+    """forms.bound_system.FormBinder: the compiled form over chosen cells assembles to what
+    dolfinx.fem.create_form's does (the same C++ form, the coefficients looked up once), for
+    one set of cells after another; a coefficient the map lacks is named."""
+    import dolfinx.fem.petsc
+    import ufl
+    from mpi4py import MPI
+
+    from forms.bound_system import FormBinder
+
+    mesh = dolfinx.mesh.create_unit_square(MPI.COMM_WORLD, 6, 6)
+    space = dolfinx.fem.functionspace(mesh, ("Lagrange", 1))
+    weight = dolfinx.fem.Function(space)
+    weight.interpolate(lambda x: 1.0 + x[0] * x[1])
+    u, v = ufl.TrialFunction(space), ufl.TestFunction(space)
+    compiled = dolfinx.fem.compile_form(MPI.COMM_WORLD, weight * u * v * ufl.dx(domain=mesh, subdomain_id=3))
+    binder = FormBinder(compiled, [space, space], mesh, {weight: weight})
+    rng = np.random.default_rng(3)
+    for count in (5, 40):
+        cells = np.sort(rng.choice(mesh.topology.index_map(2).size_local, count, replace=False)).astype(np.int32)
+        subdomains = {dolfinx.fem.IntegralType.cell: [(3, cells)]}
+        want = dolfinx.fem.assemble_matrix(dolfinx.fem.create_form(compiled, [space, space], mesh, subdomains,
+                                                                   {weight: weight}, {})).to_dense()
+        have = dolfinx.fem.assemble_matrix(binder.over(subdomains)).to_dense()
+        assert np.abs(want).max() > 0.0
+        np.testing.assert_array_equal(have, want)
+    with pytest.raises(RuntimeError, match="missing coefficient"):
+        FormBinder(compiled, [space, space], mesh, {})
+
+
 def _enriched_geometry_of(case):
     """enriched_geometry of an InterfaceCase's state: each material's areas and masses."""
     from ale_xfem.mixed.cut_cells_2d import enriched_geometry
