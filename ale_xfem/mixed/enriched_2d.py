@@ -239,9 +239,10 @@ class EnrichedClosure2D(SharedClosure):
         # up until the time step collapsed (the spinning disk on 20² triangles: 483 steps to
         # t = 1 instead of 171).
         heat = 0.5 * dt * system.dissipated_work(out["velocity"]).sum(axis=0)
+        mean_velocity = np.empty_like(velocity)  # ū_m in the mesh's numbering
         for m in range(2):
-            mean = out["velocity"][m][:, self.dolfinx_node]  # ū_m in the mesh's numbering
-            heat -= 0.5 * dt * self._moved_work(transfers[m], nodes, mean)
+            mean_velocity[m] = out["velocity"][m][:, self.dolfinx_node]
+            heat -= 0.5 * dt * self._moved_work(transfers[m], nodes, mean_velocity[m])
         cell_mass = mass[:, cells].sum(axis=0)
         heat = np.stack([heat * mass[m, cells] / cell_mass for m in range(2)])
         out["heat"] = heat
@@ -253,9 +254,6 @@ class EnrichedClosure2D(SharedClosure):
         # material each node lies in
         sub = self.node_of_dolfinx[system.nodes]
         new_velocity = velocity.copy()
-        mean_velocity = np.empty_like(velocity)
-        for m in range(2):
-            mean_velocity[m] = out["velocity"][m][:, self.dolfinx_node]
         self._keep_momentum(step, mean_velocity, velocity, node_mass, sub, internal_force, dt)
         for m in range(2):
             new_velocity[m][:, sub] = 2.0 * mean_velocity[m][:, sub] - velocity[m][:, sub]
