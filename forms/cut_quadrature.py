@@ -52,6 +52,15 @@ RULES = {"interval": (4, 2), "triangle": (4, 2), "quadrilateral": (6, 3)}
 # quadrilateral it is smooth, and degree 10 reproduces a degree-30 brute force to 1e-13
 POLYGON_RULE = {"triangle": 2, "quadrilateral": 10}
 SEGMENT_POINTS = 12  # Gauss–Legendre points along an interface segment
+
+
+def _segment_rule():
+    """The Gauss–Legendre rule of SEGMENT_POINTS points on [0, 1]: (positions, weights)."""
+    t, w = np.polynomial.legendre.leggauss(SEGMENT_POINTS)
+    return 0.5 * (t + 1.0), 0.5 * w
+
+
+SEGMENT_RULE = _segment_rule()  # made once: the same at every step
 NEWTON_STEPS = 30  # at most, for the inverse bilinear map
 NEWTON_TOLERANCE = 1e-12  # a step below this (ξ is of order one) leaves an error of order its square
 
@@ -151,8 +160,7 @@ class CutQuadrature:
             moments = np.stack([xi ** a for (a,) in self.exponents], axis=1)
             self._fill(np.zeros(0, dtype=np.int64), cut_cells, moments, with_jacobian=True, record=False)
             return
-        t, w = np.polynomial.legendre.leggauss(SEGMENT_POINTS)
-        t, w = 0.5 * (t + 1.0), 0.5 * w
+        t, w = SEGMENT_RULE
         start, end = np.asarray(start, dtype=float), np.asarray(end, dtype=float)
         points = start[:, None, :] + t[None, :, None] * (end - start)[:, None, :]  # (n, k, 2)
         length = np.linalg.norm(end - start, axis=1)
