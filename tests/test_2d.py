@@ -516,6 +516,30 @@ def test_the_compiled_node_averaged_gradient_gives_the_numpy_bits(mesh_name):
     assert got.shape == (3, mesh.n_cells, 2)
 
 
+@pytest.mark.parametrize("mesh_name", MESHES)
+def test_the_compiled_node_averaged_gradient_in_some_cells_gives_the_numpy_bits(mesh_name):
+    """The node-averaged gradient in some cells only (Youngs' normals of the mixed cells),
+    compiled, against the numpy code it replaced (tests/oracles.py): the same bits, for
+    scattered cells and a band of neighbours (their nodes' sums shared), smooth,
+    piecewise-constant and linear fields (exact for a linear one); and equal to the whole
+    mesh's gradient in those cells."""
+    from oracles import node_averaged_gradient_of_cells as numpy_gradient
+
+    from ale_xfem.model.mesh import node_averaged_gradient
+
+    mesh = MESHES[mesh_name]()
+    rng = np.random.default_rng(37)
+    x = mesh.node_position + rng.uniform(-0.01, 0.01, mesh.node_position.shape)
+    centre = mesh.cell_centroids(x)
+    values = np.stack([np.sin(3 * centre[:, 0]) * np.cos(2 * centre[:, 1]), (centre[:, 0] > 0.5) * 1.0,
+                       2.0 * centre[:, 0] - 3.0 * centre[:, 1]])
+    for cells in (np.sort(rng.choice(mesh.n_cells, 7, replace=False)), np.flatnonzero(np.abs(centre[:, 0] - 0.5) < 0.1)):
+        got, expected = node_averaged_gradient(mesh, x, values, cells), numpy_gradient(mesh, x, values, cells)
+        np.testing.assert_array_equal(got.view(np.uint64), expected.view(np.uint64))
+        assert got.shape == (3, cells.size, 2)
+        np.testing.assert_allclose(got, node_averaged_gradient(mesh, x, values)[:, cells], rtol=1e-12, atol=1e-12)
+
+
 @pytest.mark.parametrize("k", [3, 4])
 def test_the_compiled_plic_cut_gives_the_numpy_cuts_bits(k):
     """PLIC's cut offsets, compiled cell by cell (geometry.polygon_kernels.cut_offsets),

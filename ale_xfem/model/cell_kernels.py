@@ -202,6 +202,53 @@ def node_averaged_gradients(cell_type, x, cell_nodes, values, gradient, area, sh
 
 
 @numba.njit(**LOOP)
+def node_averaged_gradients_of(cell_type, x, cell_nodes, around, cells, values, gradient, area, weight,
+                               nodal):  # pragma: no cover (compiled)
+    """``gradient`` (m, len(cells), 2): :func:`node_averaged_gradients` in ``cells`` only,
+    the nodes' averages summed over the cells ``around`` them (every cell sharing a node
+    with them) — what ale_xfem.model.mesh.node_averaged_gradient computed for them in numpy,
+    in its order of operations: the sums corner by corner, each over ``around`` in order
+    (np.bincount's), started at zero.  Scratch: ``area`` (len(around),), ``weight``,
+    ``nodal`` (n_nodes,) each."""
+    k = cell_nodes.shape[1]
+    at = (False, (0, 0, 0, 0))  # the nodes read through cell_nodes (node_access's form)
+    for j in range(around.size):
+        area[j], _ = cell_shape(cell_type, x, cell_nodes, at, around[j], False)
+    weight[:] = 0.0
+    for i in range(k):
+        for j in range(around.size):
+            weight[cell_nodes[around[j], i]] += area[j]
+    for node_index in range(weight.size):
+        if weight[node_index] == 0.0:  # nodes of no cell around: not read
+            weight[node_index] = 1.0
+    for f in range(values.shape[0]):
+        nodal[:] = 0.0
+        for i in range(k):
+            for j in range(around.size):
+                nodal[cell_nodes[around[j], i]] += values[f, around[j]] * area[j]
+        for j in range(cells.size):
+            c = cells[j]
+            here, s = cell_shape(cell_type, x, cell_nodes, at, c, False)
+            if cell_type == QUADRILATERAL:  # g_0 (v̄_0 − v̄_2) + g_1 (v̄_1 − v̄_3)
+                across02 = nodal[cell_nodes[c, 0]] / weight[cell_nodes[c, 0]]
+                across02 = across02 - nodal[cell_nodes[c, 2]] / weight[cell_nodes[c, 2]]
+                across13 = nodal[cell_nodes[c, 1]] / weight[cell_nodes[c, 1]]
+                across13 = across13 - nodal[cell_nodes[c, 3]] / weight[cell_nodes[c, 3]]
+                px, py, rx, ry = s[0], s[1], s[2], s[3]
+                gx = 0.5 * ry * across02 + -0.5 * py * across13
+                gy = -0.5 * rx * across02 + 0.5 * px * across13
+            else:
+                gx = 0.0
+                gy = 0.0
+                for i in range(k):
+                    v = nodal[cell_nodes[c, i]] / weight[cell_nodes[c, i]]
+                    gx += v * s[2 * i]
+                    gy += v * s[2 * i + 1]
+            gradient[f, j, 0] = gx / here
+            gradient[f, j, 1] = gy / here
+
+
+@numba.njit(**LOOP)
 def store_shape(cell_type, s, hourglass, shape, k):  # pragma: no cover (compiled)
     """A cell's shape (:func:`cell_shape`) into shape[:, :, k] (quadrilaterals' h only with
     ``hourglass``; intervals have none)."""

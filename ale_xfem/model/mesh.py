@@ -204,7 +204,7 @@ def node_averaged_gradient(mesh, node_position, values, cells=None, around=None)
     slopes).  ``values`` (n_cells,) or (m, n_cells) → gradients (…, n, 2), the geometry done
     once.  Every cell: a compiled loop (cell_kernels.node_averaged_gradients).  With
     ``cells``, only the cells around their nodes are read (``around``: those cells,
-    cells_around(mesh, cells), when known)."""
+    cells_around(mesh, cells), when known; cell_kernels.node_averaged_gradients_of)."""
     if mesh.cell_type.name not in ("triangle", "quadrilateral"):
         raise ValueError(f"node_averaged_gradient: a 2D mesh, not {mesh.cell_type.name}s")
     values = np.asarray(values)
@@ -216,26 +216,13 @@ def node_averaged_gradient(mesh, node_position, values, cells=None, around=None)
                                              fields, grad, np.empty(mesh.n_cells), np.empty((6, mesh.n_cells)),
                                              *(np.empty(mesh.n_nodes) for _ in range(3)), mesh.distinct_corners)
         return grad.reshape(values.shape[:-1] + grad.shape[1:])
-    k = mesh.cell_type.nodes_per_cell
-    around = cells_around(mesh, cells) if around is None else around
-    index = np.ascontiguousarray(mesh.cell_nodes[around].T).ravel()  # corner by corner
-    area = mesh.cell_geometry(node_position, around)[0]
-    weight = np.bincount(index, np.tile(area, k), mesh.n_nodes)
-    weight[weight == 0.0] = 1.0  # nodes of no cell around: not read
-    nodes = mesh.cell_nodes[cells]
-    area_here, gradient = mesh.cell_geometry(node_position, cells)
-    grad = np.empty((fields.shape[0], nodes.shape[0], 2))
-    for f, field in enumerate(fields):
-        nodal = np.bincount(index, np.tile(field[around] * area, k), mesh.n_nodes) / weight
-        corner_values = [nodal[nodes[:, i]] for i in range(k)]
-        if isinstance(gradient, QuadGradient):  # Σ_i v̄_i g_i = g_0 (v̄_0 − v̄_2) + g_1 (v̄_1 − v̄_3)
-            across02, across13 = corner_values[0] - corner_values[2], corner_values[1] - corner_values[3]
-            (g0x, g0y), (g1x, g1y) = gradient.independent
-            gx, gy = g0x * across02 + g1x * across13, g0y * across02 + g1y * across13
-        else:
-            gx = sum(v * g[0] for v, g in zip(corner_values, gradient))
-            gy = sum(v * g[1] for v, g in zip(corner_values, gradient))
-        grad[f, :, 0], grad[f, :, 1] = gx / area_here, gy / area_here
+    around = np.asarray(cells_around(mesh, cells) if around is None else around, dtype=np.int64)
+    cells = np.asarray(cells, dtype=np.int64)
+    grad = np.empty((fields.shape[0], cells.size, 2))
+    cell_kernels.node_averaged_gradients_of(cell_kernels.CELL_TYPE_CODES[mesh.cell_type.name],
+                                            np.ascontiguousarray(node_position, dtype=float), mesh.compiled_cell_nodes,
+                                            around, cells, fields, grad, np.empty(around.size),
+                                            np.empty(mesh.n_nodes), np.empty(mesh.n_nodes))
     return grad.reshape(values.shape[:-1] + grad.shape[1:])
 
 
