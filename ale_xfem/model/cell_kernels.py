@@ -184,21 +184,29 @@ def node_averaged_gradients(cell_type, x, cell_nodes, values, gradient, area, sh
         for node_index in range(nodal.size):
             nodal[node_index] /= weight[node_index]
         for c in range(n_cells):
-            if cell_type == QUADRILATERAL:  # g_0 (v̄_0 − v̄_2) + g_1 (v̄_1 − v̄_3)
-                across02 = nodal[cell_nodes[c, 0]] - nodal[cell_nodes[c, 2]]
-                across13 = nodal[cell_nodes[c, 1]] - nodal[cell_nodes[c, 3]]
-                px, py, rx, ry = shape[0, c], shape[1, c], shape[2, c], shape[3, c]
-                gx = 0.5 * ry * across02 + -0.5 * py * across13
-                gy = -0.5 * rx * across02 + 0.5 * px * across13
-            else:
-                gx = 0.0
-                gy = 0.0
-                for i in range(k):
-                    v = nodal[cell_nodes[c, i]]
-                    gx += v * shape[2 * i, c]
-                    gy += v * shape[2 * i + 1, c]
-            gradient[f, c, 0] = gx / area[c]
-            gradient[f, c, 1] = gy / area[c]
+            gradient[f, c, 0], gradient[f, c, 1] = averaged_gradient(
+                cell_type, cell_nodes, c, nodal, area[c],
+                (shape[0, c], shape[1, c], shape[2, c], shape[3, c], shape[4, c], shape[5, c]))
+
+
+@numba.njit(**LOOP)
+def averaged_gradient(cell_type, cell_nodes, c, nodal, area, s):  # pragma: no cover (compiled)
+    """∇v_K = (1/A_K) Σ_i v̄_i ∂A_K/∂x_i of cell c (area, shape ``s``: :func:`cell_shape`)
+    from its nodes' values ``nodal``: a quadrilateral's g_0 (v̄_0 − v̄_2) + g_1 (v̄_1 − v̄_3)."""
+    if cell_type == QUADRILATERAL:
+        across02 = nodal[cell_nodes[c, 0]] - nodal[cell_nodes[c, 2]]
+        across13 = nodal[cell_nodes[c, 1]] - nodal[cell_nodes[c, 3]]
+        px, py, rx, ry = s[0], s[1], s[2], s[3]
+        gx = 0.5 * ry * across02 + -0.5 * py * across13
+        gy = -0.5 * rx * across02 + 0.5 * px * across13
+    else:
+        gx = 0.0
+        gy = 0.0
+        for i in range(cell_nodes.shape[1]):
+            v = nodal[cell_nodes[c, i]]
+            gx += v * s[2 * i]
+            gy += v * s[2 * i + 1]
+    return gx / area, gy / area
 
 
 @numba.njit(**LOOP)
@@ -226,26 +234,11 @@ def node_averaged_gradients_of(cell_type, x, cell_nodes, around, cells, values, 
         for i in range(k):
             for j in range(around.size):
                 nodal[cell_nodes[around[j], i]] += values[f, around[j]] * area[j]
+        for node_index in range(nodal.size):
+            nodal[node_index] /= weight[node_index]
         for j in range(cells.size):
-            c = cells[j]
-            here, s = cell_shape(cell_type, x, cell_nodes, at, c, False)
-            if cell_type == QUADRILATERAL:  # g_0 (v̄_0 − v̄_2) + g_1 (v̄_1 − v̄_3)
-                across02 = nodal[cell_nodes[c, 0]] / weight[cell_nodes[c, 0]]
-                across02 = across02 - nodal[cell_nodes[c, 2]] / weight[cell_nodes[c, 2]]
-                across13 = nodal[cell_nodes[c, 1]] / weight[cell_nodes[c, 1]]
-                across13 = across13 - nodal[cell_nodes[c, 3]] / weight[cell_nodes[c, 3]]
-                px, py, rx, ry = s[0], s[1], s[2], s[3]
-                gx = 0.5 * ry * across02 + -0.5 * py * across13
-                gy = -0.5 * rx * across02 + 0.5 * px * across13
-            else:
-                gx = 0.0
-                gy = 0.0
-                for i in range(k):
-                    v = nodal[cell_nodes[c, i]] / weight[cell_nodes[c, i]]
-                    gx += v * s[2 * i]
-                    gy += v * s[2 * i + 1]
-            gradient[f, j, 0] = gx / here
-            gradient[f, j, 1] = gy / here
+            here, s = cell_shape(cell_type, x, cell_nodes, at, cells[j], False)
+            gradient[f, j, 0], gradient[f, j, 1] = averaged_gradient(cell_type, cell_nodes, cells[j], nodal, here, s)
 
 
 @numba.njit(**LOOP)
