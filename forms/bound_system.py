@@ -79,6 +79,8 @@ class FormBinder:
                 raise RuntimeError(f"FormBinder: missing coefficient {coefficient}")
             self._coefficients[f"w{c}"] = coefficient_map[coefficient]._cpp_object
         constants = ufl.algorithms.analysis.extract_constants(compiled.ufl_form)
+        if ufcx.num_constants != len(constants):
+            raise RuntimeError(f"FormBinder: {ufcx.num_constants} constants compiled, {len(constants)} in the form")
         constant_map = constant_map or {}
         if any(constant not in constant_map for constant in constants):
             raise RuntimeError(f"FormBinder: missing constants of {constants}")

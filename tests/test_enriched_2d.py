@@ -386,8 +386,9 @@ def test_the_compiled_node_materials_give_the_numpy_bits(cell):
 
 def test_a_form_binder_makes_create_forms_forms_and_names_a_missing_coefficient():
     """forms.bound_system.FormBinder: the compiled form over chosen cells assembles to what
-    dolfinx.fem.create_form's does (the same C++ form, the coefficients looked up once), for
-    one set of cells after another; a coefficient the map lacks is named."""
+    dolfinx.fem.create_form's does (the same C++ form, the coefficients and constants looked
+    up once), for one set of cells after another, two subdomains given out of order; a
+    coefficient or constant the maps lack is named."""
     import dolfinx.fem.petsc
     import ufl
     from mpi4py import MPI
@@ -399,19 +400,23 @@ def test_a_form_binder_makes_create_forms_forms_and_names_a_missing_coefficient(
     weight = dolfinx.fem.Function(space)
     weight.interpolate(lambda x: 1.0 + x[0] * x[1])
     u, v = ufl.TrialFunction(space), ufl.TestFunction(space)
-    compiled = dolfinx.fem.compile_form(MPI.COMM_WORLD, weight * u * v * ufl.dx(domain=mesh, subdomain_id=3))
-    binder = FormBinder(compiled, [space, space], mesh, {weight: weight})
+    scale = dolfinx.fem.Constant(mesh, 2.5)
+    dx = ufl.dx(domain=mesh)
+    compiled = dolfinx.fem.compile_form(MPI.COMM_WORLD, weight * u * v * dx(3) + scale * u.dx(0) * v.dx(0) * dx(5))
+    binder = FormBinder(compiled, [space, space], mesh, {weight: weight}, {scale: scale})
     rng = np.random.default_rng(3)
     for count in (5, 40):
         cells = np.sort(rng.choice(mesh.topology.index_map(2).size_local, count, replace=False)).astype(np.int32)
-        subdomains = {dolfinx.fem.IntegralType.cell: [(3, cells)]}
+        subdomains = {dolfinx.fem.IntegralType.cell: [(5, cells[::2].copy()), (3, cells)]}  # ids out of order
         want = dolfinx.fem.assemble_matrix(dolfinx.fem.create_form(compiled, [space, space], mesh, subdomains,
-                                                                   {weight: weight}, {})).to_dense()
+                                                                   {weight: weight}, {scale: scale})).to_dense()
         have = dolfinx.fem.assemble_matrix(binder.over(subdomains)).to_dense()
         assert np.abs(want).max() > 0.0
         np.testing.assert_array_equal(have, want)
     with pytest.raises(RuntimeError, match="missing coefficient"):
-        FormBinder(compiled, [space, space], mesh, {})
+        FormBinder(compiled, [space, space], mesh, {}, {scale: scale})
+    with pytest.raises(RuntimeError, match="missing constants"):
+        FormBinder(compiled, [space, space], mesh, {weight: weight})
 
 
 def _enriched_geometry_of(case):

@@ -403,6 +403,37 @@ def test_the_compiled_swept_kernel_gives_the_numpy_kernels_bits(order, component
                 np.testing.assert_array_equal(got[7], expected[7], err_msg=f"far nodes, {label}")
 
 
+def test_the_compiled_swept_kernel_finds_the_numpy_kernels_far_nodes_at_the_edges_of_the_numbers():
+    """Which nodes moved too far for the swept kernel (redone in windows by the caller), on
+    inputs at the edges of the floating-point numbers: a NaN position elsewhere in the mesh
+    (the numpy kernel then looks at no node), nodes on a mesh of subnormal widths (half a
+    displacement rounds to zero there); and a mesh of no cells is refused, not read out of
+    bounds."""
+    from oracles import pure_kernel
+
+    from ale_xfem.remap.swept_kernels import pure_cells
+
+    n = 5
+    x = np.linspace(0.0, 1.0, n + 1)
+    mass, energy, corner, u = np.full(n, 0.2), np.full(n, 2.0), np.full((2, n), 0.1), np.zeros((1, n + 1))
+    far = x.copy()
+    far[3] += 0.9 * 0.2  # most of a cell: a far node
+    nan = far.copy()
+    nan[1] = np.nan
+    tiny = 5e-324 * np.arange(3.0)
+    tiny_target = tiny.copy()
+    tiny_target[1] = tiny[2]
+    cases = [(x, far, mass, energy, corner, u), (x, nan, mass, energy, corner, u),
+             (tiny, tiny_target, np.ones(2), np.ones(2), np.full((2, 2), 0.5), np.zeros((1, 3)))]
+    with np.errstate(all="ignore"):
+        for i, args in enumerate(cases):
+            np.testing.assert_array_equal(pure_cells(*args, 2, 1, True)[7], pure_kernel(*args, 2, 1, True)[7],
+                                          err_msg=f"case {i}")
+    assert pure_cells(*cases[0], 2, 1, True)[7].tolist() == [3]
+    with pytest.raises(ValueError, match="no cells"):
+        pure_cells(np.zeros(1), np.zeros(1), np.zeros(0), np.zeros(0), np.zeros((2, 0)), np.zeros((1, 1)), 2, 1, True)
+
+
 @pytest.mark.parametrize("order", [1, 2])
 def test_the_compiled_piece_slopes_give_the_numpy_slopes_bits(order):
     """The limited slopes both 1D remaps use (compiled) against their numpy original

@@ -88,6 +88,19 @@ def piece_slopes(centre, width, density, energy_density, order, same_material): 
 
 
 @numba.njit(**KERNEL)
+def far_nodes_looked_for(half_d, width):  # pragma: no cover (compiled)
+    """Whether the largest |d|/2 of the nodes' displacements exceeds a quarter of the
+    narrowest cell (False with a NaN in either)."""
+    largest, smallest, narrowest = 0.0, 0.0, np.inf
+    for k in range(half_d.size):
+        largest = maximum(largest, half_d[k])
+        smallest = minimum(smallest, half_d[k])
+    for j in range(width.size):
+        narrowest = minimum(narrowest, width[j])
+    return maximum(largest, -smallest) > 0.25 * narrowest
+
+
+@numba.njit(**KERNEL)
 def pure_cells(x, X, mass, specific_energy, corner, u, order, slots, heat):  # pragma: no cover (compiled)
     """The swept-region remap of a mesh's cells as if all were pure cells of one material
     (swept_1d's whole-mesh pass; its docstring gives the formulas).  Returns (new masses
@@ -96,6 +109,8 @@ def pure_cells(x, X, mass, specific_energy, corner, u, order, slots, heat):  # p
     kinetic-energy balance (``heat``; else zeros), the nodes that moved by more than half a
     neighbouring cell)."""
     n = mass.size
+    if n == 0:
+        raise ValueError("pure_cells: a mesh of no cells")
     components = u.shape[0]
     width, half_width, centre = np.empty(n), np.empty(n), np.empty(n)
     energy, rho, eps = np.empty(n), np.empty(n), np.empty(n)
@@ -119,12 +134,14 @@ def pure_cells(x, X, mass, specific_energy, corner, u, order, slots, heat):  # p
     for k in range(inner):
         d[k] = X[k + 1] - x[k + 1]
         half_d[k] = 0.5 * d[k]
-        # |d| > w/2 for the narrower neighbour: the numpy code first compared the largest
-        # |d|/2 with a quarter of the narrowest cell, which finds a far node exactly when one is
         any_far |= abs(d[k]) > 0.5 * minimum(width[k], width[k + 1])
+    # as the numpy code: the nodes are looked at one by one only when the largest |d|/2
+    # exceeds a quarter of the narrowest cell (never with a NaN anywhere); a far node is one
+    # the look would find, so without any the look is skipped (the running reductions of the
+    # test took a fifth of the kernel's time)
     far = np.empty(inner, dtype=np.int64)
     far_count = 0
-    if any_far:
+    if any_far and far_nodes_looked_for(half_d, width):
         for k in range(inner):
             if abs(d[k]) > 0.5 * minimum(width[k], width[k + 1]):
                 far[far_count] = k + 1
