@@ -424,11 +424,10 @@ def _material_corner_masses(cell_nodes, cell_material, mass, cells, condensed, i
     a mixed cell's ``condensed`` ones (2, n, k); which nodes carry each material's mass (2,
     n_nodes: the nodes of its pure cells, and its internal nodes of the mixed cells,
     ``internal_in_cell`` (2, n, k)); and the nodal masses (2, n_nodes), summed corner by
-    corner, each over the cells in order (:func:`_node_sums`' order)."""
+    corner, each over the cells in order (:func:`_corner_sums`)."""
     n_cells, k = cell_nodes.shape
     corner_mass = np.zeros((2, k, n_cells))
     internal = np.zeros((2, n_nodes), dtype=np.bool_)
-    node_mass = np.zeros((2, n_nodes))
     for m in range(2):
         for c in range(n_cells):
             if cell_material[c] == m:
@@ -442,16 +441,26 @@ def _material_corner_masses(cell_nodes, cell_material, mass, cells, condensed, i
                 corner_mass[m, i, c] = condensed[m, j, i]
                 if internal_in_cell[m, j, i]:
                     internal[m, cell_nodes[c, i]] = True
+    return corner_mass, internal, _corner_sums(cell_nodes, corner_mass, n_nodes)
+
+
+@numba.njit(cache=True)
+def _corner_sums(cell_nodes, corner_mass, n_nodes):  # pragma: no cover (compiled)
+    """(2, n_nodes): each material's corner masses (2, k, n_cells) summed onto the nodes,
+    corner by corner, each over the cells in order (np.bincount's order over the corners)."""
+    n_cells, k = cell_nodes.shape
+    node_mass = np.zeros((2, n_nodes))
+    for m in range(2):
         for i in range(k):
             for c in range(n_cells):
                 node_mass[m, cell_nodes[c, i]] += corner_mass[m, i, c]
-    return corner_mass, internal, node_mass
+    return node_mass
 
 
 def _node_sums(cell_nodes, corner_mass, n_nodes):
     """(2, n_nodes): each material's corner masses (2, k, n_cells) summed onto the nodes."""
-    flat = cell_nodes.T.ravel()
-    return np.stack([np.bincount(flat, corner_mass[m].ravel(), n_nodes) for m in range(2)])
+    return _corner_sums(np.ascontiguousarray(cell_nodes, dtype=np.int64), np.ascontiguousarray(corner_mass),
+                        n_nodes)
 
 
 _edges = PerMesh(mesh_edges)  # mesh_edges of a mesh's cell_nodes

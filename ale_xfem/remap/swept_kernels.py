@@ -125,9 +125,10 @@ def pure_cells(x, X, mass, specific_energy, corner, u, order, slots, heat):  # p
     srho, seps = piece_slopes(centre, width, rho, eps, order, np.ones(max(n - 1, 0), dtype=np.bool_))
 
     # nodes 1 … n − 1 move by d; those moving by more than half a neighbouring cell are
-    # redone in windows by the caller.  (Every loop below is written without a branch or a
-    # running reduction, the ends taken apart, so that the compiler vectorises it: the
-    # selects read both candidates, the formulas are those of the numpy code, in its order.)
+    # redone in windows by the caller.  (The loops over the cells and nodes below are written
+    # without a branch or a running reduction, the ends taken apart, so that the compiler
+    # vectorises them: the selects read both candidates, the formulas are those of the numpy
+    # code, in its order.)
     inner = max(n - 1, 0)
     d, half_d = np.empty(inner), np.empty(inner)
     any_far = False
