@@ -495,6 +495,17 @@ def test_plic_of_a_disk_matches_its_area_and_circumference(cell_type):
     assert all(abs(L / (2 * np.pi * 0.3) - 1) < 0.015 for L in lengths), lengths
 
 
+def _gradient_case(mesh_name, rng):
+    """(mesh, its nodes moved a little, the cells' centroids, three cell fields: smooth,
+    piecewise-constant, linear) for the node-averaged gradient's tests."""
+    mesh = MESHES[mesh_name]()
+    x = mesh.node_position + rng.uniform(-0.01, 0.01, mesh.node_position.shape)
+    centre = mesh.cell_centroids(x)
+    values = np.stack([np.sin(3 * centre[:, 0]) * np.cos(2 * centre[:, 1]), (centre[:, 0] > 0.5) * 1.0,
+                       2.0 * centre[:, 0] - 3.0 * centre[:, 1]])
+    return mesh, x, centre, values
+
+
 @pytest.mark.parametrize("mesh_name", MESHES)
 def test_the_compiled_node_averaged_gradient_gives_the_numpy_bits(mesh_name):
     """The node-averaged gradient over the whole mesh, compiled (the remap's slopes), against
@@ -505,12 +516,8 @@ def test_the_compiled_node_averaged_gradient_gives_the_numpy_bits(mesh_name):
 
     from ale_xfem.model.mesh import node_averaged_gradient
 
-    mesh = MESHES[mesh_name]()
     rng = np.random.default_rng(31)
-    x = mesh.node_position + rng.uniform(-0.01, 0.01, mesh.node_position.shape)
-    centre = mesh.cell_centroids(x)
-    values = np.stack([np.sin(3 * centre[:, 0]) * np.cos(2 * centre[:, 1]), (centre[:, 0] > 0.5) * 1.0,
-                       2.0 * centre[:, 0] - 3.0 * centre[:, 1]])
+    mesh, x, centre, values = _gradient_case(mesh_name, rng)
     got, expected = node_averaged_gradient(mesh, x, values), numpy_gradient(mesh, x, values)
     np.testing.assert_array_equal(got.view(np.uint64), expected.view(np.uint64))
     assert got.shape == (3, mesh.n_cells, 2)
@@ -527,12 +534,8 @@ def test_the_compiled_node_averaged_gradient_in_some_cells_gives_the_numpy_bits(
 
     from ale_xfem.model.mesh import node_averaged_gradient
 
-    mesh = MESHES[mesh_name]()
     rng = np.random.default_rng(37)
-    x = mesh.node_position + rng.uniform(-0.01, 0.01, mesh.node_position.shape)
-    centre = mesh.cell_centroids(x)
-    values = np.stack([np.sin(3 * centre[:, 0]) * np.cos(2 * centre[:, 1]), (centre[:, 0] > 0.5) * 1.0,
-                       2.0 * centre[:, 0] - 3.0 * centre[:, 1]])
+    mesh, x, centre, values = _gradient_case(mesh_name, rng)
     for cells in (np.sort(rng.choice(mesh.n_cells, 7, replace=False)), np.flatnonzero(np.abs(centre[:, 0] - 0.5) < 0.1)):
         got, expected = node_averaged_gradient(mesh, x, values, cells), numpy_gradient(mesh, x, values, cells)
         np.testing.assert_array_equal(got.view(np.uint64), expected.view(np.uint64))
