@@ -24,7 +24,7 @@ import numpy as np
 
 from ale_xfem.eos.kernels import BODY, LOOP, STIFFENED_GAS, pressure_sound_speed
 from ale_xfem.model.cell_kernels import (INTERVAL, QUADRILATERAL, TRIANGLE, geometry_of_cell, load_shape, nan_max,
-                                         nan_min, node, node_access, quad_combinations, store_shape)
+                                         nan_min, node, node_access, quad_corner_values, store_shape)
 
 # how corner values are summed onto the nodes (ExplicitWilkins.scatter_mode)
 RUNS, PER_CORNER, FLAT = 0, 1, 2
@@ -58,11 +58,18 @@ def volume_rate(cell_type, s, cell_nodes, at, k, u, combos):  # pragma: no cover
         total += s[4] * u[0, a]
         total += s[5] * u[1, a]
         return total
+    return quad_volume_rate(s, combos[0, 0, k], combos[0, 1, k], combos[1, 0, k], combos[1, 1, k])
+
+
+@numba.njit(**LOOP)
+def quad_volume_rate(s, across02_x, across02_y, across13_x, across13_y):  # pragma: no cover (compiled)
+    """dA/dt = g_0·(u_0 − u_2) + g_1·(u_1 − u_3) of a quadrilateral, shape ``s``, from its
+    velocity's corner combinations."""
     g0x, g0y, g1x, g1y = quad_gradient(s)
-    total = g0x * combos[0, 0, k]
-    total += g0y * combos[0, 1, k]
-    total += g1x * combos[1, 0, k]
-    total += g1y * combos[1, 1, k]
+    total = g0x * across02_x
+    total += g0y * across02_y
+    total += g1x * across13_x
+    total += g1y * across13_y
     return total
 
 
@@ -148,10 +155,19 @@ def corner_forces_cell(cell_type, s, stress, hourglass, s0, s1, qx, qy, k, rows)
 @numba.njit(**LOOP)
 def hourglass_work(s0, s1, q, k, combos_sum):  # pragma: no cover (compiled)
     """Σ_i f_i·(u^n + u)_i = Q·Σ_i γ_i (u^n + u)_i of quadrilateral k."""
-    gamma_x = combos_sum[2, 0, k] - s0[k] * combos_sum[0, 0, k] - s1[k] * combos_sum[1, 0, k]
-    gamma_y = combos_sum[2, 1, k] - s0[k] * combos_sum[0, 1, k] - s1[k] * combos_sum[1, 1, k]
-    total = q[0, k] * gamma_x
-    total += q[1, k] * gamma_y
+    return quad_hourglass_work(s0[k], s1[k], q[0, k], q[1, k], combos_sum[0, 0, k], combos_sum[0, 1, k],
+                               combos_sum[1, 0, k], combos_sum[1, 1, k], combos_sum[2, 0, k], combos_sum[2, 1, k])
+
+
+@numba.njit(**LOOP)
+def quad_hourglass_work(s0, s1, qx, qy, across02_x, across02_y, across13_x, across13_y, hourglass_x,
+                        hourglass_y):  # pragma: no cover (compiled)
+    """Q·Σ_i γ_i v_i of a quadrilateral (s_0, s_1, Q of :func:`hourglass_cell`) from a
+    velocity's corner combinations."""
+    gamma_x = hourglass_x - s0 * across02_x - s1 * across13_x
+    gamma_y = hourglass_y - s0 * across02_y - s1 * across13_y
+    total = qx * gamma_x
+    total += qy * gamma_y
     return total
 
 
@@ -609,6 +625,48 @@ def compatible_energy(cell_type, cell_nodes, runs, energy, mass, dt, shape_a, st
                            stress_b, two, hourglass, s0, s1, q, velocity_sum, combos_sum, out)
 
 
+@numba.njit(**BODY)
+def _quad_combinations_and_energy(cell_nodes, u, combos0, combos, energy, mass, dt, shape_a, stress_a, shape_b,
+                                  stress_b, two, hourglass, s0, s1, q, out):  # pragma: no cover (compiled)
+    at = (False, (0, 0, 0, 0))  # the nodes read through cell_nodes (node_access's form)
+    for k in range(energy.size):
+        ax, bx, hx = quad_corner_values(u, cell_nodes, at, k, 0, True)
+        ay, by, hy = quad_corner_values(u, cell_nodes, at, k, 1, True)
+        combos[0, 0, k], combos[1, 0, k], combos[2, 0, k] = ax, bx, hx
+        combos[0, 1, k], combos[1, 1, k], combos[2, 1, k] = ay, by, hy
+        # (u^n + u)'s combinations, kept in registers
+        ax, ay, bx, by = combos0[0, 0, k] + ax, combos0[0, 1, k] + ay, combos0[1, 0, k] + bx, combos0[1, 1, k] + by
+        hx, hy = combos0[2, 0, k] + hx, combos0[2, 1, k] + hy
+        rate = quad_volume_rate(load_shape(QUADRILATERAL, shape_a, k), ax, ay, bx, by)
+        extra = quad_hourglass_work(s0[k], s1[k], q[0, k], q[1, k], ax, ay, bx, by, hx, hy) if hourglass else 0.0
+        work = rate * stress_a[k]
+        if hourglass:
+            work += extra
+        if two:
+            term = quad_volume_rate(load_shape(QUADRILATERAL, shape_b, k), ax, ay, bx, by) * stress_b[k]
+            if hourglass:
+                term += extra
+            work += term
+        out[k] = energy_after(energy[k], mass[k], dt, work, two)
+
+
+@numba.njit(**LOOP)
+def quad_combinations_and_energy(cell_nodes, u, combos0, combos, energy, mass, dt, shape_a, stress_a, shape_b,
+                                 stress_b, two, hourglass, s0, s1, q, out):  # pragma: no cover (compiled)
+    """A stage's velocity combinations and compatible energy update of quadrilaterals in one
+    loop: :func:`ale_xfem.model.cell_kernels.quad_combinations` of the new velocity u into
+    ``combos``, then :func:`compatible_energy` with the combinations of u^n + u (``combos0``:
+    u^n's) formed in registers, not stored — the same numbers, without the two passes that
+    stored and read back u^n + u's combinations (six numbers a cell).  The cells' evaluation
+    stays a loop of its own: fused into this one it took the same time."""
+    if two:
+        _quad_combinations_and_energy(cell_nodes, u, combos0, combos, energy, mass, dt, shape_a, stress_a, shape_b,
+                                      stress_b, True, hourglass, s0, s1, q, out)
+    else:
+        _quad_combinations_and_energy(cell_nodes, u, combos0, combos, energy, mass, dt, shape_a, stress_a, shape_b,
+                                      stress_b, False, hourglass, s0, s1, q, out)
+
+
 @numba.njit(**LOOP)
 def least(values):  # pragma: no cover (compiled)
     """The least of ``values`` (NaN if any is; +∞ if empty), in four interleaved running
@@ -757,13 +815,11 @@ def _stage(cell_type, mesh, boundaries, eos, cell_material, viscosity_law, hourg
     hold(u, *boundaries, False)
     velocity_sum_and_position(u0, u, x0, dt, velocity_sum, x)
     if cell_type == QUADRILATERAL:
-        quad_combinations(u, cell_nodes, runs, True, combos)
-        for c in range(3):
-            for d in range(combos.shape[1]):
-                for k in range(combos.shape[2]):
-                    combos_sum[c, d, k] = combos0[c, d, k] + combos[c, d, k]
-    compatible_energy(cell_type, cell_nodes, runs, energy, mass, dt, shape0, stress0, other[7], other[15], corrector,
-                      hourglass, s0, s1, q, velocity_sum, combos_sum, e)
+        quad_combinations_and_energy(cell_nodes, u, combos0, combos, energy, mass, dt, shape0, stress0, other[7],
+                                     other[15], corrector, hourglass, s0, s1, q, e)
+    else:
+        compatible_energy(cell_type, cell_nodes, runs, energy, mass, dt, shape0, stress0, other[7], other[15],
+                          corrector, hourglass, s0, s1, q, velocity_sum, combos_sum, e)
     if evaluate:
         evaluate_stage(cell_type, mesh, eos, cell_material, viscosity_law, hourglass_coefficient, mass, hourglass,
                        state, hourglass_state, corrector, lean)
