@@ -1501,3 +1501,74 @@ def test_single_velocity_mixed_cells_hand_a_spinning_disks_angular_momentum_to_t
         errors.append(result.errors["L1_velocity"])
     assert min(gained) > 0.15 and abs(gained[1] - gained[0]) < 0.05
     assert errors[1] < 0.8 * errors[0]
+
+
+def _quadrilateral_stage_case():
+    """A 2D Sod tube on 12 × 10 quadrilaterals, its nodes and velocities perturbed (every
+    cell a different shape, with an hourglass mode), its start evaluated: the stepper, the
+    state, the evaluation, and a perturbed velocity field u for a stage."""
+    problem = build_problem(load_scene(resolve_scene_path("sod-2d"), ["mesh.cells=[12,10]"]))
+    rng = np.random.default_rng(11)
+    state = problem.state
+    x = state.node_position + rng.uniform(-0.02, 0.02, state.node_position.shape) / 12
+    state = state.evolved(node_position=x, node_velocity=rng.uniform(-0.3, 0.3, state.node_velocity.shape))
+    stepper = make_stepper(problem)
+    return stepper, state, stepper.evaluate_state(state), state.node_velocity + rng.uniform(-0.1, 0.1, x.shape)
+
+
+@pytest.mark.parametrize("corrector", [False, True])
+def test_one_gas_quadrilaterals_evaluated_in_two_loops_give_the_one_loops_bits(corrector):
+    """The quadrilaterals of one stiffened gas are evaluated in two loops (the geometry,
+    then each cell's state: kernels.evaluate_one_gas_quadrilaterals); the general loop,
+    which chooses each cell's equation of state, gives the same bits: a predicted state
+    (the start's hourglass forces) and a final one (its own, with the tangle check and
+    CFL lengths)."""
+    from ale_xfem.lagrange import kernels
+
+    stepper, state, evaluation, _ = _quadrilateral_stage_case()
+    kinds, parameters = stepper.eos_tables
+    assert kernels.one_gas_model(stepper.eos_tables) == kernels.STIFFENED_GAS
+    n = stepper.mesh.n_cells
+    outputs = []
+    for tables in ((kinds, parameters), (np.repeat(kinds, 2), np.repeat(parameters, 2, axis=0))):  # one gas; any
+        # (what an evaluation does not write stays NaN in both)
+        out = (np.full(n, np.nan), np.full((3, 2, n), np.nan), np.full(n if corrector else 0, np.nan),
+               np.full(n if corrector else 0, np.nan), *(np.full(n, np.nan) for _ in range(6)))
+        computed = (np.full(n, np.nan), np.full(n, np.nan), np.full((2, n), np.nan))
+        hourglass = (True, True, stepper.hourglass, *computed) if corrector else (
+            True, False, stepper.hourglass, *evaluation.hourglass_force)
+        rows = np.full((2, 4, n), np.nan)
+        kernels.evaluate_pure(stepper.cell_code, state.node_position, state.node_velocity, evaluation.corner_velocity,
+                              stepper.cell_nodes, stepper.runs, corrector, corrector, tables,
+                              stepper.pure_layout.cell_material[0], state.material_mass[0], state.material_energy[0],
+                              stepper.viscosity_law, hourglass, out, rows, True)
+        outputs.append([*out, rows, *(computed if corrector else ())])
+    assert np.abs(outputs[0][-1 if corrector else -2]).max() > 0  # hourglass (or corner) forces act
+    for one_gas, any_gas in zip(*outputs):
+        assert one_gas.tobytes() == any_gas.tobytes()
+
+
+@pytest.mark.parametrize("corrector", [False, True])
+def test_a_stages_velocity_combinations_and_energy_in_one_loop_give_the_separate_loops_bits(corrector):
+    """kernels.quad_combinations_and_energy forms u^n + u's corner combinations in
+    registers: its energies and combinations are those of quad_combinations, their sum
+    stored, and compatible_energy (the predictor's one evaluation, the corrector's two)."""
+    from ale_xfem.lagrange import kernels
+    from ale_xfem.model.cell_kernels import QUADRILATERAL, quad_combinations
+
+    stepper, state, start, u = _quadrilateral_stage_case()
+    other = stepper.evaluate(state.node_position + 0.1 * u / 12, u, state.material_mass, state.material_energy)
+    n, dt = stepper.mesh.n_cells, 1e-3
+    energy, mass = state.material_energy[0], state.material_mass[0]
+    combos, combos_sum, separate = np.empty((3, 2, n)), np.empty((3, 2, n)), np.empty(n)
+    quad_combinations(u, stepper.cell_nodes, stepper.runs, True, combos)
+    np.add(start.corner_velocity, combos, out=combos_sum)
+    kernels.compatible_energy(QUADRILATERAL, stepper.cell_nodes, stepper.runs, energy, mass, dt, start.shape,
+                              start.stress, other.shape, other.stress, corrector, True, *start.hourglass_force,
+                              state.node_velocity + u, combos_sum, separate)
+    one_loop_combos, one_loop = np.empty((3, 2, n)), np.empty(n)
+    kernels.quad_combinations_and_energy(stepper.cell_nodes, u, start.corner_velocity, one_loop_combos, energy, mass,
+                                         dt, start.shape, start.stress, other.shape, other.stress, corrector, True,
+                                         *start.hourglass_force, one_loop)
+    assert np.abs(separate - energy).max() > 1e-6 * np.abs(energy).max()  # the work is not nothing
+    assert one_loop.tobytes() == separate.tobytes() and one_loop_combos.tobytes() == combos.tobytes()
