@@ -773,19 +773,29 @@ def _time_limits(running, volume, length, sound_speed, jump, viscous, q_quadrati
             largest = nan_max(abs(acceleration[0, k + offsets[0]]), abs(acceleration[0, k + offsets[1]]))
             acceleration_ratio[k] = length[k] / largest
         return least(sound_times), least(acceleration_ratio)
+    # each node's |a| (2D: its square) once, into the first row (the loops without gathers
+    # vectorise); each cell's largest over its nodes; then L / |a|
+    magnitude = acceleration[0]
+    if dim == 1:
+        for i in range(magnitude.size):
+            magnitude[i] = abs(magnitude[i])
+    else:
+        ay = acceleration[1]
+        for i in range(magnitude.size):
+            square = magnitude[i] * magnitude[i]
+            square += ay[i] * ay[i]
+            magnitude[i] = square
     for k in range(volume.size):
-        largest = 0.0
-        for c in range(cell_nodes.shape[1]):
-            i = node(cell_nodes, at, k, c)
-            if dim == 1:
-                magnitude = abs(acceleration[0, i])
-            else:
-                magnitude = acceleration[0, i] * acceleration[0, i]
-                magnitude += acceleration[1, i] * acceleration[1, i]
-            largest = magnitude if c == 0 else nan_max(largest, magnitude)
-        if dim > 1:
-            largest = np.sqrt(largest)
-        acceleration_ratio[k] = length[k] / largest
+        largest = magnitude[node(cell_nodes, at, k, 0)]
+        for c in range(1, cell_nodes.shape[1]):
+            largest = nan_max(largest, magnitude[node(cell_nodes, at, k, c)])
+        acceleration_ratio[k] = largest
+    if dim == 1:
+        for k in range(volume.size):
+            acceleration_ratio[k] = length[k] / acceleration_ratio[k]
+    else:
+        for k in range(volume.size):
+            acceleration_ratio[k] = length[k] / np.sqrt(acceleration_ratio[k])
     return least(sound_times), least(acceleration_ratio)
 
 
@@ -796,7 +806,9 @@ def time_limits(volume, length, sound_speed, jump, viscous, q_quadratic, q_linea
     """Each cell's time step limits before the CFL number: ``sound_times`` from its signal
     speed (a mixed cell also from the larger sound speed of its materials) and
     ``acceleration_ratio`` L / a, a the largest acceleration of its nodes (``acceleration``
-    (dim, n_nodes), held directions removed).  Returns the least of each (NaN if any is)."""
+    (dim, n_nodes), held directions removed; except on intervals whose corners run on, its
+    first row is left holding each node's |a|, in 2D its square).  Returns the least of
+    each (NaN if any is)."""
     if acceleration.shape[0] == 1 and runs[4] == 1:
         return _time_limits(True, volume, length, sound_speed, jump, viscous, q_quadratic, q_linear, artificial,
                             mixed_cells, mixed_sound_speed, acceleration, cell_nodes, runs, sound_times,
@@ -812,8 +824,8 @@ def stable_time_step(force, inverse_node_mass, boundaries, volume, length, sound
                      ratios):  # pragma: no cover (compiled)
     """The CFL time step of a state (ExplicitWilkins.stable_time_step): cfl × the smaller
     of the least signal-speed limit and √(L / 2a) at the least L / a, a the nodes'
-    accelerations F/M with the held directions removed (written to ``acceleration``);
-    each cell's limits are left in ``sound_times`` and ``ratios``."""
+    accelerations F/M with the held directions removed (``acceleration``: scratch, see
+    :func:`time_limits`); each cell's limits are left in ``sound_times`` and ``ratios``."""
     for d in range(force.shape[0]):
         for i in range(force.shape[1]):
             acceleration[d, i] = force[d, i] * inverse_node_mass[i]
