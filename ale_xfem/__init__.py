@@ -34,8 +34,9 @@ KERNEL_SOURCES = ("ale_xfem/eos/kernels.py", "ale_xfem/model/cell_kernels.py", "
 # needs (ale_xfem.lagrange.kernels.evaluate_one_gas_quadrilaterals, some twenty arrays; such
 # a loop took 0.89 ms at 10⁵ cells as a scalar loop and 0.47 ms vectorised, measured alone;
 # it vectorises from a threshold between 256 and 512).  Vectorising element-wise arithmetic
-# changes no result: without fast-math LLVM neither reassociates nor contracts.  Set before
-# any kernel is compiled, and part of the cache folder's name.
+# changes no result: without fast-math LLVM neither reassociates nor contracts.  The
+# setting is LLVM's, for every numba function the process compiles; it is set before any
+# kernel is compiled, and is part of the cache folder's name.
 LLVM_OPTIONS = ("-runtime-memory-check-threshold=1024", "-vectorize-memory-check-threshold=1024")
 
 

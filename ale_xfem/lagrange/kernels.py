@@ -414,11 +414,12 @@ def evaluate_pure(cell_type, x, u, combos, cell_nodes, runs, hourglass, with_len
     scalar; quadrilaterals of one stiffened gas with hourglass forces are evaluated in two
     loops instead, the second one vectorised (:func:`evaluate_one_gas_quadrilaterals`: at
     10⁵ cells a final state's evaluation and corner sums 1.4 against 1.8 ms, a predicted
-    one's 1.0 against 1.4, timed alone; it costs the first 2D run's compilation about 15 s).  Triangles, several materials and quadrilaterals without hourglass
+    one's 1.0 against 1.4, timed alone; it costs the first 2D run's compilation about 20 s).  Triangles, several materials and quadrilaterals without hourglass
     control keep the one scalar loop.
 
     ``store`` False: density, pressure and viscosity are not stored (a lean evaluation,
-    :func:`pure_steps`); what the step goes on with is.  The one-gas 1D loop has ``store``
+    :func:`pure_steps`; the two loops of one gas's quadrilaterals store them all the same,
+    where their arrays hold every cell); what the step goes on with is.  The one-gas 1D loop has ``store``
     as a constant, so that it vectorises either way.  (Lean always and the three added by a
     second pass when asked cost a step called from Python about 10 %, interleaved A/B at
     10⁵ cells; the two loops cost the first run's compilation a few seconds.)"""
@@ -439,7 +440,11 @@ def evaluate_pure(cell_type, x, u, combos, cell_nodes, runs, hourglass, with_len
     elif cell_type == TRIANGLE:
         _evaluate_pure(TRIANGLE, False, -1, store, x, u, combos, cell_nodes, runs, hourglass, with_length, eos,
                        cell_material, mass, energy, viscosity_law, hourglass_control, out, rows)
-    elif gas and hourglass_control[0]:  # (without hourglass control: the one loop)
+    elif (gas and hourglass_control[0] and (hourglass or not hourglass_control[1])
+          and out[4].size == out[0].size and out[5].size == out[0].size and out[8].size == out[0].size):
+        # (the second loop reads h where it computes the hourglass forces: only where the
+        # geometry stores it; it stores density, pressure and viscosity: only into arrays of
+        # every cell; without hourglass forces: the one loop)
         evaluate_one_gas_quadrilaterals(x, combos, cell_nodes, hourglass, with_length, eos, cell_material, mass,
                                         energy, viscosity_law, hourglass_control, out, rows)
     else:
@@ -890,7 +895,7 @@ def _stage(cell_type, mesh, boundaries, eos, cell_material, viscosity_law, hourg
     corrector) and, ``evaluate``, the forces of the new state (:func:`evaluate_stage`)."""
     cell_nodes, runs, mode, corner_is_run, scratch = mesh
     x0, u0, mass, energy, force0, stress0, shape0, combos0, s0, s1, q, hourglass = start
-    (u, velocity_sum, x, combos, combos_sum, e, volume, shape, least_corner, length, density, pressure,
+    (u, velocity_sum, x, combos, _, e, volume, shape, least_corner, length, density, pressure,
      sound_speed, jump, viscosity, stress, rows, nodal_force) = state
     advance_velocity(u0, force, dt, inverse_node_mass, u)
     hold(u, *boundaries, False)
@@ -900,7 +905,7 @@ def _stage(cell_type, mesh, boundaries, eos, cell_material, viscosity_law, hourg
                                      other[15], corrector, hourglass, s0, s1, q, e)
     else:
         compatible_energy(cell_type, cell_nodes, runs, energy, mass, dt, shape0, stress0, other[7], other[15],
-                          corrector, hourglass, s0, s1, q, velocity_sum, combos_sum, e)
+                          corrector, hourglass, s0, s1, q, velocity_sum, combos, e)  # (combos: empty)
     if evaluate:
         evaluate_stage(cell_type, mesh, eos, cell_material, viscosity_law, hourglass_coefficient, mass, hourglass,
                        state, hourglass_state, corrector, lean)
@@ -920,7 +925,7 @@ def pure_step(cell_type, mesh, boundaries, eos, cell_material, viscosity_law, ho
     ``boundaries``: kernels.hold's arrays; ``start``: (x^n, u^n, m, e^n, F^n, P^n, shape,
     velocity combinations, s_0, s_1, Q, whether hourglass forces act); ``predicted`` and
     ``final``: the arrays each state's evaluation fills — (u, u^n + u, x, velocity
-    combinations, u^n + u combinations, e, volume, shape, least corner, length, density,
+    combinations, an unused slot (an empty array), e, volume, shape, least corner, length, density,
     pressure, sound speed, velocity jump, viscosity, stress, corner forces, nodal forces);
     ``final_hourglass``: (s_0, s_1, Q) of the final state; ``mean_force``: F̄ is written
     there; ``lean``: the evaluations store no density, pressure and viscosity (the step

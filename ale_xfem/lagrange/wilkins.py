@@ -468,8 +468,7 @@ class ExplicitWilkins:
         def cells(rows=None):
             return np.empty(n) if rows is None else np.empty((rows, n))
         return [np.empty_like(u0), np.empty_like(u0), np.empty_like(x0),
-                np.empty((3, u0.shape[0], n)) if quadrilateral else self.no_shape,
-                np.empty((3, u0.shape[0], n)) if quadrilateral else self.no_shape,
+                np.empty((3, u0.shape[0], n)) if quadrilateral else self.no_shape, self.no_shape,
                 cells(1), cells(), self.no_shape if dim == 1 else np.empty((3, 2, n)),
                 cells() if quadrilateral and final else self.no_values,
                 cells() if dim > 1 and final else self.no_values,
@@ -563,7 +562,7 @@ class ExplicitWilkins:
         as_rows = (5, 10, 11, 12)
         evaluation_arrays = [u0, np.empty_like(u0), x0,
                              self.no_shape if evaluation.corner_velocity is None else evaluation.corner_velocity,
-                             np.empty_like(evaluation.corner_velocity) if self.quadrilaterals else self.no_shape,
+                             self.no_shape,
                              state.material_energy[:1], evaluation.volume, evaluation.shape,
                              self.no_values if evaluation.least_corner is None else evaluation.least_corner,
                              evaluation.length if self.mesh.dimension > 1 else self.no_values,
