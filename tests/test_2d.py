@@ -1575,3 +1575,18 @@ def test_a_stages_velocity_combinations_and_energy_in_one_loop_give_the_separate
                                          *start.hourglass_force, one_loop)
     assert np.abs(separate - energy).max() > 1e-6 * np.abs(energy).max()  # the work is not nothing
     assert one_loop.tobytes() == separate.tobytes() and one_loop_combos.tobytes() == combos.tobytes()
+
+
+def test_hourglass_forces_evaluated_without_the_tangle_check_are_those_with_it():
+    """The hourglass forces need the cells' hourglass shape h, which the tangle check also
+    uses: a state evaluated without the check (and no hourglass forces given) still forms
+    h for them, and gets the same forces to the bit (with h left at zero they were the
+    forces of another shape)."""
+    stepper, state, _, _ = _quadrilateral_stage_case()
+    checked, unchecked = (stepper.evaluate(state.node_position, state.node_velocity, state.material_mass,
+                                           state.material_energy, tangle_check=check) for check in (True, False))
+    assert unchecked.least_corner is None and checked.least_corner is not None
+    assert np.abs(checked.hourglass_force[2]).max() > 0
+    for with_check, without in zip((*checked.hourglass_force, checked.corner_force, checked.nodal_force),
+                                   (*unchecked.hourglass_force, unchecked.corner_force, unchecked.nodal_force)):
+        assert with_check.tobytes() == without.tobytes()

@@ -165,8 +165,9 @@ class ExplicitWilkins:
         speed) of a state at these positions, taken instead of evaluated again.
         ``with_length``: also the cells' CFL lengths (not needed of the predicted state);
         ``hourglass``: hourglass forces to use instead of evaluating them;
-        ``tangle_check``: quadrilaterals: form the positions' hourglass shape and each
-        cell's least corner det J (not needed of the predicted state);
+        ``tangle_check``: quadrilaterals: each cell's least corner det J (not needed of
+        the predicted state); the positions' hourglass shape is formed for it and where
+        the hourglass forces are computed;
         ``corner_velocity`` (corner_velocities of node_velocity): already known.
 
         Without mixed cells and with the thermodynamics to evaluate, one compiled loop does
@@ -185,6 +186,8 @@ class ExplicitWilkins:
             corner_velocity = self.corner_velocities(node_velocity)
         combos = self.no_shape if corner_velocity is None else corner_velocity
         compute_hourglass = self.quadrilaterals and self.hourglass > 0.0 and hourglass is None
+        # the hourglass shape h where the tangle check or the hourglass forces need it
+        hourglass_shape = tangle_check or compute_hourglass
         if compute_hourglass:
             hourglass = (np.empty(n), np.empty(n), np.empty((2, n)))
         hourglass_arrays = self.no_hourglass if hourglass is None else hourglass
@@ -210,7 +213,7 @@ class ExplicitWilkins:
                     self.exchange(nodal_force)
                 return ForceEvaluation(volume, shape, density, pressure, sound_speed, viscosity, jump, stress, None,
                                        nodal_force, None, None, volume, hourglass, corner_velocity, least_corner)
-            kernels.evaluate_pure(code, node_position, node_velocity, combos, nodes, runs, tangle_check,
+            kernels.evaluate_pure(code, node_position, node_velocity, combos, nodes, runs, hourglass_shape,
                                   length is not None, self.eos_tables,
                                   self.pure_layout.cell_material[0], mass0[0], energy0[0], self.viscosity_law,
                                   hourglass_control, out, rows, True)
@@ -220,7 +223,7 @@ class ExplicitWilkins:
                 density, pressure, sound_speed = known
             else:
                 density = self.two_slots.take(self.mixed.cells) if slots == 2 else np.empty((1, n))
-            kernels.geometry_and_rates(code, node_position, node_velocity, combos, nodes, runs, tangle_check,
+            kernels.geometry_and_rates(code, node_position, node_velocity, combos, nodes, runs, hourglass_shape,
                                        length is not None, known is None, mass0[0], volume, shape,
                                        self.no_values if least_corner is None else least_corner,
                                        self.no_values if length is None else length, density[0], jump)
