@@ -24,8 +24,8 @@ import numba
 import numpy as np
 
 from ale_xfem.eos.kernels import BODY, LOOP, STIFFENED_GAS, pressure_sound_speed
-from ale_xfem.model.cell_kernels import (INTERVAL, QUADRILATERAL, TRIANGLE, geometry_of_cell, load_shape, nan_max,
-                                         nan_min, node, node_access, quad_corner_values, store_shape)
+from ale_xfem.model.cell_kernels import (INTERVAL, QUADRILATERAL, TRIANGLE, geometry_loop, geometry_of_cell, load_shape,
+                                         nan_max, nan_min, node, node_access, quad_corner_values, store_shape)
 
 # how corner values are summed onto the nodes (ExplicitWilkins.scatter_mode)
 RUNS, PER_CORNER, FLAT = 0, 1, 2
@@ -347,16 +347,6 @@ def cell_state(cell_type, kind, store, k, v, s, rate, combos, eos, cell_material
 
 
 @numba.njit(**BODY)
-def _quad_geometry(x, cell_nodes, hourglass, with_length, volume, shape, least_corner,
-                   length):  # pragma: no cover (compiled)
-    at = (False, (0, 0, 0, 0))  # the nodes read through cell_nodes (node_access's form)
-    for k in range(volume.size):
-        _, s = geometry_of_cell(QUADRILATERAL, x, cell_nodes, at, k, hourglass, volume, least_corner, with_length,
-                                length)
-        store_shape(QUADRILATERAL, s, hourglass, shape, k)
-
-
-@numba.njit(**BODY)
 def _quad_states(hourglass_forces, compute_hourglass, combos, eos, cell_material, mass, energy, viscosity_law,
                  hourglass_control, out, rows):  # pragma: no cover (compiled)
     # entered with both hourglass flags constants (the loop then has no branch and vectorises)
@@ -374,8 +364,8 @@ def _quad_states(hourglass_forces, compute_hourglass, combos, eos, cell_material
 
 
 @numba.njit(**LOOP)
-def evaluate_one_gas_quadrilaterals(x, combos, cell_nodes, hourglass, with_length, eos, cell_material, mass, energy,
-                                    viscosity_law, hourglass_control, out, rows):  # pragma: no cover (compiled)
+def evaluate_one_gas_quadrilaterals(x, combos, cell_nodes, runs, hourglass, with_length, eos, cell_material, mass,
+                                    energy, viscosity_law, hourglass_control, out, rows):  # pragma: no cover (compiled)
     """:func:`evaluate_pure` of quadrilaterals of one stiffened (or ideal) gas, in two loops:
     the geometry, which gathers each cell's nodes (volume, shape, least corner det J and CFL
     length, as asked), then the rest of each cell's state from the stored geometry (density,
@@ -386,7 +376,8 @@ def evaluate_one_gas_quadrilaterals(x, combos, cell_nodes, hourglass, with_lengt
     setting of ale_xfem/__init__.py), where one loop gathering the nodes stays scalar.  The
     same numbers."""
     volume, shape, least_corner, length = out[0], out[1], out[2], out[3]
-    _quad_geometry(x, cell_nodes, hourglass, with_length, volume, shape, least_corner, length)
+    geometry_loop(QUADRILATERAL, False, x, cell_nodes, runs, hourglass, with_length, volume, shape, least_corner,
+                  length)
     if hourglass_control[1]:
         _quad_states(True, True, combos, eos, cell_material, mass, energy, viscosity_law, hourglass_control, out,
                      rows)
@@ -445,8 +436,8 @@ def evaluate_pure(cell_type, x, u, combos, cell_nodes, runs, hourglass, with_len
         # (the second loop reads h where it computes the hourglass forces: only where the
         # geometry stores it; it stores density, pressure and viscosity: only into arrays of
         # every cell; without hourglass forces: the one loop)
-        evaluate_one_gas_quadrilaterals(x, combos, cell_nodes, hourglass, with_length, eos, cell_material, mass,
-                                        energy, viscosity_law, hourglass_control, out, rows)
+        evaluate_one_gas_quadrilaterals(x, combos, cell_nodes, runs, hourglass, with_length, eos, cell_material,
+                                        mass, energy, viscosity_law, hourglass_control, out, rows)
     else:
         _evaluate_pure(QUADRILATERAL, False, -1, store, x, u, combos, cell_nodes, runs, hourglass, with_length, eos,
                        cell_material, mass, energy, viscosity_law, hourglass_control, out, rows)
@@ -664,16 +655,27 @@ def _energy_loop(cell_type, running, cell_nodes, runs, energy, mass, dt, shape_a
             work = rate * (stress_a[k] + stress_b[k]) if two else rate * stress_a[k]
         else:
             extra = hourglass_work(s0, s1, q, k, combos_sum) if hourglass else 0.0
-            work = rate * stress_a[k]
-            if hourglass:
-                work += extra
-            if two:
-                term = volume_rate(cell_type, load_shape(cell_type, shape_b, k), cell_nodes, at, k, velocity_sum,
-                                   combos_sum) * stress_b[k]
-                if hourglass:
-                    term += extra
-                work += term
+            rate_b = volume_rate(cell_type, load_shape(cell_type, shape_b, k), cell_nodes, at, k, velocity_sum,
+                                 combos_sum) if two else 0.0
+            work = compatible_work(rate, rate_b, stress_a[k], stress_b[k], extra, two, hourglass)
         out[k] = energy_after(energy[k], mass[k], dt, work, two)
+
+
+@numba.njit(**LOOP)
+def compatible_work(rate_a, rate_b, stress_a, stress_b, extra, two, hourglass):  # pragma: no cover (compiled)
+    """Σ_i F_Ki·(u^n + u)_i of a 2D cell: its corner forces' P ∂V/∂x_i part is P times the
+    volume rate of u^n + u at that evaluation's shape (``rate_a`` with ``stress_a``; with
+    ``two`` also ``rate_b`` with ``stress_b``, the corrector's second evaluation), and each
+    evaluation's hourglass forces add ``extra`` (:func:`hourglass_work`)."""
+    work = rate_a * stress_a
+    if hourglass:
+        work += extra
+    if two:
+        term = rate_b * stress_b
+        if hourglass:
+            term += extra
+        work += term
+    return work
 
 
 @numba.njit(**LOOP)
@@ -713,15 +715,9 @@ def _quad_combinations_and_energy(cell_nodes, u, combos0, combos, energy, mass, 
         hx, hy = combos0[2, 0, k] + hx, combos0[2, 1, k] + hy
         rate = quad_volume_rate(load_shape(QUADRILATERAL, shape_a, k), ax, ay, bx, by)
         extra = quad_hourglass_work(s0[k], s1[k], q[0, k], q[1, k], ax, ay, bx, by, hx, hy) if hourglass else 0.0
-        work = rate * stress_a[k]
-        if hourglass:
-            work += extra
-        if two:
-            term = quad_volume_rate(load_shape(QUADRILATERAL, shape_b, k), ax, ay, bx, by) * stress_b[k]
-            if hourglass:
-                term += extra
-            work += term
-        out[k] = energy_after(energy[k], mass[k], dt, work, two)
+        rate_b = quad_volume_rate(load_shape(QUADRILATERAL, shape_b, k), ax, ay, bx, by) if two else 0.0
+        out[k] = energy_after(energy[k], mass[k], dt, compatible_work(rate, rate_b, stress_a[k], stress_b[k], extra,
+                                                                      two, hourglass), two)
 
 
 @numba.njit(**LOOP)

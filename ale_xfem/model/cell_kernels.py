@@ -311,11 +311,15 @@ def geometry_of_cell(cell_type, x, cell_nodes, at, k, hourglass, volume, least_c
 
 
 @numba.njit(**BODY)
-def _cell_geometry(cell_type, running, x, cell_nodes, runs, hourglass, volume, shape,
-                   least_corner):  # pragma: no cover
+def geometry_loop(cell_type, running, x, cell_nodes, runs, hourglass, with_length, volume, shape, least_corner,
+                  length):  # pragma: no cover (compiled)
+    """Every cell's :func:`geometry_of_cell` and its shape stored (:func:`store_shape`): the
+    loop of :func:`cell_geometry`, and the geometry loop of the compiled step's
+    quadrilaterals of one gas (with their CFL lengths, ``with_length``)."""
     at = node_access(runs, running)
     for k in range(volume.size):
-        _, s = geometry_of_cell(cell_type, x, cell_nodes, at, k, hourglass, volume, least_corner, False, volume)
+        _, s = geometry_of_cell(cell_type, x, cell_nodes, at, k, hourglass, volume, least_corner, with_length,
+                                length)
         store_shape(cell_type, s, hourglass, shape, k)
 
 
@@ -323,22 +327,22 @@ def _cell_geometry(cell_type, running, x, cell_nodes, runs, hourglass, volume, s
 def interval_geometry(x, cell_nodes, runs, hourglass, volume, shape, least_corner):  # pragma: no cover (compiled)
     """:func:`cell_geometry` of intervals."""
     if runs[4] == 1:
-        _cell_geometry(INTERVAL, True, x, cell_nodes, runs, hourglass, volume, shape, least_corner)
+        geometry_loop(INTERVAL, True, x, cell_nodes, runs, hourglass, False, volume, shape, least_corner, volume)
     else:
-        _cell_geometry(INTERVAL, False, x, cell_nodes, runs, hourglass, volume, shape, least_corner)
+        geometry_loop(INTERVAL, False, x, cell_nodes, runs, hourglass, False, volume, shape, least_corner, volume)
 
 
 @numba.njit(**LOOP)
 def triangle_geometry(x, cell_nodes, runs, hourglass, volume, shape, least_corner):  # pragma: no cover (compiled)
     """:func:`cell_geometry` of triangles."""
-    _cell_geometry(TRIANGLE, False, x, cell_nodes, runs, hourglass, volume, shape, least_corner)
+    geometry_loop(TRIANGLE, False, x, cell_nodes, runs, hourglass, False, volume, shape, least_corner, volume)
 
 
 @numba.njit(**LOOP)
 def quadrilateral_geometry(x, cell_nodes, runs, hourglass, volume, shape,
                            least_corner):  # pragma: no cover (compiled)
     """:func:`cell_geometry` of quadrilaterals."""
-    _cell_geometry(QUADRILATERAL, False, x, cell_nodes, runs, hourglass, volume, shape, least_corner)
+    geometry_loop(QUADRILATERAL, False, x, cell_nodes, runs, hourglass, False, volume, shape, least_corner, volume)
 
 
 _GEOMETRY = {INTERVAL: interval_geometry, TRIANGLE: triangle_geometry, QUADRILATERAL: quadrilateral_geometry}
