@@ -321,6 +321,19 @@ def cell_momentum_2d(mesh, u, old_cell_mass, new_cell_mass, flux_mass, donor, re
     return velocity, node_mass, kinetic_before, loss
 
 
+def deposit_heat_2d(mesh, per_mass, mass, energy):
+    """The kinetic energy the 2D remap lost into the materials' internal energies, one
+    velocity field (ale_xfem.remap.remapper_2d._deposit, before it was compiled into
+    swept_kernels_2d.deposit_heat), in place: each cell's corners' Σ per_mass_i · m_K/k,
+    shared by its materials' masses."""
+    k = mesh.cell_type.nodes_per_cell
+    new_cell_mass = mass.sum(axis=0)
+    gathered = mesh.corners.gather(per_mass[None, :])
+    heat = sum(g[0] for g in gathered) * (new_cell_mass / k)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        energy += heat * np.where(new_cell_mass > 0, mass / np.where(new_cell_mass > 0, new_cell_mass, 1), 0)
+
+
 def cap_outflow(volume, donor, flux_volume):
     """No donor gives more of a material than it holds (ale_xfem.remap.remapper_2d, before
     it was compiled into swept_kernels_2d.cap_outflow), in place."""

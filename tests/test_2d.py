@@ -831,6 +831,30 @@ def test_the_compiled_2d_swept_pass_gives_the_numpy_pass_bits(mesh_name, order):
 
 
 @pytest.mark.parametrize("mesh_name", MESHES)
+def test_the_compiled_heat_deposit_gives_the_numpy_bits(mesh_name):
+    """The kinetic energy the 2D remap lost, returned to the cells' internal energies by
+    corner share and material mass (swept_kernels_2d.deposit_heat), against the numpy code
+    it replaced (tests/oracles.py): the same bits, with cells holding one, two or three
+    materials, a material absent from a cell (zero mass), an empty cell and nodes that
+    lost nothing."""
+    from oracles import deposit_heat_2d
+
+    from ale_xfem.remap import swept_kernels_2d
+
+    mesh = MESHES[mesh_name]()
+    rng = np.random.default_rng(3)
+    mass = rng.uniform(0.5, 2.0, (3, mesh.n_cells)) * (rng.random((3, mesh.n_cells)) < 0.6)
+    mass[:, 0] = 0.0  # an empty cell: its share of the loss is its zero mass's
+    per_mass = rng.uniform(0.0, 1e-3, mesh.n_nodes) * (rng.random(mesh.n_nodes) < 0.7)
+    energy = rng.uniform(0.0, 1e-4, mass.shape) * (mass > 0)  # of the heat's size: its last bits show
+    want, have = energy.copy(), energy.copy()
+    deposit_heat_2d(mesh, per_mass, mass, want)
+    swept_kernels_2d.deposit_heat(mesh.cell_nodes, per_mass, mass, have)
+    assert not np.array_equal(have, energy)
+    np.testing.assert_array_equal(have.view(np.uint64), want.view(np.uint64))
+
+
+@pytest.mark.parametrize("mesh_name", MESHES)
 def test_the_compiled_per_material_momentum_remap_gives_the_numpy_bits(mesh_name):
     """2D enriched cells' momentum remap, each material on its own, compiled
     (swept_kernels_2d.material_momentum_fluxes, material_node_velocities) against the numpy

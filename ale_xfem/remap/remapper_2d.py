@@ -306,7 +306,6 @@ class Remapper2D:
             # gain a little where its neighbours lose (the cells' momentum is shared by
             # corners): only the losses are deposited, scaled to their sum — cold gas must
             # not be cooled below zero by a neighbour's gain.
-            corners, k = self.mesh.corners, self.mesh.cell_type.nodes_per_cell
             loss = losses_only(loss, (total_loss, gains_left_out))
             per_mass = loss / node_mass
             if corner_mass is not None:  # Σ_m Σ_K Σ_k (loss_i / M_i) c_m,K,k is the whole loss
@@ -314,11 +313,7 @@ class Remapper2D:
                 for m in range(corner_mass.shape[0]):
                     energy[m] += np.sum(gathered * corner_mass[m], axis=0)
                 return
-            new_cell_mass = mass.sum(axis=0)
-            gathered = corners.gather(per_mass[None, :])
-            heat = sum(g[0] for g in gathered) * (new_cell_mass / k)
-            with np.errstate(invalid="ignore", divide="ignore"):
-                energy += heat * np.where(new_cell_mass > 0, mass / np.where(new_cell_mass > 0, new_cell_mass, 1), 0)
+            swept_kernels_2d.deposit_heat(self.mesh.cell_nodes, per_mass, mass, energy)
         elif self.heat and total_loss < 0:
             # The momentum remap through the cells is not dissipative node by node, and now and
             # then not overall either: the kinetic energy it made is taken from the internal

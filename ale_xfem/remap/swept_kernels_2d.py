@@ -4,7 +4,8 @@ pure donors give, the mixed donors' regions clipped by their cells and PLIC line
 outflow cap, each material's density and energy density in the donors and the fluxes at
 order 1, the limited linear reconstruction of order 2, the exchange of the fluxes between
 the cells, one velocity field's momentum through the cells or (2D enriched cells) each
-material's, the trace search, and the remapped cells' slots.
+material's, the kinetic energy one velocity field's remap lost returned as heat, the trace
+search, and the remapped cells' slots.
 
 Each loop computes, per edge, per cell or per node, what the numpy code it replaced computed
 over whole arrays, with the same operations in the same order, so the results are the same
@@ -449,6 +450,26 @@ def cell_momentum(u, cell_nodes, old_cell_mass, new_cell_mass, flux_mass, donor,
         kinetic_before[node] = 0.5 * old_node_mass[node] * before
         loss[node] = kinetic_before[node] + kinetic_in[node] - 0.5 * node_mass[node] * after
     return velocity, node_mass, kinetic_before, loss
+
+
+@numba.njit(**KERNEL)
+def deposit_heat(cell_nodes, per_mass, mass, energy):  # pragma: no cover (compiled)
+    """The kinetic energy a remap lost, ``per_mass`` at each node (loss over nodal mass),
+    into the materials' internal energies (n_materials, n_cells), in place: each cell takes
+    its corners' Σ_i per_mass_i · m_K/k, shared by its materials' masses (remapper_2d's
+    ``_deposit``, one velocity field)."""
+    n_materials, n_cells = mass.shape
+    k = cell_nodes.shape[1]
+    for c in range(n_cells):
+        cell_mass = mass[0, c]
+        for m in range(1, n_materials):
+            cell_mass += mass[m, c]
+        total = 0.0
+        for i in range(k):
+            total += per_mass[cell_nodes[c, i]]
+        heat = total * (cell_mass / k)
+        for m in range(n_materials):
+            energy[m, c] += heat * (mass[m, c] / cell_mass if cell_mass > 0 else 0.0)
 
 
 @numba.njit(**KERNEL)
