@@ -457,8 +457,9 @@ def cell_sample_points(cell_name: str, per_side: int):
 def _l1_errors_2d(problem: Problem, state: State) -> dict:
     """Σ_K ∫_K |f_h − f_exact| dA over SUBSAMPLES_PER_SIDE_2D² points per cell: density and
     pressure constant per material part (a mixed cell's parts split by its PLIC segment),
-    velocity (Euclidean norm of the error) bilinear/linear through the nodes; over the
-    reference's window only when it has one."""
+    velocity (Euclidean norm of the error) bilinear/linear through the nodes, and for a
+    planar Riemann problem its components along the normal and along the contact apart;
+    over the reference's window only when it has one."""
     mesh = problem.mesh
     shape, weight, derivative = cell_sample_points(mesh.cell_type.name, SUBSAMPLES_PER_SIDE_2D)
     x = np.moveaxis(state.node_position[:, mesh.cell_nodes], 0, -1)  # (n_cells, corners, 2)
@@ -489,6 +490,13 @@ def _l1_errors_2d(problem: Problem, state: State) -> dict:
         "exact": problem.exact.kind,
         "exact_valid_until": problem.exact.valid_until if np.isfinite(problem.exact.valid_until) else None,
     }
+    if problem.exact.kind == "planar_riemann":
+        # along the normal (the 1D solution's velocity, continuous across the contact) and
+        # along the contact, a slip line across which the tangential velocity jumps
+        normal = np.asarray(problem.exact.solution.normal, dtype=float)
+        error = velocity - reference["velocity"]
+        errors["L1_normal_velocity"] = float(np.sum(np.abs(error @ normal) * area))
+        errors["L1_tangential_velocity"] = float(np.sum(np.abs(error @ np.array([-normal[1], normal[0]])) * area))
     if problem.exact.window is not None:
         errors["window"] = {"centre": list(problem.exact.window[0]), "radius": problem.exact.window[1]}
     return errors

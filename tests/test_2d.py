@@ -1454,6 +1454,25 @@ def test_the_sheared_tube_is_measured_against_its_slip_line_and_converges():
     assert errors[1] < 0.75 * errors[0] and errors[1] < 0.006
 
 
+def test_a_planar_riemann_problems_velocity_error_is_split_along_its_normal_and_its_contact():
+    """The sheared tube's errors give the velocity's along the normal (u_n) and along the
+    contact (u_t) apart.  At t = 0 both sides are at rest along the normal, so the whole
+    error is the tangential jump's, smeared over the cut cells by the nodes; after the
+    waves, the error vector's norm lies between the larger of its two components' and their
+    sum (pointwise |e_n|, |e_t| ≤ |e| ≤ |e_n| + |e_t|)."""
+    from ale_xfem.run import l1_errors
+
+    problem = build_problem(load_scene(resolve_scene_path("rotated-tube-shear"), ["mesh.cells=[16,16]"]))
+    start = l1_errors(problem, problem.state)
+    assert start["L1_normal_velocity"] < 1e-15
+    assert start["L1_tangential_velocity"] > 1e-3
+    assert start["L1_velocity"] == pytest.approx(start["L1_tangential_velocity"], rel=1e-12)
+    end = simulate(problem).errors
+    assert end["L1_normal_velocity"] > 1e-3 and end["L1_tangential_velocity"] > 1e-3
+    assert max(end["L1_normal_velocity"], end["L1_tangential_velocity"]) <= end["L1_velocity"]
+    assert end["L1_velocity"] <= end["L1_normal_velocity"] + end["L1_tangential_velocity"]
+
+
 def test_a_spinning_disk_is_in_radial_equilibrium_and_recognised_as_a_steady_state():
     """The scene key ``rotation`` adds ω ẑ × (x − c) to a region's velocity and sets its
     pressure in radial equilibrium, p = pressure + ½ρω²|x − c|²; the exact steady state

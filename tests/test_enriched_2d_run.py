@@ -2,6 +2,8 @@
 step with one velocity per material on the mixed cells' nodes, the per-material momentum
 remap, and the scene keys that switch them on."""
 
+import functools
+
 import numpy as np
 import pytest
 
@@ -293,6 +295,116 @@ def test_the_sheared_tube_keeps_its_slip_line_sharper_than_one_velocity_field():
     for field in ("L1_density", "L1_pressure"):
         assert free.errors[field] < 1.3 * single.errors[field]
     assert abs(free.conservation["momentum"]) < 1e-10 and abs(free.conservation["mass"]) < 1e-15
+
+
+# The sheared tube's convergence: three resolutions per cell type, where the rates have
+# settled (the enriched cells' rates over quadrilaterals 40² to 320² and triangles 20² to
+# 160² are the same within 0.02: docs/design.md §4, "Convergence on the sheared tube").
+RATE_SIDES = {"quadrilateral": (40, 80, 160), "triangle": (30, 60, 120)}
+
+
+@functools.cache
+def sheared_tube_errors(cell: str, model: str) -> dict:
+    """The sheared tube's L1 errors at each of RATE_SIDES[cell] (one velocity field, or
+    enriched cells with bubbles and free slip): {quantity: [errors]}."""
+    errors = {}
+    for side in RATE_SIDES[cell]:
+        overrides = [f"mesh.cells=[{side},{side}]", f"mesh.cell_type={cell}", f"interface.model={model}"]
+        result = simulate(build_problem(load_scene(resolve_scene_path("rotated-tube-shear"), overrides)))
+        assert result.status == "ok" and result.errors is not None
+        for quantity in ("density", "pressure", "normal_velocity", "tangential_velocity"):
+            errors.setdefault(quantity, []).append(result.errors[f"L1_{quantity}"])
+    return errors
+
+
+def fitted_rate(cell: str, errors) -> float:
+    """r of L1 ~ h^r, fitted over the resolutions."""
+    return -float(np.polyfit(np.log(RATE_SIDES[cell]), np.log(errors), 1)[0])
+
+
+SPREAD_CONTACT = pytest.mark.xfail(strict=True, reason=(
+    "the contact's density jump, which the remap's limited reconstruction smears over a band that narrows "
+    "slower than h: one velocity field's rate is 0.76 too on quadrilaterals (0.80 on triangles, where the "
+    "enriched cells' is 0.63): docs/design.md §4, 'Convergence on the sheared tube'"))
+SHEARED_MESH = pytest.mark.xfail(strict=True, reason=(
+    "the mesh's shear at the mixed cells' nodes (each moves with its own material) scales both parts of a cut "
+    "cell to its Lagrangian area every step: normal velocities along the slip line that one velocity field "
+    "does not make (rates 0.75 and 0.70, against its 0.87 and 0.86): docs/design.md §4, 'Sliding is not clean'"))
+
+
+@pytest.mark.xdist_group("sheared-tube-rates")
+@pytest.mark.parametrize("cell, quantity", [
+    ("quadrilateral", "pressure"), ("triangle", "pressure"),
+    pytest.param("quadrilateral", "density", marks=SPREAD_CONTACT),
+    pytest.param("triangle", "density", marks=SPREAD_CONTACT),
+    pytest.param("quadrilateral", "normal_velocity", marks=SHEARED_MESH),
+    pytest.param("triangle", "normal_velocity", marks=SHEARED_MESH),
+])
+def test_the_sheared_tube_converges_at_rate_0_8_with_enriched_cells(cell, quantity):
+    """The target of the paper's 2D method: on the rotated two-material tube with a
+    tangential jump across its contact (the interface inside cells of an Eulerian mesh),
+    density, pressure and normal velocity converge to the rotated 1D solution at a rate of
+    at least 0.8 in L1, on three resolutions, quadrilaterals and triangles."""
+    assert fitted_rate(cell, sheared_tube_errors(cell, "enriched")[quantity]) >= 0.8
+
+
+@pytest.mark.xdist_group("sheared-tube-rates")
+@pytest.mark.parametrize("cell", ["quadrilateral", "triangle"])
+def test_free_slip_keeps_each_sides_tangential_velocity_where_one_velocity_field_smears_it(cell):
+    """The sheared tube at three resolutions: with free slip each material keeps its own
+    tangential velocity, so the error along the contact is below one velocity field's at
+    every resolution (which smears the jump over cells: its rate is about 0.5, as for a
+    contact's smeared width), and on quadrilaterals it converges at first order."""
+    free, single = sheared_tube_errors(cell, "enriched"), sheared_tube_errors(cell, "single_velocity")
+    assert all(f < 0.9 * s for f, s in zip(free["tangential_velocity"], single["tangential_velocity"]))
+    assert fitted_rate(cell, single["tangential_velocity"]) < 0.65
+    if cell == "quadrilateral":
+        assert fitted_rate(cell, free["tangential_velocity"]) >= 0.85
+
+
+@pytest.mark.xdist_group("sheared-tube-rates")
+@pytest.mark.xfail(strict=True, reason=(
+    "on crossed triangles free slip's tangential jump spreads over about three cells on each side of the "
+    "contact (its L1 rate 0.34, against 0.93 on quadrilaterals): docs/design.md §4, 'Sliding is not clean'"))
+def test_free_slips_tangential_velocity_converges_at_first_order_on_triangles():
+    """As on quadrilaterals: the error along the contact of free slip converges at a rate of
+    at least 0.85."""
+    assert fitted_rate("triangle", sheared_tube_errors("triangle", "enriched")["tangential_velocity"]) >= 0.85
+
+
+def slip_line(model, cell="quadrilateral", side=40):
+    overrides = [f"mesh.cells=[{side},{side}]", f"mesh.cell_type={cell}", f"interface.model={model}"]
+    result = simulate(build_problem(load_scene(resolve_scene_path("slip-line"), overrides)))
+    assert result.status == "ok" and result.errors is not None
+    return result
+
+
+@pytest.mark.parametrize("cell, bound", [("quadrilateral", 0.65), ("triangle", 0.95)])
+def test_a_steady_slip_line_keeps_its_jump_with_free_slip(cell, bound):
+    """The slip-line scene: two gases at one pressure, at rest along their contact's
+    normal, sliding along it at ±0.25 (nothing should change).  Free slip keeps the
+    tangential jump that one velocity field smears: its error along the contact is below
+    one velocity field's — 0.59 of it on quadrilaterals at 40², 0.85 on crossed triangles,
+    where free slip's jump spreads over cells too (the sheared tube's rates above); mass,
+    momentum and energy are kept to round-off."""
+    free, single = slip_line("enriched", cell), slip_line("single_velocity", cell)
+    assert free.errors["L1_tangential_velocity"] < bound * single.errors["L1_tangential_velocity"]
+    assert abs(free.conservation["mass"]) < 1e-14 and abs(free.conservation["momentum"]) < 1e-12
+    assert abs(free.conservation["total_energy"]) < 1e-13
+
+
+@pytest.mark.xfail(strict=True, reason=(
+    "each node of a cut cell moves with its own material, so the sliding shears the cut cells and both parts "
+    "are scaled to the Lagrangian area (5 % a step here): on quadrilaterals at 40² to 160² the density error "
+    "is 13-16 times one velocity field's, the normal velocity's 7-9 times: docs/design.md §4, "
+    "'Sliding is not clean'"))
+@pytest.mark.parametrize("cell", ["quadrilateral", "triangle"])
+def test_free_slip_leaves_the_rest_of_a_steady_slip_line_as_one_velocity_field_does(cell):
+    """Away from the tangential jump a steady slip line has nothing to get wrong: free
+    slip's density and normal-velocity errors are at most one velocity field's."""
+    free, single = slip_line("enriched", cell), slip_line("single_velocity", cell)
+    for quantity in ("L1_density", "L1_normal_velocity"):
+        assert free.errors[quantity] <= single.errors[quantity]
 
 
 def test_identical_materials_on_both_sides_do_no_harm():

@@ -50,6 +50,21 @@ def test_sampled_shock_satisfies_rankine_hugoniot():
     assert momentum(behind) == pytest.approx(momentum(ahead), rel=1e-9)
 
 
+def test_a_riemann_solution_at_t_0_is_its_initial_data():
+    """Sampled at t = 0 (an initial state's errors) the solution is the two states, the
+    left one on x < x0, without dividing by the zero time."""
+    import warnings
+
+    solution = RiemannSolution.solve(GasState(1.0, 0.0, 1.0, 1.4), GasState(0.125, 0.0, 0.1, 1.4), 0.5)
+    x = np.array([0.0, 0.49, 0.5, 0.51, 1.0])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        values = solution.sample(x, 0.0)
+    np.testing.assert_array_equal(values["density"], [1.0, 1.0, 0.125, 0.125, 0.125])
+    np.testing.assert_array_equal(values["pressure"], [1.0, 1.0, 0.1, 0.1, 0.1])
+    np.testing.assert_array_equal(values["velocity"], 0.0)
+
+
 def test_vacuum_is_reported():
     with pytest.raises(VacuumError):
         star_state(GasState(1.0, -20.0, 0.4, 1.4), GasState(1.0, 20.0, 0.4, 1.4))

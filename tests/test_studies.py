@@ -70,6 +70,26 @@ def test_shipped_studies_are_valid_and_run_at_small_size(path, tmp_path):
     assert f"L1({SYMBOL[study.error]}) down to" in (tmp_path / "accuracy.md").read_text()
 
 
+def test_a_planar_riemann_studys_report_gives_the_velocity_along_the_normal_and_the_contact(tmp_path):
+    """On a scene whose exact solution is a planar Riemann problem the CSV and the report
+    carry L1(u_n) and L1(u_t) and their rates (the sheared tube's one velocity field smears
+    the tangential jump: its u_t error falls more slowly than its u_n error); on a 1D tube
+    the report has no such columns."""
+    study = study_from_vary("rotated-tube-shear", [16, 32], ["interface.model=single_velocity"], [])
+    rows = run_accuracy_study(study, tmp_path / "shear", echo=lambda line: None)
+    assert all(r["L1_normal_velocity"] > 0 and r["L1_tangential_velocity"] > 0 for r in rows)
+    saved = list(csv.DictReader((tmp_path / "shear" / "accuracy.csv").open()))
+    assert [float(r["L1_tangential_velocity"]) for r in saved] == pytest.approx(
+        [r["L1_tangential_velocity"] for r in rows], rel=1e-6)
+    report = (tmp_path / "shear" / "accuracy.md").read_text()
+    assert "| L1(u_n) | L1(u_t) |" in report and "| variant | ρ | u | p | u_n | u_t |" in report
+    ratio = [rows[1][f"L1_{q}"] / rows[0][f"L1_{q}"] for q in ("normal_velocity", "tangential_velocity")]
+    assert ratio[0] < ratio[1] < 1.0
+    tube = study_from_vary("sod", [50, 100], ["numerics.remap_order=1"], [])
+    run_accuracy_study(tube, tmp_path / "sod", echo=lambda line: None)
+    assert "u_n" not in (tmp_path / "sod" / "accuracy.md").read_text()
+
+
 def test_a_study_ranks_by_the_error_it_names():
     # one variant cheaper for the density, the other for the velocity
     rows = [dict(variant=v, status="ok", cells=n, wall_seconds=t, L1_density=d, L1_velocity=u, L1_pressure=1.0)

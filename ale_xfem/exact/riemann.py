@@ -130,9 +130,10 @@ class RiemannSolution:
 
     def sample(self, x, t: float) -> dict[str, np.ndarray]:
         """Density, velocity, pressure, specific internal energy and side (0 left, 1 right)
-        at positions x (any shape) and time t > 0."""
+        at positions x (any shape) and time t ≥ 0 (at t = 0 the initial data: the left state
+        on x < x0)."""
         x = np.asarray(x, dtype=float)
-        xi = (x - self.x0) / t
+        xi = (x - self.x0) / t if t > 0 else np.where(x < self.x0, -np.inf, np.inf)
         out = {k: np.empty_like(xi) for k in ("density", "velocity", "pressure")}
         side_of = np.where(xi < self.star.velocity, 0, 1)
         for index, (side, sign, rho_star) in enumerate(

@@ -6,7 +6,9 @@ rates, and which variant is cheapest for a given error), and ``accuracy.png`` (t
 against cells, and the work-precision chart: the error against wall time, a line per
 variant).  The error ranked and charted is L1(ρ) unless the study names another
 (``error = "velocity"`` or ``"pressure"``: where the density's does not show what the
-variants differ in — a slip line moves no density).
+variants differ in — a slip line moves no density).  Where a scene's exact solution is a
+planar Riemann problem, the velocity's errors along its normal (u_n) and along the contact
+(u_t) are reported too, with their rates.
 
 Variants come either from ``--vary key=v1,v2`` on one scene (every combination), or from a
 shipped study (``demos/studies/*.toml``): a list of labelled (scene, overrides) variants.
@@ -30,10 +32,13 @@ from ale_xfem.scene import SceneError, load_scene, resolve_scene_path
 STUDIES_DIR = Path(__file__).resolve().parents[2] / "demos" / "studies"
 DEFAULT_CELLS = (100, 200, 400, 800, 1600)
 COLUMNS = ("variant", "scene", "cells", "status", "steps", "wall_seconds", "L1_density", "L1_velocity",
-           "L1_pressure", "ms_per_step_lagrange", "ms_per_step_mixed_cell_solve", "ms_per_step_remap",
+           "L1_pressure", "L1_normal_velocity", "L1_tangential_velocity", "ms_per_step_lagrange", "ms_per_step_mixed_cell_solve", "ms_per_step_remap",
            "mixed_iterations_mean")
 ERRORS = ("density", "velocity", "pressure")  # what a study may rank its variants by
-SYMBOL = {"density": "ρ", "velocity": "u", "pressure": "p"}
+# reported besides, where the scene's exact solution is a planar Riemann problem: the
+# velocity's components along its normal and along the contact (a slip line)
+COMPONENTS = ("normal_velocity", "tangential_velocity")
+SYMBOL = {"density": "ρ", "velocity": "u", "pressure": "p", "normal_velocity": "u_n", "tangential_velocity": "u_t"}
 
 
 @dataclass
@@ -175,6 +180,7 @@ def run_accuracy_study(study: Study, out: Path, echo=print) -> list[dict]:
                    "L1_density": errors.get("L1_density", math.nan),
                    "L1_velocity": errors.get("L1_velocity", math.nan),
                    "L1_pressure": errors.get("L1_pressure", math.nan),
+                   **{f"L1_{q}": errors.get(f"L1_{q}", math.nan) for q in COMPONENTS},
                    "ms_per_step_lagrange": 1e3 * phases.get("lagrange", 0.0) / steps,
                    "ms_per_step_mixed_cell_solve": 1e3 * phases.get("mixed_cell_solve", 0.0) / steps,
                    "ms_per_step_remap": 1e3 * phases.get("remap", 0.0) / steps,
@@ -210,14 +216,14 @@ def _fit(x, y) -> float:
 
 
 def fitted_rates(rows: list[dict]) -> dict[str, dict[str, float]]:
-    """Per variant: convergence rates of the three L1 errors over the resolutions that
-    finished."""
+    """Per variant: convergence rates of the L1 errors (ERRORS, and COMPONENTS where the
+    runs have them: nan otherwise) over the resolutions that finished."""
     rates = {}
     for label in dict.fromkeys(r["variant"] for r in rows):
         mine = [r for r in rows if r["variant"] == label and r["status"] == "ok"]
         cells = [r["cells"] for r in mine]
         rates[label] = {q: _fit(cells, [r.get(f"L1_{q}", math.nan) for r in mine])
-                        for q in ("density", "velocity", "pressure")}
+                        for q in (*ERRORS, *COMPONENTS)}
     return rates
 
 
@@ -270,19 +276,25 @@ def cheapest_named(costs: list[tuple[str, float, bool]]) -> list[str]:
 
 
 def markdown_report(study: Study, rows: list[dict], rates: dict) -> str:
+    # the velocity's components, where some run has them (a planar Riemann problem's)
+    components = [q for q in COMPONENTS if any(np.isfinite(r.get(f"L1_{q}", math.nan)) for r in rows)]
+    titles = "".join(f" L1({SYMBOL[q]}) |" for q in components)
     lines = [f"# Accuracy against cost: {study.name}", "", study.description, "",
-             "| variant | cells | status | steps | L1(ρ) | L1(u) | L1(p) | wall s | ms/step explicit "
+             f"| variant | cells | status | steps | L1(ρ) | L1(u) | L1(p) |{titles} wall s | ms/step explicit "
              "| ms/step mixed | ms/step remap | iterations |",
-             "|---|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+             "|---|---:|---|---:|---:|---:|---:|" + "---:|" * len(components) + "---:|---:|---:|---:|---:|"]
     for r in rows:
+        values = "".join(f" {r[f'L1_{q}']:.3e} |" for q in components)
         lines.append(f"| {r['variant']} | {r['cells']} | {r['status']} | {r['steps']} | {r['L1_density']:.3e} "
-                     f"| {r['L1_velocity']:.3e} | {r['L1_pressure']:.3e} | {r['wall_seconds']:.3f} "
+                     f"| {r['L1_velocity']:.3e} | {r['L1_pressure']:.3e} |{values} {r['wall_seconds']:.3f} "
                      f"| {r['ms_per_step_lagrange']:.3f} | {r['ms_per_step_mixed_cell_solve']:.3f} "
                      f"| {r['ms_per_step_remap']:.3f} | {_iterations(r)} |")
+    symbols = "".join(f" {SYMBOL[q]} |" for q in components)
     lines += ["", "Convergence rates (L1 ~ cells^-rate, fitted over the resolutions that finished):", "",
-              "| variant | ρ | u | p |", "|---|---:|---:|---:|"]
+              f"| variant | ρ | u | p |{symbols}", "|---|---:|---:|---:|" + "---:|" * len(components)]
     for label, r in rates.items():
-        lines.append(f"| {label} | {r['density']:.2f} | {r['velocity']:.2f} | {r['pressure']:.2f} |")
+        values = "".join(f" {r[q]:.2f} |" for q in components)
+        lines.append(f"| {label} | {r['density']:.2f} | {r['velocity']:.2f} | {r['pressure']:.2f} |{values}")
     cheapest = cheapest_for(rows, study.error)
     if cheapest is not None:
         target, costs = cheapest
