@@ -32,7 +32,7 @@ demo: $(STAMP)
 	$(PY) demos/two_material_tube.py --out out/two_material_tube
 
 test: $(STAMP)
-	$(PY) -m pytest -q -n 2 --dist loadgroup
+	$(PY) -m pytest -q -n 2
 
 bench: $(STAMP)
 	$(VENV)/bin/ale-xfem bench

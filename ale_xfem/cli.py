@@ -422,6 +422,9 @@ def _run(args) -> int:
         if result.errors:
             line += (f"; L1 density {result.errors['L1_density']:.3e}, velocity "
                      f"{result.errors['L1_velocity']:.3e}, pressure {result.errors['L1_pressure']:.3e}")
+            if "L1_normal_velocity" in result.errors:  # a planar Riemann problem's slip line
+                line += (f" (velocity along the normal {result.errors['L1_normal_velocity']:.3e}, along the "
+                         f"contact {result.errors['L1_tangential_velocity']:.3e})")
         print(line)
         print(f"outputs in {out}/")
     return EXIT_OK

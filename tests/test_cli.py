@@ -91,6 +91,15 @@ def test_breakdown_stops_with_exit_code_3_and_writes_the_last_good_state(tmp_pat
     assert len(rows) == 50 and all(float(r["density"]) > 0 for r in rows)
 
 
+def test_run_reports_a_slip_lines_velocity_errors_along_the_normal_and_the_contact(tmp_path, capsys):
+    assert main(["run", "slip-line", "--set", "mesh.cells=[8,8]", "--no-plot", "--frames", "0",
+                 "--out", str(tmp_path)]) == 0
+    line = next(row for row in capsys.readouterr().out.splitlines() if row.startswith("slip-line:"))
+    errors = json.loads((tmp_path / "summary.json").read_text())["errors"]
+    assert f"along the normal {errors['L1_normal_velocity']:.3e}" in line
+    assert f"along the contact {errors['L1_tangential_velocity']:.3e}" in line
+
+
 def test_list_shows_every_shipped_scene_with_its_description(capsys):
     assert main(["list"]) == 0
     lines = capsys.readouterr().out.strip().splitlines()

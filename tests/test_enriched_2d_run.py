@@ -306,7 +306,8 @@ RATE_SIDES = {"quadrilateral": (40, 80, 160), "triangle": (30, 60, 120)}
 @functools.cache
 def sheared_tube_errors(cell: str, model: str) -> dict:
     """The sheared tube's L1 errors at each of RATE_SIDES[cell] (one velocity field, or
-    enriched cells with bubbles and free slip): {quantity: [errors]}."""
+    enriched cells with bubbles and free slip): {quantity: [errors]}, run once per test
+    process for the tests below."""
     errors = {}
     for side in RATE_SIDES[cell]:
         overrides = [f"mesh.cells=[{side},{side}]", f"mesh.cell_type={cell}", f"interface.model={model}"]
@@ -332,7 +333,6 @@ SHEARED_MESH = pytest.mark.xfail(strict=True, reason=(
     "does not make (rates 0.75 and 0.70, against its 0.87 and 0.86): docs/design.md §4, 'Sliding is not clean'"))
 
 
-@pytest.mark.xdist_group("sheared-tube-rates")
 @pytest.mark.parametrize("cell, quantity", [
     ("quadrilateral", "pressure"), ("triangle", "pressure"),
     pytest.param("quadrilateral", "density", marks=SPREAD_CONTACT),
@@ -348,7 +348,6 @@ def test_the_sheared_tube_converges_at_rate_0_8_with_enriched_cells(cell, quanti
     assert fitted_rate(cell, sheared_tube_errors(cell, "enriched")[quantity]) >= 0.8
 
 
-@pytest.mark.xdist_group("sheared-tube-rates")
 @pytest.mark.parametrize("cell", ["quadrilateral", "triangle"])
 def test_free_slip_keeps_each_sides_tangential_velocity_where_one_velocity_field_smears_it(cell):
     """The sheared tube at three resolutions: with free slip each material keeps its own
@@ -362,7 +361,6 @@ def test_free_slip_keeps_each_sides_tangential_velocity_where_one_velocity_field
         assert fitted_rate(cell, free["tangential_velocity"]) >= 0.85
 
 
-@pytest.mark.xdist_group("sheared-tube-rates")
 @pytest.mark.xfail(strict=True, reason=(
     "on crossed triangles free slip's tangential jump spreads over about three cells on each side of the "
     "contact (its L1 rate 0.34, against 0.93 on quadrilaterals): docs/design.md §4, 'Sliding is not clean'"))
