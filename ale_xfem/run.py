@@ -493,10 +493,9 @@ def _l1_errors_2d(problem: Problem, state: State) -> dict:
     if problem.exact.kind == "planar_riemann":
         # along the normal (the 1D solution's velocity, continuous across the contact) and
         # along the contact, a slip line across which the tangential velocity jumps
-        normal = np.asarray(problem.exact.solution.normal, dtype=float)
-        error = velocity - reference["velocity"]
-        errors["L1_normal_velocity"] = float(np.sum(np.abs(error @ normal) * area))
-        errors["L1_tangential_velocity"] = float(np.sum(np.abs(error @ np.array([-normal[1], normal[0]])) * area))
+        along_normal, along_contact = problem.exact.solution.components(velocity - reference["velocity"])
+        errors["L1_normal_velocity"] = float(np.sum(np.abs(along_normal) * area))
+        errors["L1_tangential_velocity"] = float(np.sum(np.abs(along_contact) * area))
     if problem.exact.window is not None:
         errors["window"] = {"centre": list(problem.exact.window[0]), "radius": problem.exact.window[1]}
     return errors

@@ -63,6 +63,8 @@ def test_a_riemann_solution_at_t_0_is_its_initial_data():
     np.testing.assert_array_equal(values["density"], [1.0, 1.0, 0.125, 0.125, 0.125])
     np.testing.assert_array_equal(values["pressure"], [1.0, 1.0, 0.1, 0.1, 0.1])
     np.testing.assert_array_equal(values["velocity"], 0.0)
+    with pytest.raises(ValueError, match="t ≥ 0"):
+        solution.sample(x, -1e-3)
 
 
 def test_vacuum_is_reported():

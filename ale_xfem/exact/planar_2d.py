@@ -89,6 +89,13 @@ class PistonSolution:
         return {"density": density, "velocity": velocity, "pressure": pressure}
 
 
+def contact_tangent(normal) -> np.ndarray:
+    """The tangent t = (−n_y, n_x) of a line with unit normal n: the direction a planar
+    Riemann problem's tangential velocities are measured along."""
+    n = np.asarray(normal, dtype=float)
+    return np.array([-n[1], n[0]])
+
+
 @dataclass(frozen=True)
 class PlanarRiemann:
     """A 1D Riemann solution laid along the unit normal ``normal`` through ``point``: the
@@ -107,9 +114,14 @@ class PlanarRiemann:
         """What the solution varies with: the distance from ``point`` along the normal."""
         return (np.asarray(points, dtype=float) - np.asarray(self.point)) @ np.asarray(self.normal, dtype=float)
 
+    def components(self, vectors) -> tuple[np.ndarray, np.ndarray]:
+        """Vectors (…, 2) split along the normal and along the contact (the tangent)."""
+        vectors = np.asarray(vectors, dtype=float)
+        return vectors @ np.asarray(self.normal, dtype=float), vectors @ contact_tangent(self.normal)
+
     def sample(self, points, t: float) -> dict[str, np.ndarray]:
         n = np.asarray(self.normal, dtype=float)
-        tangent = np.array([-n[1], n[0]])
+        tangent = contact_tangent(n)
         s = self.coordinate(points)
         values = self.solution.sample(s, t)
         shear = np.where(s < self.solution.star.velocity * t, self.tangential[0], self.tangential[1])

@@ -132,6 +132,8 @@ class RiemannSolution:
         """Density, velocity, pressure, specific internal energy and side (0 left, 1 right)
         at positions x (any shape) and time t ≥ 0 (at t = 0 the initial data: the left state
         on x < x0)."""
+        if t < 0:
+            raise ValueError(f"a Riemann solution is sampled at t ≥ 0, not t = {t}")
         x = np.asarray(x, dtype=float)
         xi = (x - self.x0) / t if t > 0 else np.where(x < self.x0, -np.inf, np.inf)
         out = {k: np.empty_like(xi) for k in ("density", "velocity", "pressure")}

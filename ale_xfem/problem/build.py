@@ -641,7 +641,7 @@ def _planar_riemann(scene: Scene) -> ExactReference | None:
     tangential velocity (which the exact solution carries on its side of the contact).
     Walls reflect its waves in 2D, so the L1 errors are taken over the disk around the
     domain's centre that no signal from a wall reaches before t_end."""
-    from ale_xfem.exact.planar_2d import PlanarRiemann
+    from ale_xfem.exact.planar_2d import PlanarRiemann, contact_tangent
     from ale_xfem.geometry.shapes import Box, HalfPlane
 
     first, last = scene.regions[0], scene.regions[-1]
@@ -655,7 +655,7 @@ def _planar_riemann(scene: Scene) -> ExactReference | None:
         return None
     normal = np.array(last.shape.normal, dtype=float)
     normal /= np.linalg.norm(normal)
-    tangent = np.array([-normal[1], normal[0]])
+    tangent = contact_tangent(normal)
     gases = ("ideal_gas", "stiffened_gas")
     states, tangential = [], []
     for region in (last, first):  # left of the line (the half-plane), then right

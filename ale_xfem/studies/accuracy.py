@@ -284,7 +284,7 @@ def markdown_report(study: Study, rows: list[dict], rates: dict) -> str:
              "| ms/step mixed | ms/step remap | iterations |",
              "|---|---:|---|---:|---:|---:|---:|" + "---:|" * len(components) + "---:|---:|---:|---:|---:|"]
     for r in rows:
-        values = "".join(f" {r[f'L1_{q}']:.3e} |" for q in components)
+        values = "".join(f" {r.get(f'L1_{q}', math.nan):.3e} |" for q in components)
         lines.append(f"| {r['variant']} | {r['cells']} | {r['status']} | {r['steps']} | {r['L1_density']:.3e} "
                      f"| {r['L1_velocity']:.3e} | {r['L1_pressure']:.3e} |{values} {r['wall_seconds']:.3f} "
                      f"| {r['ms_per_step_lagrange']:.3f} | {r['ms_per_step_mixed_cell_solve']:.3f} "
