@@ -32,8 +32,8 @@ from ale_xfem.scene import SceneError, load_scene, resolve_scene_path
 STUDIES_DIR = Path(__file__).resolve().parents[2] / "demos" / "studies"
 DEFAULT_CELLS = (100, 200, 400, 800, 1600)
 COLUMNS = ("variant", "scene", "cells", "status", "steps", "wall_seconds", "L1_density", "L1_velocity",
-           "L1_pressure", "L1_normal_velocity", "L1_tangential_velocity", "ms_per_step_lagrange", "ms_per_step_mixed_cell_solve", "ms_per_step_remap",
-           "mixed_iterations_mean")
+           "L1_pressure", "L1_normal_velocity", "L1_tangential_velocity", "ms_per_step_lagrange",
+           "ms_per_step_mixed_cell_solve", "ms_per_step_remap", "mixed_iterations_mean")
 ERRORS = ("density", "velocity", "pressure")  # what a study may rank its variants by
 # reported besides, where the scene's exact solution is a planar Riemann problem: the
 # velocity's components along its normal and along the contact (a slip line)
