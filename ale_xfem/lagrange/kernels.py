@@ -405,13 +405,14 @@ def evaluate_pure(cell_type, x, u, combos, cell_nodes, runs, hourglass, with_len
     scalar; quadrilaterals of one stiffened gas with hourglass forces are evaluated in two
     loops instead, the second one vectorised (:func:`evaluate_one_gas_quadrilaterals`: at
     10⁵ cells a final state's evaluation and corner sums 1.4 against 1.8 ms, a predicted
-    one's 1.0 against 1.4, timed alone; it costs the first 2D run's compilation about 20 s).  Triangles, several materials and quadrilaterals without hourglass
-    control keep the one scalar loop.
+    one's 1.0 against 1.4, timed alone; it costs the first 2D run's compilation about 20
+    s).  Triangles, several materials and quadrilaterals without hourglass control keep the
+    one scalar loop.
 
     ``store`` False: density, pressure and viscosity are not stored (a lean evaluation,
     :func:`pure_steps`; the two loops of one gas's quadrilaterals store them all the same,
-    where their arrays hold every cell); what the step goes on with is.  The one-gas 1D loop has ``store``
-    as a constant, so that it vectorises either way.  (Lean always and the three added by a
+    where their arrays hold every cell); what the step goes on with is.  The one-gas 1D
+    loop has ``store`` as a constant, so that it vectorises either way.  (Lean always and the three added by a
     second pass when asked cost a step called from Python about 10 %, interleaved A/B at
     10⁵ cells; the two loops cost the first run's compilation a few seconds.)"""
     gas = one_gas_model(eos) == STIFFENED_GAS
