@@ -377,14 +377,20 @@ def cut_offsets(vertices, normal, fraction):
     return lo + np.clip(t, 0.0, 1.0) * (hi - lo)
 
 
-def material_momentum_fluxes(cell_nodes, corner_mass, node_velocity, node_internal, flux_mass, donor, receiver):
+def material_momentum_fluxes(cell_nodes, corner_mass, node_velocity, node_internal, flux_mass, donor, receiver,
+                             added_mass=None, added_momentum=None, added_kinetic=None):
     """Each material's momentum per cell after the fluxes, the kinetic energy the fluxes
     bring, and each corner's deviation from its cell's mean velocity (2D enriched cells:
     ale_xfem.remap.remapper_2d, before it was compiled into
-    swept_kernels_2d.material_momentum_fluxes).  Returns (momentum (2 components, 2
-    materials, n_cells), kinetic_in (2, n_cells), deviation (2, 2, k, n_cells))."""
+    swept_kernels_2d.material_momentum_fluxes); ``added_*``: what the materials' crossings
+    of the Lagrangian edges brought each cell before the fluxes (default none).  Returns
+    (momentum (2 components, 2 materials, n_cells), kinetic_in (2, n_cells), deviation (2,
+    2, k, n_cells))."""
     n_cells = cell_nodes.shape[0]
-    cell_mass = corner_mass.sum(axis=1)
+    added_mass = np.zeros((2, n_cells)) if added_mass is None else added_mass
+    added_momentum = np.zeros((2, 2, n_cells)) if added_momentum is None else added_momentum
+    added_kinetic = np.zeros((2, n_cells)) if added_kinetic is None else added_kinetic
+    cell_mass = corner_mass.sum(axis=1) + added_mass
     momentum = [np.zeros((2, n_cells)) for _ in range(2)]
     kinetic_in = np.zeros((2, n_cells))
     nodes = cell_nodes.T
@@ -394,7 +400,7 @@ def material_momentum_fluxes(cell_nodes, corner_mass, node_velocity, node_intern
         cell_velocity = np.empty((2, n_cells))
         for d in range(2):
             corner_velocity = u[d][nodes]
-            momentum[d][m] = np.sum(corner_mass[m] * corner_velocity, axis=0)
+            momentum[d][m] = np.sum(corner_mass[m] * corner_velocity, axis=0) + added_momentum[d, m]
             np.divide(momentum[d][m], cell_mass[m], out=cell_velocity[d], where=cell_mass[m] > 0)
             cell_velocity[d][cell_mass[m] <= 0] = 0.0
             deviation[m, d] = np.where((cell_mass[m] > 0) & node_internal[m][nodes],
@@ -404,7 +410,8 @@ def material_momentum_fluxes(cell_nodes, corner_mass, node_velocity, node_intern
             flux = flux_mass[m] * donor_velocity[d]
             momentum[d][m] += np.bincount(receiver, flux, n_cells) - np.bincount(donor, flux, n_cells)
         kinetic = 0.5 * flux_mass[m] * np.sum(donor_velocity**2, axis=0)
-        kinetic_in[m] = np.bincount(receiver, kinetic, n_cells) - np.bincount(donor, kinetic, n_cells)
+        kinetic_in[m] = (np.bincount(receiver, kinetic, n_cells) - np.bincount(donor, kinetic, n_cells)
+                         + added_kinetic[m])
     return np.stack(momentum), kinetic_in, deviation
 
 

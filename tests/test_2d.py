@@ -860,7 +860,8 @@ def test_the_compiled_per_material_momentum_remap_gives_the_numpy_bits(mesh_name
     (swept_kernels_2d.material_momentum_fluxes, material_node_velocities) against the numpy
     code it replaced (tests/oracles.py): the same bits, with cells a material is absent from
     (zero corner masses) before or after, nodes that carry no mass of a material (they move
-    with the node's own material) and external nodes (no deviation kept)."""
+    with the node's own material), external nodes (no deviation kept), and (after the first
+    trial) what the materials' crossings of the Lagrangian edges brought the cells."""
     from oracles import material_momentum_fluxes as numpy_fluxes
     from oracles import material_node_velocities as numpy_velocities
 
@@ -887,9 +888,15 @@ def test_the_compiled_per_material_momentum_remap_gives_the_numpy_bits(mesh_name
         donor = np.where(forward, minus[edges], plus[edges])
         receiver = np.where(forward, plus[edges], minus[edges])
         flux_mass = rng.uniform(0.0, 0.05, (2, edges.size))
-        expected = numpy_fluxes(mesh.cell_nodes, corner_mass, node_velocity, internal, flux_mass, donor, receiver)
+        holds = corner_mass.sum(axis=1) > 0.0
+        added = (rng.uniform(-0.05, 0.05, (2, n_cells)) * holds, rng.normal(size=(2, 2, n_cells)) * holds,
+                 rng.uniform(-0.05, 0.05, (2, n_cells)) * holds)
+        if trial == 0:
+            added = (np.zeros((2, n_cells)), np.zeros((2, 2, n_cells)), np.zeros((2, n_cells)))
+        expected = numpy_fluxes(mesh.cell_nodes, corner_mass, node_velocity, internal, flux_mass, donor, receiver,
+                                *added)
         got = swept_kernels_2d.material_momentum_fluxes(mesh.cell_nodes, corner_mass, node_velocity, internal,
-                                                        flux_mass, donor, receiver)
+                                                        flux_mass, donor, receiver, *added)
         for name, want, have in zip(("momentum", "kinetic", "deviation"), expected, got):
             np.testing.assert_array_equal(bits(have), bits(want), err_msg=f"{name}, trial {trial}")
         momentum, kinetic_in, deviation = got

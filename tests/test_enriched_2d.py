@@ -631,3 +631,82 @@ def test_a_scene_asking_for_lu_keeps_mumps():
     for m in range(2):
         scale = np.abs(expected["velocity"][m]).max()
         assert np.allclose(out["velocity"][m], expected["velocity"][m], rtol=0, atol=1e-12 * scale)
+
+
+@pytest.mark.parametrize("cell", ["triangle", "quadrilateral"])
+def test_what_crosses_the_mesh_edges_closes_each_cut_cells_area_balance(cell):
+    """CutCells.crossing_volumes R_m (what each material carries across the edges of a cut
+    cell relative to them, while the nodes move with the material they lie in): for any
+    velocities, in every mixed cell off the boundary, Σ_m (dt ∫_{K_m} ∇·ū_m + Σ_edges R_m)
+    = dt (d|K|/dt + Σ_m ∫_Γ ū_m·n_m) — the parts moved with their own materials plus what
+    crossed are the cell moved with the mesh, up to the normal jump the interface system
+    makes vanish.  ∂|K|/∂x_i by the polygon's formula; random velocities on the disk.  An
+    edge between two mixed cells passes the same volume out of one as into the other."""
+    case = InterfaceCase(10, "disk", cell=cell)
+    geometry, _ = _enriched_geometry_of(case)
+    cut, mesh = geometry.cut, case.mesh
+    nodes = mesh.cell_nodes[cut.cells]
+    rng = np.random.default_rng(7)
+    velocity = rng.normal(size=(2, 2, mesh.n_nodes))
+    mesh_velocity = velocity[geometry.owner, :, np.arange(mesh.n_nodes)].T
+    dt = 0.01
+    crossing = cut.crossing_volumes(mesh_velocity, velocity, nodes, dt)
+    gradient = cut.part_integrals()[1]
+    own = np.stack([np.einsum("dnk,nkd->n", velocity[m][:, nodes], gradient[m]) for m in range(2)])
+    jump = sum(cut.normal_flux(m, velocity[m], nodes) for m in range(2))
+    x = cut.vertices  # (n, k, 2) counter-clockwise
+    before, after = np.roll(x, 1, axis=1), np.roll(x, -1, axis=1)
+    area_gradient = 0.5 * np.stack([after[..., 1] - before[..., 1], before[..., 0] - after[..., 0]], axis=-1)
+    area_rate = np.einsum("dnk,nkd->n", mesh_velocity[:, nodes], area_gradient)
+    interior = np.all(cut.edge_neighbour >= 0, axis=1)
+    assert np.count_nonzero(interior) > 10
+    left = (dt * own + crossing.sum(axis=2)).sum(axis=0)
+    right = dt * (area_rate + jump)
+    np.testing.assert_allclose(left[interior], right[interior], rtol=0, atol=1e-15)
+    assert np.abs(crossing).max() > 1e-4  # (the nodes' materials differ: something crosses)
+    where = {c: j for j, c in enumerate(cut.cells)}
+    pairs = 0
+    for j, c in enumerate(cut.cells):
+        for k, other in enumerate(cut.edge_neighbour[j]):
+            if other in where:
+                back = list(cut.edge_neighbour[where[other]]).index(c)
+                np.testing.assert_allclose(crossing[:, j, k], -crossing[:, where[other], back], rtol=0, atol=1e-17)
+                pairs += 1
+    assert pairs > 10
+
+
+def test_the_mixed_cells_viscosity_sees_the_materials_compression_not_their_slide():
+    """EnrichedClosure2D._own_viscosity on the disk's mixed cells: q̄, the mean of q at the two
+    evaluations, is q = ρ (c2 Δu² + c1 c |Δu|) of the cell's compression less the slip's
+    part (_slip_rate): none where the slip makes all of the cell's area rate, one velocity
+    field's q where nothing slides; a slip that would add compression adds none; off, zero.
+    ρ the parts' harmonic mean.  The slip's rate is what crosses the cells' edges a unit of
+    time (the area balance of the test above)."""
+    from ale_xfem.mixed.enriched_2d import EnrichedClosure2D
+
+    case = InterfaceCase(10, "disk", cell="quadrilateral")
+    geometry, mass = _enriched_geometry_of(case)
+    cut, mesh = geometry.cut, case.mesh
+    nodes = mesh.cell_nodes[cut.cells]
+    volume, part_mass = cut.volume, mass[:, cut.cells]
+    area = volume.sum(axis=0)
+    rng = np.random.default_rng(3)
+    velocity = rng.normal(size=(2, 2, mesh.n_nodes))
+    mesh_velocity = velocity[geometry.owner, :, np.arange(mesh.n_nodes)].T
+    slip = EnrichedClosure2D._slip_rate(cut, mesh_velocity, velocity, nodes)
+    np.testing.assert_allclose(slip, cut.crossing_volumes(mesh_velocity, velocity, nodes, 0.5).sum(axis=(0, 2)) / 0.5,
+                               rtol=1e-12)
+    law = (1.0, 0.5, True)
+    sound = [np.full(cut.cells.size, 2.0), np.full(cut.cells.size, 3.0)]
+    jump = -0.4 * np.sqrt(area)  # compressed
+    evaluations = [(jump, area, c) for c in sound]
+    density = 1.0 / np.sum((volume / area) * volume / part_mass, axis=0)
+    q_whole = 0.5 * sum(density * (jump**2 + 0.5 * c * np.abs(jump)) for c in sound)
+    own = EnrichedClosure2D._own_viscosity
+    np.testing.assert_allclose(own(law, evaluations, np.zeros(area.size), volume, part_mass), q_whole, rtol=1e-12)
+    np.testing.assert_allclose(own(law, evaluations, jump * np.sqrt(area), volume, part_mass), 0.0, atol=1e-15)
+    half = own(law, evaluations, 0.5 * jump * np.sqrt(area), volume, part_mass)
+    np.testing.assert_allclose(half, 0.5 * sum(density * (0.25 * jump**2 + 0.25 * c * np.abs(jump)) for c in sound),
+                               rtol=1e-12)
+    np.testing.assert_allclose(own(law, evaluations, -jump * np.sqrt(area), volume, part_mass), q_whole, rtol=1e-12)
+    assert np.all(own((1.0, 0.5, False), evaluations, slip, volume, part_mass) == 0.0)

@@ -66,6 +66,11 @@ class CutCells:
     volume: np.ndarray  # (2, n) V_m, the parts' areas
     centroid: np.ndarray  # (2, n, 2)
     edge_flux: np.ndarray  # (2, n, k, 2) G_mi for the cell's vertices in cell_nodes order
+    # each local edge j (vertices j → j+1): α's interval [t0, t1] of its parameter (n, k, 2),
+    # the cell across it (n, k; −1 on the boundary) and |e| times its outward normal (n, k, 2)
+    edge_alpha: np.ndarray | None = None
+    edge_neighbour: np.ndarray | None = None
+    edge_outward: np.ndarray | None = None
     _part_integrals: tuple | None = None
 
     @property
@@ -78,6 +83,25 @@ class CutCells:
         u = np.moveaxis(velocity[:, nodes], 0, -1)  # (n, k, 2)
         gradient = self.part_integrals()[1][m]  # (n, k, 2): ∫_{K_m} ∇ψ_i
         return np.einsum("nkd,nkd->n", u, gradient) - np.einsum("nkd,nkd->n", self.edge_flux[m], u)
+
+    def crossing_volumes(self, mesh_velocity, velocity, nodes, dt: float) -> np.ndarray:
+        """(2, n, k): the volume of each material that crosses each edge of each cell into
+        the cell over a step of ``dt``, relative to the edge, which moves with the mesh's
+        ``mesh_velocity`` (2, n_nodes) while the material moves with its own ``velocity``
+        [m] (2, n_nodes) (both linear along an edge): dt ∫_{e∩m} (ū_mesh − ū_m)·n_e on
+        this geometry; zero on the boundary.  ``nodes`` (n, k) the cells' nodes."""
+        t0, t1 = self.edge_alpha[..., 0], self.edge_alpha[..., 1]
+        # ∫ (1 − t) and ∫ t over α's interval, then β's (the rest of [0, 1])
+        weights = ((t1 - t0) - 0.5 * (t1**2 - t0**2), 0.5 * (t1**2 - t0**2))
+        out = np.empty((2,) + t0.shape)
+        for m in range(2):
+            relative = np.moveaxis((mesh_velocity - velocity[m])[:, nodes], 0, -1)  # (n, k, 2) at the vertices
+            at_start = np.einsum("nkd,nkd->nk", relative, self.edge_outward)
+            at_end = np.einsum("nkd,nkd->nk", np.roll(relative, -1, axis=1), self.edge_outward)
+            first, second = weights if m == 0 else (0.5 - weights[0], 0.5 - weights[1])
+            out[m] = dt * (first * at_start + second * at_end)
+        out[:, self.edge_neighbour < 0] = 0.0
+        return out
 
     def vertex_integrals(self) -> np.ndarray:
         """(2, n, k): ∫_{K_m} ψ_i."""
@@ -146,7 +170,8 @@ def cut_cells(cell_nodes, node_position, cells, reconstruction: Reconstruction, 
     alpha_flux = outward * first[..., None] + np.roll(outward * second[..., None], 1, axis=1)
     whole = outward * 0.5 + np.roll(outward * 0.5, 1, axis=1)
     edge_flux = np.stack([alpha_flux, whole - alpha_flux])
-    return CutCells(cells, vertices, reconstruction, volume, centroid, edge_flux)
+    return CutCells(cells, vertices, reconstruction, volume, centroid, edge_flux, np.stack([t0, t1], axis=-1),
+                    neighbour, outward)
 
 
 def _edge_neighbours(cell_nodes, cells):

@@ -109,6 +109,13 @@ class State:
     # (2, n_nodes) bool: the material's mass sits on the node (an internal node); at its
     # external nodes a material's velocity is only the extension of its field into the cut cell
     material_node_internal: np.ndarray | None = None
+    # 2D enriched mixed cells, in a Lagrangian state a remap reads: what each cell gained of
+    # each material that crossed the mesh's moving edges in the step (a node moves with the
+    # material it lies in, so an edge between nodes of two materials moves with neither):
+    # (mass (2, n_cells), internal energy (2, n_cells), momentum (2 components, 2, n_cells),
+    # kinetic energy (2, n_cells)), by material.  The remap adds it before its own fluxes.
+    # None otherwise.
+    material_crossing: tuple | None = None
 
     def evolved(self, **changes) -> "State":
         """A copy with ``changes`` (field names) replaced: dataclasses.replace without its

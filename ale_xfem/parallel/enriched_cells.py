@@ -105,14 +105,20 @@ class EnrichedCellsOnRanks(SharedClosure):
         (dt_over_mass,), (cell_material, first_force, predicted_force) = distribution.whole_arrays(
             (dt_over_node_mass,), (step.layout.cell_material, first.corner_force, predicted.corner_force), self.reach)
         self.whole_step.layout = SimpleNamespace(cell_material=cell_material)
-        viscosity = ranks.whole((first.mixed_viscosity, predicted.mixed_viscosity))
+        self.whole_step.viscosity_law = step.viscosity_law
+        # what the mixed cells' viscosity reads of the two evaluations, in the serial numbering
+        cells, whole_cells = self.mixed.cells, distribution.whole_mixed.cells
+        evaluations = []
+        for evaluation, force in ((first, first_force), (predicted, predicted_force)):
+            sound_speed, *rest = ranks.whole((evaluation.mixed_sound_speed, evaluation.velocity_jump[cells],
+                                              evaluation.volume[cells]))
+            jump, volume = np.zeros(distribution.problem.mesh.n_cells), np.ones(distribution.problem.mesh.n_cells)
+            jump[whole_cells], volume[whole_cells] = rest
+            evaluations.append(SimpleNamespace(corner_force=force, mixed_sound_speed=sound_speed,
+                                               velocity_jump=jump, volume=volume))
         whole_force = np.zeros((mean_force.shape[0], dt_over_mass.size))
         try:
-            out = self.whole.implicit_solve(self.whole_step, whole_state,
-                                            SimpleNamespace(corner_force=first_force, mixed_viscosity=viscosity[0]),
-                                            SimpleNamespace(corner_force=predicted_force,
-                                                            mixed_viscosity=viscosity[1]),
-                                            whole_force, dt, dt_over_mass)
+            out = self.whole.implicit_solve(self.whole_step, whole_state, *evaluations, whole_force, dt, dt_over_mass)
         except Breakdown as failure:
             raise self._local_breakdown(failure) from None
         # the mixed cells' nodes take the serial closure's mean forces (it sets them all)
@@ -138,7 +144,8 @@ class EnrichedCellsOnRanks(SharedClosure):
 
     def state_for_remap(self, step, state, solution, x_new, u_new, cell_volume, e_new, dt):
         """As EnrichedClosure2D's, on this rank's cells and nodes: the mixed cells' volumes,
-        energies and interface pressure, each material's velocity (the serial solve's on the
+        energies and interface pressure, what the materials' crossings of the mesh's
+        edges brought its cells, each material's velocity (the serial solve's on the
         mixed cells' nodes, the mesh's elsewhere) and the start's masses."""
         cells = self.mixed.cells
         volumes = self.remapped_slots(step, solution, cell_volume, e_new, solution[1])
@@ -147,8 +154,10 @@ class EnrichedCellsOnRanks(SharedClosure):
         velocity = np.stack([u_new[:2]] * 2)
         held, local = self._local_nodes(last["sub"])
         velocity[:, :, local] = last["velocity"][:, :, last["sub"][held]]
+        crossing = tuple(gained[..., self.distribution.cells] for gained in last["crossing"])
         fields = dict(interface_pressure=interface_pressure, interface_velocity=np.zeros(cells.size),
-                      material_node_velocity=velocity, material_node_mass=state.material_node_mass,
+                      material_crossing=crossing, material_node_velocity=velocity,
+                      material_node_mass=state.material_node_mass,
                       material_corner_mass=state.material_corner_mass,
                       material_node_internal=state.material_node_internal)
         return volumes, fields

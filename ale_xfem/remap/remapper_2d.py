@@ -172,6 +172,9 @@ class Remapper2D:
         # per material dense arrays (n_materials, n_cells): volume, mass, internal energy
         volume, mass, energy = swept_kernels_2d.by_material(layout.cell_material, state.material_volume,
                                                             state.material_mass, state.material_energy, n_materials)
+        if state.material_crossing is not None:  # what the materials carried across the Lagrangian edges
+            mass += state.material_crossing[0]
+            energy += state.material_crossing[1]
         old_cell_mass = mass.sum(axis=0)
         # materials already below TRACE of their cell (the set-up's geometry made them, or an
         # earlier remap kept them): they stay while the remap leaves them as they are (to
@@ -291,7 +294,7 @@ class Remapper2D:
             node_position=X, node_velocity=velocity, material_mass=slot_mass, material_energy=slot_energy,
             material_volume=slot_volume, material_density=density, material_pressure=pressure,
             material_sound_speed=sound_speed, interface_pressure=interface_pressure,
-            interface_velocity=interface_velocity, **(material_fields or {}))
+            interface_velocity=interface_velocity, material_crossing=None, **(material_fields or {}))
         return new_state, new_layout, new_mixed, node_mass, kinetic_change
 
     def _deposit(self, loss, node_mass, mass, energy, corner_mass=None):
@@ -344,7 +347,19 @@ class Remapper2D:
         a few steps of the spinning disk) and is re-extended from its cells' means."""
         return swept_kernels_2d.material_momentum_fluxes(
             self.mesh.cell_nodes, state.material_corner_mass, state.material_node_velocity,
-            state.material_node_internal, flux_mass, donor, receiver)
+            state.material_node_internal, flux_mass, donor, receiver, *self._crossed(state))
+
+    def _crossed(self, state):
+        """What the materials' crossings of the Lagrangian edges (the state's
+        ``material_crossing``) brought each cell: mass (2, n_cells), momentum (2 components,
+        2 materials, n_cells) and kinetic energy (2, n_cells) — added before the swept
+        regions' fluxes, so that a cell's momentum goes with its mass (a cell the fluxes
+        empty leaves none behind)."""
+        if state.material_crossing is None:
+            n_cells = self.mesh.n_cells
+            return np.zeros((2, n_cells)), np.zeros((2, 2, n_cells)), np.zeros((2, n_cells))
+        mass, _, momentum, kinetic = state.material_crossing
+        return mass, momentum, kinetic
 
     def _material_velocities(self, state, X, volume, mass, energy, area, standing, momentum, kinetic_in,
                              deviation):

@@ -474,14 +474,17 @@ def deposit_heat(cell_nodes, per_mass, mass, energy):  # pragma: no cover (compi
 
 @numba.njit(**KERNEL)
 def material_momentum_fluxes(cell_nodes, corner_mass, node_velocity, node_internal, flux_mass, donor,
-                             receiver):  # pragma: no cover (compiled)
+                             receiver, added_mass, added_momentum, added_kinetic):  # pragma: no cover (compiled)
     """2D enriched cells, each material on its own (remapper_2d's
     ``_material_momentum_fluxes``): each cell holds Σ_i c_mi u_mi over its corners (c: the
-    material's corner masses (2, k, n_cells)); a swept region carries each material's mass
-    flux at the donor's mean velocity of that material.  Returns (each material's momentum
-    per cell after the fluxes (2 components, 2 materials, n_cells), the kinetic energy the
-    fluxes bring each cell (2, n_cells), each corner's velocity less its cell's mean at the
-    material's internal nodes (2 materials, 2 components, k, n_cells))."""
+    material's corner masses (2, k, n_cells)) and what the materials' crossings of the
+    Lagrangian edges brought it (``added_mass`` (2, n_cells), ``added_momentum`` (2
+    components, 2 materials, n_cells), ``added_kinetic`` (2, n_cells)); a swept region
+    carries each material's mass flux at the donor's mean velocity of that material.
+    Returns (each material's momentum per cell after the fluxes (2 components, 2
+    materials, n_cells), the kinetic energy the crossings and fluxes bring each cell (2,
+    n_cells), each corner's velocity less its cell's mean at the material's internal
+    nodes (2 materials, 2 components, k, n_cells))."""
     n_cells, k = cell_nodes.shape
     n = donor.size
     momentum = np.zeros((2, 2, n_cells))
@@ -494,10 +497,12 @@ def material_momentum_fluxes(cell_nodes, corner_mass, node_velocity, node_intern
             cell_mass = corner_mass[m, 0, c]
             for i in range(1, k):
                 cell_mass += corner_mass[m, i, c]
+            cell_mass += added_mass[m, c]
             for d in range(2):
                 total = corner_mass[m, 0, c] * node_velocity[m, d, cell_nodes[c, 0]]
                 for i in range(1, k):
                     total += corner_mass[m, i, c] * node_velocity[m, d, cell_nodes[c, i]]
+                total += added_momentum[d, m, c]
                 momentum[d, m, c] = total
                 mean = total / cell_mass if cell_mass > 0 else 0.0
                 cell_velocity[d, c] = mean
@@ -521,7 +526,7 @@ def material_momentum_fluxes(cell_nodes, corner_mass, node_velocity, node_intern
         for c in range(n_cells):
             momentum[0, m, c] += into[0, c] - out[0, c]
             momentum[1, m, c] += into[1, c] - out[1, c]
-            kinetic_in[m, c] = into[2, c] - out[2, c]
+            kinetic_in[m, c] = into[2, c] - out[2, c] + added_kinetic[m, c]
     return momentum, kinetic_in, deviation
 
 
