@@ -1640,3 +1640,36 @@ def test_hourglass_forces_evaluated_without_the_tangle_check_are_those_with_it()
     for with_check, without in zip((*checked.hourglass_force, checked.corner_force, checked.nodal_force),
                                    (*unchecked.hourglass_force, unchecked.corner_force, unchecked.nodal_force)):
         assert with_check.tobytes() == without.tobytes()
+
+
+def test_a_node_with_both_materials_outside_the_mixed_cells_merges_their_velocities_conservatively():
+    """Remapper2D._merge_outside_mixed_cells: a node carrying both materials' masses that
+    no mixed cell touches (Γ along mesh edges) leaves the remap with one velocity, the
+    materials' mass-weighted mean — its momentum unchanged, the kinetic energy it loses in
+    the heat to deposit; the nodes of mixed cells and the nodes of one material keep
+    theirs."""
+    from types import SimpleNamespace
+
+    from ale_xfem.remap.remapper_2d import Remapper2D
+
+    rng = np.random.default_rng(5)
+    cell_nodes = np.array([[0, 1, 4, 3], [1, 2, 5, 4], [3, 4, 7, 6], [4, 5, 8, 7]])  # 2 × 2 quadrilaterals
+    node_mass = rng.uniform(0.5, 1.0, (2, 9))
+    node_mass[1, [0, 3, 6]] = 0.0  # the left column: material 0 only
+    velocity = rng.normal(size=(2, 2, 9))
+    mesh_velocity = velocity[0].copy()
+    loss = rng.uniform(0.0, 0.1, 9)
+    before = (velocity.copy(), loss.copy())
+    remapper = SimpleNamespace(mesh=SimpleNamespace(cell_nodes=cell_nodes))
+    Remapper2D._merge_outside_mixed_cells(remapper, velocity, mesh_velocity, node_mass, loss, np.array([1]))
+    untouched = [0, 3, 6, 1, 2, 4, 5]  # one material, or a node of mixed cell 1
+    merged = [7, 8]
+    np.testing.assert_array_equal(velocity[:, :, untouched], before[0][:, :, untouched])
+    np.testing.assert_array_equal(loss[untouched], before[1][untouched])
+    np.testing.assert_allclose(velocity[0][:, merged], velocity[1][:, merged], rtol=0, atol=0)
+    np.testing.assert_array_equal(mesh_velocity[:, merged], velocity[0][:, merged])
+    momentum = lambda v: np.einsum("mn,mdn->dn", node_mass[:, merged], v[:, :, merged])  # noqa: E731
+    np.testing.assert_allclose(momentum(velocity), momentum(before[0]), rtol=1e-14)
+    kinetic = lambda v: 0.5 * np.einsum("mn,mdn->n", node_mass[:, merged], v[:, :, merged] ** 2)  # noqa: E731
+    np.testing.assert_allclose(kinetic(velocity) + loss[merged], kinetic(before[0]) + before[1][merged], rtol=1e-14)
+    assert np.all(loss[merged] > before[1][merged])
