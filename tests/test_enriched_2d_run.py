@@ -111,7 +111,7 @@ def test_the_spinning_disk_slides_inside_the_fluid_around_it():
 
 @pytest.mark.xfail(strict=True, reason="the disk loses more of its angular momentum on finer meshes (with bubbles "
                    "it keeps 0.980, 0.962, 0.939 of it at t = 0.5 on 20², 40², 80² quadrilaterals): "
-                   "docs/design.md §4, 'Sliding is not clean'")
+                   "docs/design.md §4, 'The spinning disk'")
 @pytest.mark.parametrize("stabilisation", ["bubble", "nitsche"])
 def test_the_spinning_disks_loss_falls_with_resolution(stabilisation):
     """Free slip keeps the spinning disk's steady state (v_θ = ωr inside, rest outside): what
@@ -297,9 +297,10 @@ def test_the_sheared_tube_keeps_its_slip_line_sharper_than_one_velocity_field():
     assert abs(free.conservation["momentum"]) < 1e-10 and abs(free.conservation["mass"]) < 1e-15
 
 
-# The sheared tube's convergence: three resolutions per cell type, where the rates have
-# settled (the enriched cells' rates over quadrilaterals 40² to 320² and triangles 20² to
-# 160² are the same within 0.03: docs/design.md §4, "Convergence on the sheared tube").
+# The sheared tube's convergence: three resolutions per cell type (fitted over triangles 20²
+# to 160² the enriched cells' rates are the same within 0.03; on quadrilaterals u_n and u_t
+# slow down at 320², local rates 160² → 320² 0.68 and 0.73, one velocity field's u_n 0.76:
+# docs/design.md §4, "Convergence on the sheared tube").
 RATE_SIDES = {"quadrilateral": (40, 80, 160), "triangle": (30, 60, 120)}
 
 
@@ -330,19 +331,19 @@ SMEARED_CONTACT = pytest.mark.xfail(strict=True, reason=(
 SHEARED_CELLS_DENSITY = pytest.mark.xfail(strict=True, reason=(
     "on triangles the enriched density error grows against one velocity field's with resolution (6 % above it "
     "at 30², 30 % at 120²; rates 0.65 and 0.80), as on a steady slip line, where it is 1.8-2.7 times one "
-    "velocity field's: docs/design.md §4, 'Sliding is not clean'"))
-SHEARED_MESH = pytest.mark.xfail(strict=True, reason=(
+    "velocity field's: docs/design.md §4, 'Sliding is not clean yet'"))
+SLOWER_NORMAL_VELOCITY = pytest.mark.xfail(strict=True, reason=(
     "the normal velocity converges more slowly with free slip than with one velocity field (rates 0.78 and "
     "0.67, against 0.87 and 0.86), as a steady slip line shows most plainly (there its error goes from 0.9 to "
-    "1.9 times one velocity field's with resolution): docs/design.md §4, 'Sliding is not clean'"))
+    "1.9 times one velocity field's with resolution): docs/design.md §4, 'Sliding is not clean yet'"))
 
 
 @pytest.mark.parametrize("cell, quantity", [
     ("quadrilateral", "pressure"), ("triangle", "pressure"),
     pytest.param("quadrilateral", "density", marks=SMEARED_CONTACT),
     pytest.param("triangle", "density", marks=SHEARED_CELLS_DENSITY),
-    pytest.param("quadrilateral", "normal_velocity", marks=SHEARED_MESH),
-    pytest.param("triangle", "normal_velocity", marks=SHEARED_MESH),
+    pytest.param("quadrilateral", "normal_velocity", marks=SLOWER_NORMAL_VELOCITY),
+    pytest.param("triangle", "normal_velocity", marks=SLOWER_NORMAL_VELOCITY),
 ])
 def test_the_sheared_tube_converges_at_rate_0_8_with_enriched_cells(cell, quantity):
     """The target of the paper's 2D method: on the rotated two-material tube with a
@@ -397,7 +398,7 @@ def test_a_steady_slip_line_keeps_its_jump_with_free_slip(cell, bound):
     "at 40² free slip's density error is 2.6 and 2.5 times one velocity field's on quadrilaterals and "
     "triangles, and does not converge on quadrilaterals (4.0e-4, 4.5e-4, 3.4e-4 at 40², 80², 160²); its "
     "normal velocity error is 0.91 and 1.29 times one velocity field's: docs/design.md §4, "
-    "'Sliding is not clean'"))
+    "'Sliding is not clean yet'"))
 @pytest.mark.parametrize("cell", ["quadrilateral", "triangle"])
 def test_free_slip_leaves_the_rest_of_a_steady_slip_line_as_one_velocity_field_does(cell):
     """Away from the tangential jump a steady slip line has nothing to get wrong: free
