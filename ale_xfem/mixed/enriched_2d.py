@@ -439,14 +439,14 @@ class EnrichedClosure2D(SharedClosure):
         ``rho`` and ``energy`` (2, n), in a mixed cell; the pure cell's new state
         otherwise), at most CROSSING_SHARE of what the donor holds over all its edges, and
         with it the momentum and kinetic energy of m's new velocity on the edge (the mean of
-        its two nodes'): the remap moves what each cell gains, the
-        state's ``material_crossing`` (kept in ``last_step["crossing"]``), with its own
-        fluxes.  Returns the net volume
-        (2, n) each mixed cell's part gains, by which the part in the Lagrangian cell
-        differs from ``own`` (2, n), the part moved with its material's velocity.  Under
-        normal continuity (Σ_m ∫_Γ ū·n_m = 0) Σ_m (ΔV_m + R_m) is the cell's own change
-        of area to first order in dt: the parts and the cell then differ by O(dt²) only
-        (without the crossings, by dt × the slip / h: up to 5 % a step on a slip line)."""
+        its two nodes'): the remap moves what each cell gains, the state's
+        ``material_crossing`` (kept in ``last_step["crossing"]``), with its own fluxes.
+        Returns the net volume (2, n) each mixed cell's part gains, by which the part in the
+        Lagrangian cell differs from ``own`` (2, n), the part moved with its material's
+        velocity.  Under normal continuity (Σ_m ∫_Γ ū·n_m = 0) Σ_m (ΔV_m + R_m) is the
+        cell's own change of area to first order in dt: the parts and the cell then differ
+        by O(dt²) only (without the crossings, by dt × the slip / h: up to 4 % a step in the
+        slip line's error disk at 40²)."""
         last, mesh = self._last, self.mesh
         cut, nodes, dt, cells = last["cut"], last["nodes"], last["dt"], self.mixed.cells
         mean = last["mean_velocity"]
