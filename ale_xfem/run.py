@@ -299,7 +299,7 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
             "relaxations": stats.get("relaxations", 0),
             "halved_steps": halved_steps,
         }
-        if "volume_mismatch" in stats:  # 2D enriched cells: their parts scaled to the Lagrangian cell
+        if "volume_mismatch" in stats:  # 2D enriched cells: the O(dt²) rest scaled to the Lagrangian cell
             result.mixed_cells["volume_mismatch"] = stats["volume_mismatch"]
     if problem.exact is not None and state.time > 0 and problem.exact.holds_at(state.time):
         result.errors = l1_errors(problem, state)

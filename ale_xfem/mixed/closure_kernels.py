@@ -10,6 +10,7 @@ import numpy as np
 
 from ale_xfem.eos.kernels import state_derivatives
 from ale_xfem.geometry.polygon_kernels import KERNEL, maximum, minimum
+from ale_xfem.lagrange.kernels import artificial_viscosity
 
 
 @numba.njit(**KERNEL)
@@ -27,6 +28,15 @@ def viscosity_media(kinds, parameters, right, cells, volume, density, sound_spee
         c2_right = state_derivatives(kinds[material], parameters, material, rho_right, energy_right[j])[3]
         mixed_density[j] = volume[k] / (volume_left[j] / density[k] + volume_right[j] / rho_right)
         mixed_sound_speed[j] = maximum(sound_speed[k], np.sqrt(maximum(c2_right, 0.0)))
+
+
+@numba.njit(**KERNEL)
+def add_viscosity(q_quadratic, q_linear, jump, density, sound_speed, weight, q):  # pragma: no cover (compiled)
+    """q += weight · the artificial viscosity of each mixed cell (the explicit step's
+    :func:`ale_xfem.lagrange.kernels.artificial_viscosity`) at the velocity jump ``jump``,
+    density and sound speed given, all (n_mixed,) (EnrichedClosure2D._own_viscosity)."""
+    for j in range(q.size):
+        q[j] += weight * artificial_viscosity(q_quadratic, q_linear, jump[j], density[j], sound_speed[j])
 
 
 @numba.njit(**KERNEL)

@@ -51,6 +51,7 @@ import numpy as np
 
 import dolfinx_solver  # noqa: F401  (before dolfinx: it loads MPI and PETSc)
 from ale_xfem.lagrange.breakdown import Breakdown
+from ale_xfem.mixed.closure_kernels import add_viscosity
 from ale_xfem.mixed.common import SharedClosure
 from ale_xfem.mixed.cut_cells_2d import by_material, enriched_geometry
 from ale_xfem.mixed.enriched_step_2d import EnrichedStep2D, MaterialStart
@@ -306,7 +307,7 @@ class EnrichedClosure2D(SharedClosure):
         for jump, cell_volume, sound_speed in evaluations:
             compression = np.minimum(jump, 0.0)
             compression = np.maximum(np.minimum(jump - slip / np.sqrt(cell_volume), 0.0), compression)
-            q += 0.5 * (q_quadratic * compression - q_linear * sound_speed) * compression * density
+            add_viscosity(q_quadratic, q_linear, compression, density, sound_speed, 0.5, q)
         return q
 
     @staticmethod
