@@ -157,6 +157,11 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
             if distribution is not None:
                 remapper = RemapOnEveryRank(distribution, remapper)
     remap_energy_change, remap_seconds = 0.0, 0.0
+    # 2D enriched cells on a Lagrangian mesh (remapped in place): a mesh that follows both
+    # materials shears where they slide, which ends the run when the slide nears a cell
+    slide_hint = ("; a Lagrangian mesh is sheared where its materials slide along Γ (about a cell of slide is "
+                  "what its cut cells take): mesh.motion = \"smoothed\" or \"eulerian\" for longer slides"
+                  if remapper is not None and remapper.motion == "lagrangian" else "")
     state = problem.state
     start_totals = totals(state, problem.node_mass)
     scale = velocity_scale(problem)
@@ -219,7 +224,7 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
         dt = min(stepper.stable_time_step(evaluation), growth * dt_previous, t_end - state.time)
         if not dt > 0.0 or not np.isfinite(dt):
             status = "failed"
-            diagnostic = f"step {steps + 1}, t = {state.time:.6g}: time step dt = {dt:.3g}, must be > 0"
+            diagnostic = f"step {steps + 1}, t = {state.time:.6g}: time step dt = {dt:.3g}, must be > 0{slide_hint}"
             break
         # A collapsing cell drives dt towards 0: the run would crawl on to max_steps.  It is
         # stopped once dt has stayed too small to reach t_end within max_steps for
@@ -230,7 +235,7 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
             status = "failed"
             diagnostic = (f"step {steps + 1}, t = {state.time:.6g}: the time step collapsed to dt = {dt:.3g} "
                           f"({stalled} steps too small to reach t_end = {t_end:g} within numerics.max_steps = "
-                          f"{max_steps}); {stepper.limiting_cell(evaluation, state.node_position)}")
+                          f"{max_steps}); {stepper.limiting_cell(evaluation, state.node_position)}{slide_hint}")
             break
         try:
             new_state, evaluation, work, impulse, taken = _step(stepper, state, dt, evaluation, remap_all)
@@ -246,7 +251,7 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
             state = new_state
         except (Breakdown, RemapFailure) as failure:
             status = "failed"
-            diagnostic = f"step {steps + 1}, t = {state.time:.6g}: {failure}"
+            diagnostic = f"step {steps + 1}, t = {state.time:.6g}: {failure}{slide_hint}"
             break
         boundary_work += work
         boundary_impulse = boundary_impulse + impulse

@@ -3,7 +3,9 @@
 After a Lagrange step the nodes go from x (Lagrangian) to X (the regularised mesh:
 ``eulerian`` — back to the initial mesh — or ``smoothed`` — each interior node half-way to
 the mean of its neighbours along edges, each boundary node half-way to the mean of its two
-boundary neighbours along a straight boundary, corners kept).  Each edge a→b (counter-
+boundary neighbours along a straight boundary, corners kept — or, for enriched mixed cells
+on a ``lagrangian`` mesh, X = x: nothing is swept, only what the materials carried across
+the Lagrangian edges at Γ moves, and the interface is reconstructed in the cells it reached).  Each edge a→b (counter-
 clockwise in the cell K₊ on its left) sweeps the quadrilateral (x_a, X_a, X_b, x_b), of
 signed area S: S > 0 moves that volume from the cell on its other side K₋ into K₊, S < 0
 from K₊ into K₋.  The new cell areas are then exact: A' = A + Σ_edges ±S.
@@ -87,7 +89,8 @@ class Remapper2D:
         mesh = problem.mesh if mesh is None else mesh
         self.scope = WholeMesh() if scope is None else scope
         self.mesh, self.materials = mesh, problem.materials
-        self.motion, self.order = motion, order
+        # (a remap in place sweeps nothing: no reconstruction in the donors to pay for)
+        self.motion, self.order = motion, (1 if motion == "lagrangian" else order)
         self.heat = problem.scene.numerics.remap_energy == "total"
         self.initial = mesh.node_position.copy()
         self.a, self.b, self.plus, self.minus = mesh_edges(mesh.cell_nodes)
@@ -128,11 +131,17 @@ class Remapper2D:
         return geometry
 
     def target(self, position):
-        """The regularised mesh.  smoothed: interior nodes half-way to the mean of their edge
-        neighbours; boundary nodes half-way to the mean of their two boundary neighbours,
-        along the boundary (a node where the boundary turns stays)."""
+        """The regularised mesh (see the module docstring)."""
         if self.motion == "eulerian":
             return self.initial.copy()  # the new state's own array
+        if self.motion == "lagrangian":  # in place: only what crossed the edges at Γ moves
+            return position.copy()
+        return self._smoothed(position)
+
+    def _smoothed(self, position):
+        """Interior nodes half-way to the mean of their edge neighbours; boundary nodes
+        half-way to the mean of their two boundary neighbours, along the boundary (a node
+        where the boundary turns stays)."""
         n = position.shape[1]
         mean = np.stack([np.bincount(self.a, position[d].take(self.b), n)
                          + np.bincount(self.b, position[d].take(self.a), n) for d in range(2)])

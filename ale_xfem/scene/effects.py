@@ -81,13 +81,21 @@ def scene_effects(scene, n_mixed_cells: int, pistons: list[str]) -> list[Effect]
                           f"interface.relaxation = {str(interface.relaxation).lower()}" if mixed
                           else "needs mixed cells"))
     motion = scene.mesh.motion
-    remapped = motion != "lagrangian"
+    # 2D enriched cells on a Lagrangian mesh: their materials slide across the mesh's edges
+    # at Γ, so every step is remapped onto the Lagrangian mesh itself (no swept region)
+    in_place = motion == "lagrangian" and enriched_2d
+    remapped = motion != "lagrangian" or in_place
+    if in_place:
+        motion_why = (": with 2D enriched mixed cells the materials cross the mesh's edges at Γ, so each step "
+                      "is remapped onto the Lagrangian mesh itself (no swept region: only what crossed moves)")
+    else:
+        motion_why = "" if remapped else ": the mesh moves with the material, nothing is remapped"
     effects.append(Effect(f"remap_{motion}" if remapped else "remap", remapped,
-                          f"mesh.motion = \"{motion}\"" + (
-                              "" if remapped else ": the mesh moves with the material, nothing is remapped")))
-    effects.append(Effect(f"remap_order_{numerics.remap_order}", remapped,
-                          f"numerics.remap_order = {numerics.remap_order}" if remapped
-                          else "needs a remap (mesh.motion other than \"lagrangian\")"))
+                          f"mesh.motion = \"{motion}\"" + motion_why))
+    swept = motion != "lagrangian"  # an in-place remap sweeps nothing to reconstruct
+    effects.append(Effect(f"remap_order_{numerics.remap_order}", swept,
+                          f"numerics.remap_order = {numerics.remap_order}" if swept
+                          else "needs a moving remap (mesh.motion other than \"lagrangian\")"))
     return effects
 
 

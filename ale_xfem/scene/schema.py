@@ -751,10 +751,6 @@ def _check_motion(scene: Scene) -> None:
     must not leave it (walls at both ends)."""
     interface = scene.interface
     if scene.dimension == 2 and interface is not None and interface.model == "enriched":
-        if scene.mesh.motion == "lagrangian":
-            raise SceneError("mesh.motion", scene.mesh.motion, "'eulerian' or 'smoothed' with 2D enriched mixed "
-                             "cells: their materials slide, so the two parts of a cell drift from its Lagrangian "
-                             "area and Γ leaves its cells unless every step is remapped")
         if len(scene.materials) != 2:
             raise SceneError("materials", sorted(scene.materials), "exactly two materials with 2D enriched mixed "
                              "cells (each node carries one velocity per material), or interface.model = "
