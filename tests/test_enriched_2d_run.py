@@ -44,6 +44,8 @@ def test_a_disk_at_rest_in_a_uniform_pressure_stays_at_rest(cell, stabilisation,
     velocities are one unknown, exactly), and mass, momentum and energy are conserved."""
     problem = build_problem(scene(cell, motion, stabilisation=stabilisation))
     assert f"remap_{motion}" in problem.effects
+    # (a remap in place sweeps nothing: its order cannot act)
+    assert any(name.startswith("remap_order_") for name in problem.effects) == (motion == "eulerian")
     result = simulate(problem)
     state = result.state
     assert result.status == "ok" and result.steps >= 10 and result.mixed_cells["solves"] == result.steps
