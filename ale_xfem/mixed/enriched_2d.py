@@ -35,8 +35,8 @@ away, and the largest relative mismatch of a step is recorded
 kinetic energy that crossed are handed to the remap (the state's ``material_crossing``),
 which moves them before its own fluxes.  The mixed cells' artificial viscosity is taken on
 their compression less the part the sliding makes (:meth:`EnrichedClosure2D._own_viscosity`).
-This needs a remap after every step (an Eulerian or smoothed mesh): on a Lagrangian mesh Γ
-would leave its cells; such scenes are refused at load.
+This needs a remap after every step: on a Lagrangian mesh it is made in place
+(``remap_lagrangian``: nothing swept, only what crossed moves).
 
 **State.**  Each material's nodal velocities and masses (the condensed ones, the same in
 the step and in the remap: momentum passes between them exactly) are in the state
@@ -543,6 +543,7 @@ class EnrichedClosure2D(SharedClosure):
             e_new[0, cells] -= work / state.material_mass[0, cells]
 
     def finish(self, step, state, solution, x_new, u_new, e_new, dt):
-        """A state no remap follows (not reached by scenes: they need a remapped mesh)."""
+        """A state no remap follows (not reached by scenes: every step of theirs is remapped,
+        in place on a Lagrangian mesh)."""
         new_state, final = super().finish(step, state, solution, x_new, u_new, e_new, dt)
         return new_state.evolved(**self._material_fields(u_new)), final

@@ -163,7 +163,8 @@ class EnrichedCellsOnRanks(SharedClosure):
         return volumes, fields
 
     def finish(self, step, state, solution, x_new, u_new, e_new, dt):
-        raise RuntimeError("2D enriched mixed cells need a remapped mesh (refused at load)")
+        raise RuntimeError("2D enriched mixed cells need a remap after every step (remap_lagrangian on a "
+                           "Lagrangian mesh)")
 
 
 def interface_system(distribution):
