@@ -227,17 +227,39 @@ def swept_pass_2d(mesh, x, target_a, target_b, edges, is_mixed, material, volume
     S = (Xb[0] - xa[0]) * (xb[1] - Xa[1])
     S -= (Xb[1] - xa[1]) * (xb[0] - Xa[0])
     S *= 0.5
-    e = np.flatnonzero((S != 0.0) & (minus >= 0))
-    S_e = S[e]
-    swept = tuple([ends[d].take(e) for ends in (xa, Xa, Xb, xb)] for d in range(2))
-    donor = np.where(S_e > 0, minus[e], plus[e])
-    receiver = np.where(S_e > 0, plus[e], minus[e])
+    # a twisted edge (the Lagrangian and target edges cross at P): two lobes, made from its
+    # lower-numbered end p, the other q
+    reverse = a > b
+    xp, xq = np.where(reverse, xb, xa), np.where(reverse, xa, xb)
+    Xp, Xq = np.where(reverse, Xb, Xa), np.where(reverse, Xa, Xb)
+    dp = (Xq[0] - Xp[0]) * (xp[1] - Xp[1]) - (Xq[1] - Xp[1]) * (xp[0] - Xp[0])
+    dq = (Xq[0] - Xp[0]) * (xq[1] - Xp[1]) - (Xq[1] - Xp[1]) * (xq[0] - Xp[0])
+    ep = (xq[0] - xp[0]) * (Xp[1] - xp[1]) - (xq[1] - xp[1]) * (Xp[0] - xp[0])
+    eq = (xq[0] - xp[0]) * (Xq[1] - xp[1]) - (xq[1] - xp[1]) * (Xq[0] - xp[0])
+    interior = minus >= 0
+    twisted = interior & (dp * dq < 0.0) & (ep * eq < 0.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = ep / (ep - eq)
+    P = Xp + t * (Xq - Xp)
+    sign = np.where(reverse, -1.0, 1.0)
+    Sp = sign * 0.5 * ((Xp[0] - xp[0]) * (P[1] - xp[1]) - (Xp[1] - xp[1]) * (P[0] - xp[0]))
+    Sq = sign * 0.5 * ((Xq[0] - P[0]) * (xq[1] - P[1]) - (Xq[1] - P[1]) * (xq[0] - P[0]))
+    # regions, edge by edge: the whole quadrilateral, or the lobe at p then the lobe at q
+    areas = np.stack([S, Sp, Sq], axis=1)
+    kept = np.stack([interior & ~twisted & (S != 0.0), twisted & (Sp != 0.0), twisted & (Sq != 0.0)], axis=1)
+    vertices = [np.stack([xa, xp, P], axis=-1), np.stack([Xa, Xp, P], axis=-1), np.stack([Xb, P, Xq], axis=-1),
+                np.stack([xb, P, xq], axis=-1)]  # (2, n_edges, 3) each: vertex 0 … 3 of each kind
+    edge_of = np.repeat(np.arange(a.size), 3).reshape(-1, 3)[kept]
+    S_e = areas[kept]
+    swept = tuple([v[d][kept] for v in vertices] for d in range(2))
+    donor = np.where(S_e > 0, minus[edge_of], plus[edge_of])
+    receiver = np.where(S_e > 0, plus[edge_of], minus[edge_of])
     size = np.abs(S_e)
-    flux_volume = np.zeros((n_materials, e.size))
+    flux_volume = np.zeros((n_materials, S_e.size))
     pure = ~is_mixed[donor]
     from_pure = np.flatnonzero(pure)
     entry = material.take(donor[from_pure])
-    entry *= e.size
+    entry *= S_e.size
     entry += from_pure
     flux_volume.reshape(-1)[entry] = size[from_pure]
     with np.errstate(invalid="ignore", divide="ignore"):

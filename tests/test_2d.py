@@ -809,7 +809,11 @@ def test_the_compiled_2d_swept_pass_gives_the_numpy_pass_bits(mesh_name, order):
             swept_kernels_2d.exchange(quantity, flux, donor, receiver)
         got = (donor, receiver, size, swept, flux_volume, flux_mass, flux_energy, rho, eps)
         interior = int(np.count_nonzero(minus >= 0))
-        assert (0 < donor.size < interior) if case == "still" else donor.size == interior
+        # one region per moving edge, two for a twisted one (the nodes moved at random)
+        twisted = donor.size - np.unique(np.stack([np.minimum(donor, receiver), np.maximum(donor, receiver)]),
+                                         axis=1).shape[1]
+        assert twisted > 0 and ((0 < donor.size - twisted < interior) if case == "still"
+                                else donor.size - twisted == interior)
         names = ("donor", "receiver", "size", "swept", "flux volume", "flux mass", "flux energy", "rho", "eps")
         for name, want, have in zip(names, expected, got):
             if name in ("donor", "receiver"):

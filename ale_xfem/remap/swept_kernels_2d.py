@@ -174,20 +174,50 @@ def swept_edges(x, target_a, target_b, a, b, plus, minus, is_mixed, material,
     the target mesh (edge ends ``target_a``, ``target_b`` (2, n_edges)): each edge a→b
     sweeps the quadrilateral (x_a, X_a, X_b, x_b) of signed area
     S = ½ (X_b − x_a) × (x_b − X_a), from the cell on its other side into the cell on its left
-    (``plus``) where S > 0, the other way where S < 0.  Returns, over the edges that move
-    (S ≠ 0): their donors, receivers, |S|, their quadrilaterals (2, 4, n) and each
+    (``plus``) where S > 0, the other way where S < 0 — or, where the Lagrangian and target
+    edges cross at P, its two lobes (x_p, X_p, P, P) and (P, P, X_q, x_q) (p the lower-numbered
+    end), each the same way by the sign of its own area (the module docstring of
+    ale_xfem.remap.remapper_2d).  Returns, over the regions of nonzero area in the order of
+    the edges: their donors, receivers, |S|, their quadrilaterals (2, 4, n) and each
     material's volume in them (n_materials, n) — a pure donor's material's |S|, zero from mixed
     donors (``is_mixed``: their share is clipped by their polygons; ``material``: each cell's
     first material)."""
     n_edges = a.size
-    area = np.empty(n_edges)
+    # each edge's region, or its two lobes where the Lagrangian and target edges cross at P:
+    # (x_a, X_a, P) and (P, X_b, x_b), each from the cell on its own side (the ends of an
+    # edge that Γ cuts move with different materials, so the edge turns about P).  The
+    # lobes are made from the edge's lower-numbered end, whichever way the edge goes (its
+    # direction follows the numbering of its cells): on several MPI ranks their areas and
+    # their order are the serial run's, to the bit.
+    lobes = np.zeros((3, n_edges))  # (S, S at the lower end, S at the higher end)
+    twisted = np.zeros(n_edges, dtype=np.bool_)
+    cross_at = np.empty((2, n_edges))
     count = 0
     for j in range(n_edges):
-        s = (target_b[0, j] - x[0, a[j]]) * (x[1, b[j]] - target_a[1, j])
-        s -= (target_b[1, j] - x[1, a[j]]) * (x[0, b[j]] - target_a[0, j])
-        s *= 0.5
-        area[j] = s
-        if (s != 0.0) & (minus[j] >= 0):
+        if minus[j] < 0:
+            continue
+        xa0, xa1, xb0, xb1 = x[0, a[j]], x[1, a[j]], x[0, b[j]], x[1, b[j]]
+        ta0, ta1, tb0, tb1 = target_a[0, j], target_a[1, j], target_b[0, j], target_b[1, j]
+        s = 0.5 * ((tb0 - xa0) * (xb1 - ta1) - (tb1 - xa1) * (xb0 - ta0))
+        lobes[0, j] = s
+        sign = 1.0
+        if a[j] > b[j]:  # from the lower end: p, q
+            xa0, xa1, xb0, xb1, ta0, ta1, tb0, tb1 = xb0, xb1, xa0, xa1, tb0, tb1, ta0, ta1
+            sign = -1.0
+        # sides of x_p, x_q about the target edge, and of X_p, X_q about the Lagrangian edge
+        dp = (tb0 - ta0) * (xa1 - ta1) - (tb1 - ta1) * (xa0 - ta0)
+        dq = (tb0 - ta0) * (xb1 - ta1) - (tb1 - ta1) * (xb0 - ta0)
+        ep = (xb0 - xa0) * (ta1 - xa1) - (xb1 - xa1) * (ta0 - xa0)
+        eq = (xb0 - xa0) * (tb1 - xa1) - (xb1 - xa1) * (tb0 - xa0)
+        if dp * dq < 0.0 and ep * eq < 0.0:
+            twisted[j] = True
+            t = ep / (ep - eq)
+            p0, p1 = ta0 + t * (tb0 - ta0), ta1 + t * (tb1 - ta1)
+            cross_at[0, j], cross_at[1, j] = p0, p1
+            lobes[1, j] = sign * 0.5 * ((ta0 - xa0) * (p1 - xa1) - (ta1 - xa1) * (p0 - xa0))
+            lobes[2, j] = sign * 0.5 * ((tb0 - p0) * (xb1 - p1) - (tb1 - p1) * (xb0 - p0))
+            count += int(lobes[1, j] != 0.0) + int(lobes[2, j] != 0.0)
+        elif s != 0.0:
             count += 1
     donor = np.empty(count, dtype=np.int64)
     receiver = np.empty(count, dtype=np.int64)
@@ -196,22 +226,33 @@ def swept_edges(x, target_a, target_b, a, b, plus, minus, is_mixed, material,
     flux_volume = np.zeros((n_materials, count))
     k = 0
     for j in range(n_edges):
-        s = area[j]
-        if not ((s != 0.0) & (minus[j] >= 0)):
+        if minus[j] < 0:
             continue
-        if s > 0:
-            donor[k], receiver[k] = minus[j], plus[j]
-        else:
-            donor[k], receiver[k] = plus[j], minus[j]
-        size[k] = abs(s)
-        for d in range(2):
-            swept[d, 0, k] = x[d, a[j]]
-            swept[d, 1, k] = target_a[d, j]
-            swept[d, 2, k] = target_b[d, j]
-            swept[d, 3, k] = x[d, b[j]]
-        if not is_mixed[donor[k]]:
-            flux_volume[material[donor[k]], k] = size[k]
-        k += 1
+        low, high = (a[j], b[j]) if a[j] < b[j] else (b[j], a[j])
+        target_low = target_a if a[j] < b[j] else target_b
+        target_high = target_b if a[j] < b[j] else target_a
+        for lobe in range(1, 3) if twisted[j] else range(1):
+            s = lobes[lobe, j]
+            if s == 0.0:
+                continue
+            if s > 0:
+                donor[k], receiver[k] = minus[j], plus[j]
+            else:
+                donor[k], receiver[k] = plus[j], minus[j]
+            size[k] = abs(s)
+            for d in range(2):
+                if lobe == 0:  # (x_a, X_a, X_b, x_b)
+                    swept[d, 0, k], swept[d, 1, k] = x[d, a[j]], target_a[d, j]
+                    swept[d, 2, k], swept[d, 3, k] = target_b[d, j], x[d, b[j]]
+                elif lobe == 1:  # (x_p, X_p, P, P), p the lower end
+                    swept[d, 0, k], swept[d, 1, k] = x[d, low], target_low[d, j]
+                    swept[d, 2, k], swept[d, 3, k] = cross_at[d, j], cross_at[d, j]
+                else:  # (P, P, X_q, x_q)
+                    swept[d, 0, k], swept[d, 1, k] = cross_at[d, j], cross_at[d, j]
+                    swept[d, 2, k], swept[d, 3, k] = target_high[d, j], x[d, high]
+            if not is_mixed[donor[k]]:
+                flux_volume[material[donor[k]], k] = size[k]
+            k += 1
     return donor, receiver, size, swept, flux_volume
 
 
