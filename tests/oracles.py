@@ -227,8 +227,8 @@ def swept_pass_2d(mesh, x, target_a, target_b, edges, is_mixed, material, volume
     S = (Xb[0] - xa[0]) * (xb[1] - Xa[1])
     S -= (Xb[1] - xa[1]) * (xb[0] - Xa[0])
     S *= 0.5
-    # a twisted edge (the Lagrangian and target edges cross at P): two lobes, made from its
-    # lower-numbered end p, the other q
+    # a twisted edge (the Lagrangian and target edges cross at P) beside a mixed cell or
+    # between two materials: two lobes, made from its lower-numbered end p, the other q
     reverse = a > b
     xp, xq = np.where(reverse, xb, xa), np.where(reverse, xa, xb)
     Xp, Xq = np.where(reverse, Xb, Xa), np.where(reverse, Xa, Xb)
@@ -237,7 +237,9 @@ def swept_pass_2d(mesh, x, target_a, target_b, edges, is_mixed, material, volume
     ep = (xq[0] - xp[0]) * (Xp[1] - xp[1]) - (xq[1] - xp[1]) * (Xp[0] - xp[0])
     eq = (xq[0] - xp[0]) * (Xq[1] - xp[1]) - (xq[1] - xp[1]) * (Xq[0] - xp[0])
     interior = minus >= 0
-    twisted = interior & (dp * dq < 0.0) & (ep * eq < 0.0)
+    other = np.where(interior, minus, plus)
+    split = is_mixed[plus] | is_mixed[other] | (material[plus] != material[other])
+    twisted = interior & split & (dp * dq < 0.0) & (ep * eq < 0.0)
     with np.errstate(divide="ignore", invalid="ignore"):
         t = ep / (ep - eq)
     P = Xp + t * (Xq - Xp)

@@ -5,10 +5,10 @@ After a Lagrange step the nodes go from x (Lagrangian) to X (the regularised mes
 the mean of its neighbours along edges, each boundary node half-way to the mean of its two
 boundary neighbours along a straight boundary, corners kept — or, for enriched mixed cells
 on a ``lagrangian`` mesh, X = x: nothing is swept, only what the materials carried across
-the Lagrangian edges at Γ moves, and the interface is reconstructed in the cells it reached).  Each edge a→b (counter-
-clockwise in the cell K₊ on its left) sweeps the quadrilateral (x_a, X_a, X_b, x_b), of
-signed area S: S > 0 moves that volume from the cell on its other side K₋ into K₊, S < 0
-from K₊ into K₋.  The new cell areas are then exact: A' = A + Σ_edges ±S.
+the Lagrangian edges at Γ moves, and the interface is reconstructed in the cells it
+reached).  Each edge a→b (counter-clockwise in the cell K₊ on its left) sweeps the
+quadrilateral (x_a, X_a, X_b, x_b), of signed area S: S > 0 moves that volume from the
+cell on its other side K₋ into K₊, S < 0 from K₊ into K₋.  The new cell areas are then exact: A' = A + Σ_edges ±S.
 
 What crosses an edge comes from its donor cell, material by material:
 
@@ -42,14 +42,17 @@ material's mass and internal energy stay exact to round-off (reported as
 rings, merged into its own cell's other material (``lone_traces``); a cell receiving a third
 material stops the run with a diagnostic.
 
-Where the two ends of an edge cross the target edge's line from opposite sides (an edge
-that Γ cuts on an enriched cell's mesh, each end moving with its own material; or a
-sheared cell), the edge's region is a bow-tie: it is taken as its two triangles about the
-crossing point P, (x_a, X_a, P) and (P, X_b, x_b), each from the cell on its own side.  (As
-one region from one donor, the lobe going the other way was given the donor's volume
-fractions: on the steady slip line, 40², where no cell's material volumes should change, one
-step changed them by 8 × 10⁻² h² in all within 0.3 of the centre, against 1.3 × 10⁻² h² with
-the lobes — the Lagrange phase's part 2 × 10⁻³ h².)
+Where the two ends of an edge cross the target edge's line from opposite sides (every edge
+that Γ cuts on an enriched cell's mesh: each end moves with its own material), the edge's
+region is a bow-tie; beside a mixed cell, or between two materials, it is taken as its two
+triangles about the crossing point P, (x_a, X_a, P) and (P, X_b, x_b), each from the cell
+on its own side.  (As one region from one donor, the lobe going the other way was given
+the donor's volume fractions: on the steady slip line, 40², where no cell's material
+volumes should change, one step changed them by 8 × 10⁻² h² in all within 0.3 of the
+centre, against 1.3 × 10⁻² h² with the lobes — the Lagrange phase's part 2 × 10⁻³ h².
+Between two pure cells of one material the lobes would differ only by their donors'
+densities, and twisted edges are common there — 4 700 of the 33 000 moving edges of the
+rotated tube at 200², Eulerian, after 5 steps: they stay one region.)
 """
 
 from __future__ import annotations
@@ -464,8 +467,9 @@ class Remapper2D:
         material, if more than the trace, its volume to the cell's largest material — each
         material's mass and energy conserved; if none holds more, the cells around those
         (:meth:`_second_ring`).  A trace moved onto another trace moves on in the next pass;
-        a fleck with no larger cell within those goes to its own cell's largest material instead (counted in ``lone_traces``: each material's mass is then exact
-        within such flecks).  ``carried``: more (n_materials, n_cells) quantities that go
+        a fleck with no larger cell within those goes to its own cell's largest material
+        instead (counted in ``lone_traces``: each material's mass is then exact within
+        such flecks).  ``carried``: more (n_materials, n_cells) quantities that go
         with the mass (each material's momentum, per component)."""
         scope = self.scope  # (on several ranks every rank takes each pass, the ghost cells refreshed after it)
         for _ in range(MAX_TRACE_PASSES):

@@ -175,9 +175,9 @@ def swept_edges(x, target_a, target_b, a, b, plus, minus, is_mixed, material,
     sweeps the quadrilateral (x_a, X_a, X_b, x_b) of signed area
     S = ½ (X_b − x_a) × (x_b − X_a), from the cell on its other side into the cell on its left
     (``plus``) where S > 0, the other way where S < 0 — or, where the Lagrangian and target
-    edges cross at P, its two lobes (x_p, X_p, P, P) and (P, P, X_q, x_q) (p the lower-numbered
-    end), each the same way by the sign of its own area (the module docstring of
-    ale_xfem.remap.remapper_2d).  Returns, over the regions of nonzero area in the order of
+    edges cross at P beside a mixed cell or between two materials, its two lobes
+    (x_p, X_p, P, P) and (P, P, X_q, x_q) (p the lower-numbered end), each the same way by the
+    sign of its own area (the module docstring of ale_xfem.remap.remapper_2d).  Returns, over the regions of nonzero area in the order of
     the edges: their donors, receivers, |S|, their quadrilaterals (2, 4, n) and each
     material's volume in them (n_materials, n) — a pure donor's material's |S|, zero from mixed
     donors (``is_mixed``: their share is clipped by their polygons; ``material``: each cell's
@@ -189,7 +189,7 @@ def swept_edges(x, target_a, target_b, a, b, plus, minus, is_mixed, material,
     # lobes are made from the edge's lower-numbered end, whichever way the edge goes (its
     # direction follows the numbering of its cells): on several MPI ranks their areas and
     # their order are the serial run's, to the bit.
-    lobes = np.zeros((3, n_edges))  # (S, S at the lower end, S at the higher end)
+    lobes = np.empty((3, n_edges))  # (S, S at the lower end, S at the higher end: where twisted)
     twisted = np.zeros(n_edges, dtype=np.bool_)
     cross_at = np.empty((2, n_edges))
     count = 0
@@ -200,6 +200,9 @@ def swept_edges(x, target_a, target_b, a, b, plus, minus, is_mixed, material,
         ta0, ta1, tb0, tb1 = target_a[0, j], target_a[1, j], target_b[0, j], target_b[1, j]
         s = 0.5 * ((tb0 - xa0) * (xb1 - ta1) - (tb1 - xa1) * (xb0 - ta0))
         lobes[0, j] = s
+        if not (is_mixed[plus[j]] or is_mixed[minus[j]] or material[plus[j]] != material[minus[j]]):
+            count += int(s != 0.0)  # one material on both sides: its lobes would differ by their donors' densities only
+            continue
         sign = 1.0
         if a[j] > b[j]:  # from the lower end: p, q
             xa0, xa1, xb0, xb1, ta0, ta1, tb0, tb1 = xb0, xb1, xa0, xa1, tb0, tb1, ta0, ta1
@@ -207,9 +210,12 @@ def swept_edges(x, target_a, target_b, a, b, plus, minus, is_mixed, material,
         # sides of x_p, x_q about the target edge, and of X_p, X_q about the Lagrangian edge
         dp = (tb0 - ta0) * (xa1 - ta1) - (tb1 - ta1) * (xa0 - ta0)
         dq = (tb0 - ta0) * (xb1 - ta1) - (tb1 - ta1) * (xb0 - ta0)
+        if dp * dq >= 0.0:  # (most edges: both ends on one side)
+            count += int(s != 0.0)
+            continue
         ep = (xb0 - xa0) * (ta1 - xa1) - (xb1 - xa1) * (ta0 - xa0)
         eq = (xb0 - xa0) * (tb1 - xa1) - (xb1 - xa1) * (tb0 - xa0)
-        if dp * dq < 0.0 and ep * eq < 0.0:
+        if ep * eq < 0.0:
             twisted[j] = True
             t = ep / (ep - eq)
             p0, p1 = ta0 + t * (tb0 - ta0), ta1 + t * (tb1 - ta1)
@@ -228,10 +234,10 @@ def swept_edges(x, target_a, target_b, a, b, plus, minus, is_mixed, material,
     for j in range(n_edges):
         if minus[j] < 0:
             continue
+        first, last = (0, 1) if not twisted[j] else (1, 3)
         low, high = (a[j], b[j]) if a[j] < b[j] else (b[j], a[j])
-        target_low = target_a if a[j] < b[j] else target_b
-        target_high = target_b if a[j] < b[j] else target_a
-        for lobe in range(1, 3) if twisted[j] else range(1):
+        forward = a[j] < b[j]
+        for lobe in range(first, last):
             s = lobes[lobe, j]
             if s == 0.0:
                 continue
@@ -245,11 +251,13 @@ def swept_edges(x, target_a, target_b, a, b, plus, minus, is_mixed, material,
                     swept[d, 0, k], swept[d, 1, k] = x[d, a[j]], target_a[d, j]
                     swept[d, 2, k], swept[d, 3, k] = target_b[d, j], x[d, b[j]]
                 elif lobe == 1:  # (x_p, X_p, P, P), p the lower end
-                    swept[d, 0, k], swept[d, 1, k] = x[d, low], target_low[d, j]
+                    swept[d, 0, k] = x[d, low]
+                    swept[d, 1, k] = target_a[d, j] if forward else target_b[d, j]
                     swept[d, 2, k], swept[d, 3, k] = cross_at[d, j], cross_at[d, j]
                 else:  # (P, P, X_q, x_q)
                     swept[d, 0, k], swept[d, 1, k] = cross_at[d, j], cross_at[d, j]
-                    swept[d, 2, k], swept[d, 3, k] = target_high[d, j], x[d, high]
+                    swept[d, 2, k] = target_b[d, j] if forward else target_a[d, j]
+                    swept[d, 3, k] = x[d, high]
             if not is_mixed[donor[k]]:
                 flux_volume[material[donor[k]], k] = size[k]
             k += 1
