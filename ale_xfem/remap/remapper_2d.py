@@ -8,7 +8,8 @@ on a ``lagrangian`` mesh, X = x: nothing is swept, only what the materials carri
 the Lagrangian edges at Γ moves, and the interface is reconstructed in the cells it
 reached).  Each edge a→b (counter-clockwise in the cell K₊ on its left) sweeps the
 quadrilateral (x_a, X_a, X_b, x_b), of signed area S: S > 0 moves that volume from the
-cell on its other side K₋ into K₊, S < 0 from K₊ into K₋.  The new cell areas are then exact: A' = A + Σ_edges ±S.
+cell on its other side K₋ into K₊, S < 0 from K₊ into K₋.  The new cell areas are then
+exact: A' = A + Σ_edges ±S.
 
 What crosses an edge comes from its donor cell, material by material:
 
@@ -484,7 +485,7 @@ class Remapper2D:
             rows = np.arange(cells.size)
             larger = held[rows, best] > volume[material, cells]
             if not np.all(larger):  # none around it holds more: the cells around those
-                candidates, held, best = self._second_ring(volume, material, cells, ~larger, candidates, held, best)
+                candidates, held, best = self._second_ring(volume, material, cells, ~larger, candidates)
                 larger = held[rows, best] > volume[material, cells]
             if not scope.anywhere(np.any(larger)):
                 break
@@ -502,12 +503,13 @@ class Remapper2D:
                 _hand_over(quantity, (material, cells), (keeper, cells))
             self.lone_traces += cells.size
 
-    def _second_ring(self, volume, material, cells, lone, candidates, held, best):
+    def _second_ring(self, volume, material, cells, lone, candidates):
         """For the traces ``lone`` (of ``material`` in ``cells``) that no cell around them
         holds more of: the cells around those cells instead (a trace can be all a donor
         had of a material, the donor emptied by the same remap — a region of a twisted edge
-        taking it one way, the rest another); the others' candidates, volumes held and best
-        as they were.  Returns (candidates, held, best), the candidates (n, width²)."""
+        taking it one way, the rest another); the others keep their ``candidates`` (the
+        cells around them).  Returns (candidates (n, width²), the volume of the trace's
+        material each holds, the place of the one holding most)."""
         around = self.node_neighbours
         width = around.shape[1]
         wide = np.full((cells.size, width * width), -1, dtype=around.dtype)
