@@ -1048,8 +1048,9 @@ def test_the_compiled_polygon_geometry_gives_the_vectorised_numpy_bits():
 @pytest.mark.parametrize("k", [3, 4])
 def test_the_compiled_clipping_of_mixed_donors_gives_the_numpy_clippings_bits(k):
     """The part of a swept region inside its mixed donor and below the donor's PLIC line,
-    compiled (swept_kernels_2d.mixed_donor_parts), against the vectorised numpy polygon
-    clipping the remap used before (tests/oracles.py): the same bits, for regions of either
+    and the whole region's part below that line, compiled
+    (swept_kernels_2d.mixed_donor_parts), against the vectorised numpy polygon clipping
+    (tests/oracles.py): the same bits, for regions of either
     orientation and self-crossing ones, inside, across and outside their cells, cells of
     either orientation, lines through and beside them."""
     from oracles import clip_convex, clipped_area, polygon_area
@@ -1075,7 +1076,7 @@ def test_the_compiled_clipping_of_mixed_donors_gives_the_numpy_clippings_bits(k)
     normal /= np.linalg.norm(normal, axis=1)[:, None]
     offset = rng.uniform(-1.0, 1.0, n)
     edges, donor, line = np.arange(n), np.arange(n), np.arange(n)
-    inside, alpha = mixed_donor_parts(swept, edges, x, cell_nodes, donor, size, normal, offset, line)
+    inside, alpha, alpha_whole = mixed_donor_parts(swept, edges, x, cell_nodes, donor, size, normal, offset, line)
 
     ccw_region = np.where((polygon_area(region) < 0)[:, None, None], region[:, ::-1], region)
     ccw_cell = np.where((polygon_area(cell) < 0)[:, None, None], cell[:, ::-1], cell)
@@ -1084,6 +1085,8 @@ def test_the_compiled_clipping_of_mixed_donors_gives_the_numpy_clippings_bits(k)
     expected_alpha = np.clip(clipped_area(in_donor, normal, offset), 0.0, expected_inside)
     np.testing.assert_array_equal(bits(inside), bits(expected_inside))
     np.testing.assert_array_equal(bits(alpha), bits(expected_alpha))
+    # and the whole region's part below the line, extended beyond the donor
+    np.testing.assert_array_equal(bits(alpha_whole), bits(clipped_area(ccw_region, normal, offset)))
     # not vacuous: regions wholly out of their cells, partly in, and lines cutting parts
     assert np.any(inside == 0.0) and np.any((inside > 0.0) & (inside < size))
     assert np.any((alpha > 0.0) & (alpha < inside))

@@ -388,13 +388,15 @@ MAX_CLIPPED = 64
 def mixed_donor_parts(swept, edges, x, cell_nodes, donor, size, normal, offset, line):  # pragma: no cover (compiled)
     """Of each swept region ``edges`` (indices into the moving edges) whose donor is a
     mixed cell: the part inside the donor (the region, counter-clockwise, clipped by the
-    donor's counter-clockwise cell) and of that the part {x·n ≤ s} of the donor's PLIC line
-    (``line[j]``: the row of ``normal``, ``offset``) — each clipped to [0, what holds it].
-    Returns (inside, alpha), each (len(edges),)."""
+    donor's counter-clockwise cell), of that the part {x·n ≤ s} of the donor's PLIC line
+    (``line[j]``: the row of ``normal``, ``offset``) — each clipped to [0, what holds it] —
+    and the part {x·n ≤ s} of the whole region, the line extended beyond the donor.
+    Returns (inside, alpha, alpha_whole), each (len(edges),)."""
     n = edges.size
     k = cell_nodes.shape[1]
     inside = np.empty(n)
     alpha = np.empty(n)
+    alpha_whole = np.empty(n)
     ax, ay = np.empty(MAX_CLIPPED), np.empty(MAX_CLIPPED)
     bx, by = np.empty(MAX_CLIPPED), np.empty(MAX_CLIPPED)
     cx, cy = np.empty(k), np.empty(k)
@@ -406,6 +408,8 @@ def mixed_donor_parts(swept, edges, x, cell_nodes, donor, size, normal, offset, 
             for v in range(2):
                 ax[v], ax[3 - v] = ax[3 - v], ax[v]
                 ay[v], ay[3 - v] = ay[3 - v], ay[v]
+        j = line[r]
+        alpha_whole[r] = area_below_line(ax, ay, 4, normal[j, 0], normal[j, 1], offset[j])
         cell = donor[e]
         for v in range(k):
             cx[v], cy[v] = x[0, cell_nodes[cell, v]], x[1, cell_nodes[cell, v]]
@@ -429,9 +433,9 @@ def mixed_donor_parts(swept, edges, x, cell_nodes, donor, size, normal, offset, 
                 break
         part = shoelace(ax, ay, m) if m > 0 else 0.0
         inside[r] = minimum(maximum(part, 0.0), size[e])
-        cut = area_below_line(ax, ay, m, normal[line[r], 0], normal[line[r], 1], offset[line[r]]) if m > 0 else 0.0
+        cut = area_below_line(ax, ay, m, normal[j, 0], normal[j, 1], offset[j]) if m > 0 else 0.0
         alpha[r] = minimum(maximum(cut, 0.0), inside[r])
-    return inside, alpha
+    return inside, alpha, alpha_whole
 
 
 @numba.njit(**KERNEL)
