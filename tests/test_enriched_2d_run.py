@@ -403,7 +403,7 @@ def test_one_step_of_a_steady_slip_line_leaves_the_cells_material_volumes_nearly
     material volumes should change.  The edges that Γ cuts turn in the Lagrange step (each
     end moves with its own material) and their swept regions are bow-ties, whose two lobes
     the remap takes each from its own side: after one step the changes within 0.3 of the
-    centre add up to 0.0073 and 0.011 h² (quadrilaterals, triangles), the largest 6.6 and
+    centre add up to 0.0031 and 0.0090 h² (quadrilaterals, triangles), the largest 5.0 and
     5.2 × 10⁻⁴ h²; with each bow-tie from one donor they were 0.047 and 0.031 h², the
     largest 6.6 and 2.6 × 10⁻³ h²."""
     problem = build_problem(load_scene(resolve_scene_path("slip-line"), ["mesh.cells=[24,24]",

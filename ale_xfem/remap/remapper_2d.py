@@ -74,9 +74,10 @@ from ale_xfem.model.state import density_of, thermodynamics
 # heavy disk (80 × 40, smoothed mesh, before boundary nodes slid and losses were deposited
 # only where lost, traces then merged into their cell's other material): 1e-6 left 453 mixed
 # cells of debris, 1e-4 60, 1e-3 51; with 1e-4, traces moved to neighbours and the part of
-# a swept region outside its mixed donor shared (Remapper2D._mixed_donor_volumes) now: 58
-# mixed cells at the end, the disk's mass exact to 2 × 10⁻¹⁶ (it lost 0.04 % while traces
-# merged in place) (`python demos/shock_disk.py --cells 80`).  A larger fraction cleans more
+# a swept region outside its mixed donor split by the donor's interface line
+# (Remapper2D._mixed_donor_volumes) now: 54 mixed cells at the end, the disk's mass kept to the
+# six digits the demo prints (it lost 0.04 % while traces merged in place) (`python
+# demos/shock_disk.py --cells 80`).  A larger fraction cleans more
 # but each trace moved perturbs the pressures of its two cells by about its fraction.
 # A material already below it before the remap (the set-up's exact areas leave such slivers
 # on a curved interface) stays: moving it perturbed a disk at rest on an Eulerian 40 × 40
