@@ -114,8 +114,13 @@ def test_the_spinning_disk_slides_inside_the_fluid_around_it():
     assert single_start[1] < 0.6 and single_end[0] > single_end[1]
 
 
-@pytest.mark.parametrize("stabilisation", ["bubble", "nitsche"])
-def test_the_spinning_disks_loss_falls_with_resolution(stabilisation):
+@pytest.mark.parametrize("cell, stabilisation", [
+    ("quadrilateral", "bubble"), ("quadrilateral", "nitsche"),
+    pytest.param("triangle", "bubble", marks=pytest.mark.xfail(strict=True, reason=(
+        "on crossed triangles the disk keeps 0.915, 0.910, 0.882 of its angular momentum at t = 0.5 on 20², "
+        "40², 80², the fluid gaining +0.067, +0.086, +0.118 in the Lagrange phase, whatever the outer "
+        "density or the time step: not explained yet, docs/design.md §4, 'The spinning disk'")))])
+def test_the_spinning_disks_loss_falls_with_resolution(cell, stabilisation):
     """Free slip keeps the spinning disk's steady state (v_θ = ωr inside, rest outside): what
     the disk loses of its angular momentum, and what the fluid gains, fall as the mesh is
     refined.  At t = 0.5 (quadrilaterals) the disk keeps 0.976 / 0.962 of it on 20²
@@ -126,8 +131,8 @@ def test_the_spinning_disks_loss_falls_with_resolution(stabilisation):
     deviation = {}
     for side in (20, 40):
         problem = build_problem(load_scene(resolve_scene_path("spinning-disk"), [
-            f"mesh.cells=[{side},{side}]", "interface.model=enriched", f"interface.stabilisation={stabilisation}",
-            "t_end=0.5"]))
+            f"mesh.cells=[{side},{side}]", f"mesh.cell_type={cell}", "interface.model=enriched",
+            f"interface.stabilisation={stabilisation}", "t_end=0.5"]))
         disk = list(problem.scene.materials).index("disk")
         start = material_angular_momenta(problem.state, problem.layout, problem.mesh.cell_nodes, None,
                                          (0.5, 0.5))[disk]
