@@ -520,36 +520,6 @@ def node_averaged_gradient(mesh, node_position, values):
     return grad
 
 
-def node_averaged_gradient_of_cells(mesh, node_position, values, cells):
-    """The gradient in ``cells`` only of cell fields averaged to the nodes by area, the sums
-    over the cells around them (ale_xfem.model.mesh.node_averaged_gradient with ``cells``,
-    before it was compiled into cell_kernels.node_averaged_gradients_of): np.bincount over
-    those cells' corners, corner by corner.  ``values`` (m, n_cells) → (m, len(cells), 2)."""
-    from ale_xfem.model.mesh import QuadGradient, cells_around
-
-    k = mesh.cell_type.nodes_per_cell
-    around = cells_around(mesh, cells)
-    index = np.ascontiguousarray(mesh.cell_nodes[around].T).ravel()  # corner by corner
-    area = mesh.cell_geometry(node_position, around)[0]
-    weight = np.bincount(index, np.tile(area, k), mesh.n_nodes)
-    weight[weight == 0.0] = 1.0
-    nodes = mesh.cell_nodes[cells]
-    area_here, gradient = mesh.cell_geometry(node_position, cells)
-    grad = np.empty((values.shape[0], nodes.shape[0], 2))
-    for f, field in enumerate(values):
-        nodal = np.bincount(index, np.tile(field[around] * area, k), mesh.n_nodes) / weight
-        corner_values = [nodal[nodes[:, i]] for i in range(k)]
-        if isinstance(gradient, QuadGradient):
-            across02, across13 = corner_values[0] - corner_values[2], corner_values[1] - corner_values[3]
-            (g0x, g0y), (g1x, g1y) = gradient.independent
-            gx, gy = g0x * across02 + g1x * across13, g0y * across02 + g1y * across13
-        else:
-            gx = sum(v * g[0] for v, g in zip(corner_values, gradient))
-            gy = sum(v * g[1] for v, g in zip(corner_values, gradient))
-        grad[f, :, 0], grad[f, :, 1] = gx / area_here, gy / area_here
-    return grad
-
-
 def material_slots(volume, mass, energy, area, standing, trace):
     """The remapped cells' materials back in slots (ale_xfem.remap.remapper_2d._new_state,
     before it was compiled into swept_kernels_2d.material_slots)."""

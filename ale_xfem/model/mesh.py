@@ -197,32 +197,50 @@ def node_neighbour_cells(cell_nodes: np.ndarray, n_nodes: int) -> np.ndarray:
     return np.ascontiguousarray(neighbours)
 
 
-def node_averaged_gradient(mesh, node_position, values, cells=None, around=None) -> np.ndarray:
-    """The gradient in each cell (or in ``cells``) of a 2D mesh of cell fields averaged to
-    the nodes by area: ∇v_K = (1/A_K) Σ_i v̄_i ∂A_K/∂x_i with v̄_i = Σ_K A_K v_K / Σ_K A_K over
-    the cells around node i (exact for a linear field; Youngs' normals and the remap's
-    slopes).  ``values`` (n_cells,) or (m, n_cells) → gradients (…, n, 2), the geometry done
-    once.  Every cell: a compiled loop (cell_kernels.node_averaged_gradients).  With
-    ``cells``, only the cells around their nodes are read (``around``: those cells,
-    cells_around(mesh, cells), when known; cell_kernels.node_averaged_gradients_of)."""
+def node_averaged_gradient(mesh, node_position, values) -> np.ndarray:
+    """The gradient in each cell of a 2D mesh of cell fields averaged to the nodes by area:
+    ∇v_K = (1/A_K) Σ_i v̄_i ∂A_K/∂x_i with v̄_i = Σ_K A_K v_K / Σ_K A_K over the cells around
+    node i (exact for a linear field: the remap's slopes).  ``values`` (n_cells,) or (m,
+    n_cells) → gradients (…, n_cells, 2), the geometry done once; a compiled loop
+    (cell_kernels.node_averaged_gradients)."""
     if mesh.cell_type.name not in ("triangle", "quadrilateral"):
         raise ValueError(f"node_averaged_gradient: a 2D mesh, not {mesh.cell_type.name}s")
     values = np.asarray(values)
     fields = np.ascontiguousarray(values.reshape(-1, values.shape[-1]), dtype=float)
+    grad = np.empty((fields.shape[0], mesh.n_cells, 2))
+    cell_kernels.node_averaged_gradients(cell_kernels.CELL_TYPE_CODES[mesh.cell_type.name],
+                                         np.ascontiguousarray(node_position, dtype=float), mesh.compiled_cell_nodes,
+                                         fields, grad, np.empty(mesh.n_cells), np.empty((6, mesh.n_cells)),
+                                         *(np.empty(mesh.n_nodes) for _ in range(3)), mesh.distinct_corners)
+    return grad.reshape(values.shape[:-1] + grad.shape[1:])
+
+
+def patch_gradient(mesh, node_position, values, cells=None, around=None) -> np.ndarray:
+    """A gradient in each cell (or in ``cells``) of a 2D mesh of cell fields, for its
+    direction: the mean over the cell's nodes of the field's mean gradient over each node's
+    patch (the cells around it) by the divergence theorem, each cell's value on its side of
+    the patch (cell_kernels.patch_gradients) — Youngs' normals.  The values lie half a cell
+    in from the patch's side: on a uniform grid this is half the slope of a linear field,
+    and on quadrilaterals there half :func:`node_averaged_gradient` (a cell at the mesh's
+    side averages its inner nodes only).  Where the field is a material's volume fraction,
+    a straight interface gives its exact normal on triangles, crossed or with their nodes
+    moved, at the mesh's sides too (:func:`node_averaged_gradient`, the derivatives
+    taken the other way round, those of nodal averages of different supports, turns them
+    by 13° rms, 44° at worst, on crossed triangles).  ``values`` (n_cells,) or (m, n_cells) →
+    gradients (…, n, 2); only the cells ``around`` the nodes of ``cells`` are read
+    (:func:`cells_around`, when known)."""
+    if mesh.cell_type.name not in ("triangle", "quadrilateral"):
+        raise ValueError(f"patch_gradient: a 2D mesh, not {mesh.cell_type.name}s")
     if cells is None:
-        grad = np.empty((fields.shape[0], mesh.n_cells, 2))
-        cell_kernels.node_averaged_gradients(cell_kernels.CELL_TYPE_CODES[mesh.cell_type.name],
-                                             np.ascontiguousarray(node_position, dtype=float), mesh.compiled_cell_nodes,
-                                             fields, grad, np.empty(mesh.n_cells), np.empty((6, mesh.n_cells)),
-                                             *(np.empty(mesh.n_nodes) for _ in range(3)), mesh.distinct_corners)
-        return grad.reshape(values.shape[:-1] + grad.shape[1:])
+        cells = around = np.arange(mesh.n_cells)
     around = np.asarray(cells_around(mesh, cells) if around is None else around, dtype=np.int64)
     cells = np.asarray(cells, dtype=np.int64)
+    values = np.asarray(values)
+    fields = np.ascontiguousarray(values.reshape(-1, values.shape[-1]), dtype=float)
     grad = np.empty((fields.shape[0], cells.size, 2))
-    cell_kernels.node_averaged_gradients_of(cell_kernels.CELL_TYPE_CODES[mesh.cell_type.name],
-                                            np.ascontiguousarray(node_position, dtype=float), mesh.compiled_cell_nodes,
-                                            around, cells, fields, grad, np.empty(around.size),
-                                            np.empty(mesh.n_nodes), np.empty(mesh.n_nodes))
+    cell_kernels.patch_gradients(np.ascontiguousarray(node_position, dtype=float), mesh.compiled_cell_nodes, around,
+                                 cells, fields, grad, np.empty(mesh.n_nodes), np.empty(mesh.n_nodes),
+                                 np.empty((mesh.n_nodes, 2)), np.empty((mesh.n_nodes, 2)))
     return grad.reshape(values.shape[:-1] + grad.shape[1:])
 
 

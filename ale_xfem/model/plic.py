@@ -2,9 +2,10 @@
 
 In each mixed cell the interface is a straight segment {x : x·n = s} whose α side
 {x·n ≤ s} ∩ K has exactly the cell's volume fraction of α.  The normal n comes from Youngs'
-method: the volume fraction averaged to the nodes (area-weighted over the cells around each
-node), its gradient in the cell through the same corner gradients ∂A/∂x_i as the Wilkins
-forces (∇f = (1/A) Σ_i f_i ∂A/∂x_i), n = −∇f/|∇f| pointing out of α.  The offset s is found
+method: the volume fraction's gradient over the patch of cells around each node (the
+divergence theorem on the patch, through the same corner gradients ∂A/∂x_i as the Wilkins
+forces), averaged over the cell's nodes, n = −∇f/|∇f| pointing out of α
+(:func:`ale_xfem.model.mesh.patch_gradient`).  The offset s is found
 exactly: the clipped area is quadratic in s between the cell's vertex projections.
 
 Everything is vectorised over the mixed cells; the loops run over bisection iterations and
@@ -18,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ale_xfem.geometry import polygon_kernels
-from ale_xfem.model.mesh import cells_around, node_averaged_gradient
+from ale_xfem.model.mesh import cells_around, patch_gradient
 from ale_xfem.geometry.shapes import clip_half_plane, polygon_area, polygon_centroid
 
 
@@ -48,7 +49,7 @@ def youngs_normals(mesh, node_position, fraction, cells=None, around=None) -> np
     ``fraction`` — (n_cells, 2), or (len(cells), 2) for the cells given (only the cells
     ``around`` their nodes are read); (0, 0) where the fraction is locally uniform.
     ``fraction`` (m, n_cells): m materials at once, (m, …, 2)."""
-    grad = node_averaged_gradient(mesh, node_position, fraction, cells, around)
+    grad = patch_gradient(mesh, node_position, fraction, cells, around)
     size = np.linalg.norm(grad, axis=-1)[..., None]
     return np.divide(-grad, size, out=np.zeros_like(grad), where=size > 0)
 
