@@ -721,7 +721,7 @@ def _relax(mixed, volume, state0):
         return 1, int(np.flatnonzero(lo >= hi)[0]), None, None, None
     delta = np.minimum(np.maximum(0.0, lo), hi)
     finished = False
-    for _ in range(200):
+    for iteration in range(200):
         va, vb = va0 + delta, vb0 - delta
         pi_a, slope_a, coupling_a = _relaxed_pressure(mixed, mixed.left_groups, m_a, va, ea0, va0)
         pi_b, slope_b, coupling_b = _relaxed_pressure(mixed, mixed.right_groups, m_b, vb, eb0, vb0)
@@ -735,7 +735,8 @@ def _relax(mixed, volume, state0):
         hi = np.where(h <= 0, delta, hi)
         with np.errstate(invalid="ignore", divide="ignore"):
             newton = delta - h / (slope_a + slope_b)
-        inside = np.isfinite(newton) & (newton > lo) & (newton < hi)
+        # (Newton for the first 50 iterations, then bisection: equilibrium.NEWTON_ITERATIONS)
+        inside = np.isfinite(newton) & (newton > lo) & (newton < hi) & (iteration < 50)
         new_delta = np.where(balanced, delta, np.where(inside, newton, 0.5 * (lo + hi)))
         resolution = 4e-16 * np.minimum(va, vb)
         finished = bool((balanced | (np.abs(new_delta - delta) <= resolution) | (hi - lo <= resolution)).all())

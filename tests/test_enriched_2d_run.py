@@ -119,10 +119,10 @@ def test_the_spinning_disk_slides_inside_the_fluid_around_it():
 def test_the_spinning_disks_loss_falls_with_resolution(cell, stabilisation):
     """Free slip keeps the spinning disk's steady state (v_θ = ωr inside, rest outside): what
     the disk loses of its angular momentum, and what the fluid gains, fall as the mesh is
-    refined.  At t = 0.5 (quadrilaterals) the disk keeps 0.976 / 0.962 of it on 20²
-    (bubbles / Nitsche) and 0.982 / 0.980 on 40², the fluid gaining +0.0003 / +0.016 and
-    +0.0000 / +0.003; on crossed triangles 0.976 / 0.972 and 0.986 / 0.986, the fluid
-    gaining +0.010 / +0.015 and +0.007 / +0.007.  (On 80² the fluid's gain grows again: the
+    refined.  At t = 0.5 (quadrilaterals) the disk keeps 0.979 / 0.966 of it on 20²
+    (bubbles / Nitsche) and 0.982 / 0.980 on 40², the fluid gaining +0.001 / +0.015 and
+    +0.001 / +0.005; on crossed triangles 0.974 / 0.969 and 0.986 / 0.984, the fluid
+    gaining +0.021 / +0.028 and +0.010 / +0.011.  (On 80² the fluid's gain grows again: the
     rim is a vortex sheet whose Kelvin–Helmholtz waves the finer mesh resolves,
     docs/design.md §4.)  Youngs' normals taken from the nodal averages' gradient (turned by
     15° rms on crossed triangles) tilted the edges' cuts, and normal continuity across the
@@ -243,8 +243,8 @@ def sliding_block_kept():
 def test_the_sliding_block_keeps_its_momentum_where_one_velocity_field_drags_its_sides():
     """A dense block sliding along its length through a light gas at rest (`sliding-block`,
     at 20° to an Eulerian mesh, to t = 0.25): its ends push and pull the gas (form drag, the
-    same for every closure), its long sides slide.  With free slip it keeps more (0.9682 on
-    40 × 20, 0.9716 on 80 × 40) than one velocity field, which drags its sides besides
+    same for every closure), its long sides slide.  With free slip it keeps more (0.9695 on
+    40 × 20, 0.9720 on 80 × 40) than one velocity field, which drags its sides besides
     (0.9617, 0.9649)."""
     kept = sliding_block_kept()
     for cells in ("[40,20]", "[80,40]"):
@@ -254,11 +254,11 @@ def test_the_sliding_block_keeps_its_momentum_where_one_velocity_field_drags_its
 
 
 @pytest.mark.xfail(strict=True, reason=(
-    "free slip's block keeps 0.9682 and 0.9716 of its momentum on 40 × 20 and 80 × 40, a change of 0.0034 "
-    "with the mesh against one velocity field's 0.0031: the ghost viscosity that holds each material's "
-    "extension on the inertia of the cut cell's whole mass drags the light gas's extension with the block "
-    "(on each material's own density, 0.9716 and 0.9728, a change of 0.0012, but a disk 100 times lighter than "
-    "the fluid around it broke down on 80² triangles): docs/design.md §4"))
+    "free slip's block keeps 0.9695 and 0.9720 of its momentum on 40 × 20 and 80 × 40, a change of 0.0025 "
+    "with the mesh against one velocity field's 0.0031: the ghost viscosity that holds the light gas's "
+    "extension over the block's part of the cut cells drags it (at a third of its weight, 0.9716 and 0.9728, "
+    "a change of 0.0012, but a disk 100 times lighter than the fluid around it broke down on 80² triangles): "
+    "docs/design.md §4"))
 def test_what_the_sliding_block_keeps_with_free_slip_depends_less_on_the_mesh():
     """One velocity field's drag of the block's sides shrinks with its mixed cells; free
     slip's, if it only has the ends' form drag, changes less than half as much from 40 × 20
@@ -357,15 +357,15 @@ def sheared_tube_errors(cell: str, model: str) -> dict:
 
 SMEARED_CONTACT = pytest.mark.xfail(strict=True, reason=(
     "the contact's density jump, smeared by the remap: one velocity field's rate is 0.75 on quadrilaterals, "
-    "the enriched cells' 0.71: docs/design.md §4, 'Convergence on the sheared tube'"))
+    "the enriched cells' 0.72: docs/design.md §4, 'Convergence on the sheared tube'"))
 SHEARED_CELLS_DENSITY = pytest.mark.xfail(strict=True, reason=(
-    "on triangles the enriched density error grows against one velocity field's with resolution (7 % above it "
-    "at 30², 21 % at 120²; rates 0.71 and 0.80), as on a steady slip line, where it is 1.5 times one "
-    "velocity field's at 40²: docs/design.md §4, 'Sliding is not clean yet'"))
+    "on triangles the enriched density error grows against one velocity field's with resolution (15 % above "
+    "it at 30², 27 % at 120²; rates 0.73 and 0.80); on a steady slip line it is 1.26 times one velocity "
+    "field's at 40², 0.92 at 80²: docs/design.md §4, 'Sliding is not clean yet'"))
 SLOWER_NORMAL_VELOCITY = pytest.mark.xfail(strict=True, reason=(
-    "the normal velocity converges more slowly with free slip than with one velocity field (rates 0.75 and "
-    "0.72 on quadrilaterals and triangles, against 0.87 and 0.87; its error 22 % above one velocity field's "
-    "at 160² and 120²): docs/design.md §4, 'Convergence on the sheared tube'"))
+    "the normal velocity converges more slowly with free slip than with one velocity field (rates 0.77 and "
+    "0.79 on quadrilaterals and triangles, against 0.87 and 0.87; its error 22 % and 26 % above one velocity "
+    "field's at 160² and 120²): docs/design.md §4, 'Convergence on the sheared tube'"))
 
 
 @pytest.mark.parametrize("cell, quantity", [
@@ -397,7 +397,7 @@ def test_free_slip_keeps_each_sides_tangential_velocity_where_one_velocity_field
 
 
 @pytest.mark.xfail(strict=True, reason=(
-    "on crossed triangles free slip's error along the contact converges at 0.63 (0.91 on quadrilaterals), "
+    "on crossed triangles free slip's error along the contact converges at 0.50 (0.89 on quadrilaterals), "
     "not understood yet: docs/design.md §4, 'Convergence on the sheared tube'"))
 def test_free_slips_tangential_velocity_converges_at_first_order_on_triangles():
     """As on quadrilaterals: the error along the contact of free slip converges at a rate of
@@ -415,7 +415,7 @@ def test_a_steady_slip_line_keeps_its_jump_with_free_slip(cell, bound):
     """The slip-line scene: two gases at one pressure, at rest along their contact's
     normal, sliding along it at ±0.25 (nothing should change).  Free slip keeps the
     tangential jump that one velocity field smears: its error along the contact is below
-    one velocity field's — 0.51 of it on quadrilaterals at 40², 0.59 on crossed triangles,
+    one velocity field's — 0.49 of it on quadrilaterals at 40², 0.58 on crossed triangles,
     where free slip's error along the contact converges slowly on the sheared tube; mass,
     momentum and energy are kept to round-off."""
     free, single = slip_line("enriched", cell), slip_line("single_velocity", cell)
@@ -527,15 +527,12 @@ def test_a_lagrangian_mesh_gives_the_eulerian_meshs_figures_on_a_slip_line(cell)
 
 def test_a_slide_of_more_than_a_cell_on_a_lagrangian_mesh_stops_with_a_diagnostic():
     """The slip line on 8² Lagrangian cells for a slide of 0.3 (2.4 cells): the run stops
-    cleanly once the slide has sheared the cut cells past what they hold (1.45 cells at t =
-    0.36, measured), naming the way out, with its last good state's mass kept to round-off.
-    Its momentum is kept to 10⁻¹⁷ until the time step collapses there; the stop comes after
-    STALLED_STEPS (1000) steps of dt ≈ 5 × 10⁻¹⁶, which move it by 2.4 × 10⁻⁹ of its scale."""
+    cleanly once the slide has sheared the cut cells past what they hold (2.1 cells at t =
+    0.52, measured), naming the way out, with its last good state conserved."""
     _, result = lagrangian_slip_line("quadrilateral", 8, 0.6)
     assert result.status == "failed" and 'mesh.motion = "smoothed" or "eulerian"' in result.diagnostic
     assert 1 / 8 < result.state.time < 0.6  # a slide of 0.5 t: more than half a cell
-    assert abs(result.conservation["mass"]) < 1e-14
-    assert abs(result.conservation["momentum"]) < 1e-8 * result.conservation["momentum_scale"]
+    assert abs(result.conservation["mass"]) < 1e-14 and abs(result.conservation["momentum"]) < 1e-13
 
 
 @pytest.mark.parametrize("cell", ["quadrilateral", pytest.param("triangle", marks=pytest.mark.xfail(
@@ -593,9 +590,9 @@ def test_cut_cells_that_appear_during_the_run_take_over_the_materials_velocities
 def test_a_light_disk_spinning_in_a_fluid_a_hundred_times_heavier_stays_steady():
     """A hard case: the spinning disk inside an outer fluid of density 100 on 80² crossed
     triangles, to t = 0.4.  Each material's extension over the other's part is held by a
-    ghost viscosity on the inertia of the cell's whole mass; on the disk's own density (100
-    times less) the rim nodes' velocities wandered outwards and drained the disk's cells
-    there, until the EOS left its domain at t = 0.36.  The run finishes with the
+    ghost viscosity (0.3 of its inertia in the cell); at 0.1 the rim nodes' velocities
+    wandered outwards and drained the disk's cells there, until the EOS left its domain at
+    t = 0.36.  The run finishes with the
     disk's angular momentum kept within 2 % and its mass to round-off."""
     problem = build_problem(load_scene(resolve_scene_path("spinning-disk"), [
         "mesh.cells=[80,80]", "mesh.cell_type=triangle", "interface.model=enriched", "regions.0.density=100",

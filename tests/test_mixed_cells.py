@@ -402,6 +402,28 @@ def _five_materials_in_mixed_cells(generator, model: str, spread_pressures: bool
     return mixed, start, volume, (p_a, p_b), *kernel_tables(tuple(m.eos for m in materials))
 
 
+def test_the_relaxation_settles_a_trace_of_air_whose_balance_lies_within_an_ulp_of_the_waters_volume():
+    """Water against a trace of air (5 × 10⁻⁸ of a 2.8 × 10⁻⁴ cell, from the water-air case
+    of the stability suite): the root lies between two neighbouring floating-point volumes
+    of the water, one ulp of which moves its pressure by 2 × 10⁻⁷ of itself.  Newton's
+    step, set by the water's slope, moved δ by 10⁻²² a time, below the water's ulp and above
+    the trace's round-off, and crept on without changing the water's pressure until the
+    200 iterations ran out; after NEWTON_ITERATIONS it bisects, and the cell settles to
+    round-off, its two pressures within an ulp of the water's volume of each other."""
+    from ale_xfem.eos import StiffenedGas, kernel_tables
+    from ale_xfem.mixed.equilibrium import RELAXED, relax_cells
+
+    kinds, parameters = kernel_tables((StiffenedGas(1.4, 0.0), StiffenedGas(4.4, 6e8)))
+    one = lambda value: np.array([value])  # noqa: E731
+    status, _, va, vb, pressure, pi_water, pi_air = relax_cells(
+        kinds, parameters, one(1), one(0), one(0.21130796175245906), one(4.961014741904478e-11),
+        one(0.00027772417721065476), one(5.360056712380491e-08), one(1020523.0965194118), one(6643.461624619399),
+        one(0.0002777777777777786), one(np.inf), one(np.inf), 1e-13)
+    assert status == RELAXED
+    assert va[0] + vb[0] == pytest.approx(0.0002777777777777786, rel=1e-15)
+    assert abs(pi_water[0] - pi_air[0]) <= 2e-7 * pressure[0]
+
+
 def test_the_compiled_relaxation_is_the_numpy_one_to_the_bit():
     """ale_xfem.mixed.equilibrium.relax_cells, all cells iterated together in compiled code,
     against the numpy iteration it replaced (tests/oracles.py): 600 cells of five pairs of

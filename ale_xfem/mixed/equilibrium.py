@@ -195,12 +195,23 @@ def relaxed_pressure(kind, parameters, material, mass, volume, energy0, volume0)
     return pi, -(dp_drho * rho + dp_de * pi / mass * volume) / (volume * keep), coupling
 
 
+# The relaxation's iterations: Newton in the bracket for the first NEWTON_ITERATIONS, then
+# bisection.  Where the root lies between two neighbouring floating-point volumes of a
+# stiff material (water against a trace of air: one ulp of the water's volume moves its
+# pressure by 2 × 10⁻⁷ of itself) Newton's step, set by the water's slope, moved δ by
+# 10⁻²² a time, below that volume's ulp and above the trace's round-off: it crept on
+# without changing the water's pressure until the iterations ran out.
+RELAXATION_ITERATIONS = 200
+NEWTON_ITERATIONS = 50
+
+
 @numba.njit(**KERNEL)
 def relax_cells(kinds, parameters, left, right, m_a, m_b, va0, vb0, ea0, eb0, total, max_density_left,
                 max_density_right, balance):  # pragma: no cover (compiled)
     """The pressure relaxation's root in every mixed cell (:meth:`PressureEquilibrium.relax`):
     the volume δ that α (material ``left``) takes from β (``right``), Newton bracketed by
-    bisection, all cells iterated together until every one is balanced (|π_α − π_β| ≤
+    bisection (bisection alone after NEWTON_ITERATIONS), all cells iterated together until
+    every one is balanced (|π_α − π_β| ≤
     ``balance`` × its scale) or stopped by round-off, then evaluated once more.  Returns
     (status, cell, V_α, V_β, p*, π_α, π_β): status RELAXED, or CANNOT_HOLD (the cell's
     volume cannot hold both materials below their compression limits) or NOT_CONVERGED
@@ -220,7 +231,7 @@ def relax_cells(kinds, parameters, left, right, m_a, m_b, va0, vb0, ea0, eb0, to
     for i in range(n):
         delta[i] = minimum(maximum(0.0, lo[i]), hi[i])
     finished, done = False, False
-    for _ in range(200):
+    for iteration in range(RELAXATION_ITERATIONS):
         all_balanced = True
         for i in range(n):
             va[i], vb[i] = va0[i] + delta[i], vb0[i] - delta[i]
@@ -245,7 +256,7 @@ def relax_cells(kinds, parameters, left, right, m_a, m_b, va0, vb0, ea0, eb0, to
             if h[i] <= 0:
                 hi[i] = delta[i]
             newton = delta[i] - h[i] / (slope_a[i] + slope_b[i])
-            inside = np.isfinite(newton) and newton > lo[i] and newton < hi[i]
+            inside = np.isfinite(newton) and newton > lo[i] and newton < hi[i] and iteration < NEWTON_ITERATIONS
             new_delta = delta[i] if balanced[i] else (newton if inside else 0.5 * (lo[i] + hi[i]))
             # or round-off bounds what can still change (a few ulps of the smaller volume)
             resolution = 4e-16 * minimum(va[i], vb[i])
