@@ -405,7 +405,7 @@ def enriched_geometry(mesh, position, volume, mass, cells) -> EnrichedGeometry:
         n_nodes)
     # a tied node slides (its normal parts tied only, under free slip) unless Γ reaches it
     # along a mesh edge between pure cells of the two materials (a kink: forms/enriched_interface.py)
-    on_edge = _on_material_edges(*_edges(cell_nodes), cell_material, n_nodes)
+    on_edge = _on_material_edges(*edges_of(cell_nodes), cell_material, n_nodes)
     return EnrichedGeometry(cut, owner, tied, tied & ~on_edge, corner_mass, node_mass, internal)
 
 
@@ -488,7 +488,7 @@ def _node_sums(cell_nodes, corner_mass, n_nodes):
                         n_nodes)
 
 
-_edges = PerMesh(mesh_edges)  # mesh_edges of a mesh's cell_nodes
+edges_of = PerMesh(mesh_edges)  # mesh_edges of a mesh's cell_nodes, made once per mesh
 
 
 def by_material(values, cell_material) -> np.ndarray:
