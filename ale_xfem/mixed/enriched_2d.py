@@ -68,8 +68,8 @@ BAND_RINGS = 2
 # the weight of the strain rate of a material's velocity over the other material's part of
 # a cut cell, relative to the inertia 4ρ_m|K|/dt of the cell's area at the material's own
 # density.  At 0.1 the extension of a disk 100 times lighter than the fluid around it is
-# held too softly: a pure cell of the disk by the rim loses its internal energy until the
-# EOS leaves its domain (100² crossed triangles, t = 0.37).  Both materials at 0.1 on the cell's whole mass instead held
+# held too softly: a pure cell of the disk by the rim loses its internal energy in the
+# Lagrange steps until the EOS leaves its domain (100² crossed triangles, t = 0.37).  Both materials at 0.1 on the cell's whole mass instead held
 # the disk, but took the water-air case of the stability suite (air drawn to near vacuum
 # where Γ meets the wall) from 108 steps to a breakdown after 1132.  At 0.2 free slip loses
 # accuracy (docs/design.md §4).
