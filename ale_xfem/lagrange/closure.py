@@ -66,6 +66,10 @@ class MixedCellClosure(ABC):
         cells (its ``clock`` and results); only where :meth:`compiles_steps`."""
         raise NotImplementedError(f"{type(self).__name__} takes its steps one by one")
 
+    def hold_predictor(self, u0, u_pred) -> None:
+        """Change the explicit predictor's velocities ``u_pred`` (in place; ``u0`` the
+        start's) where the closure's own solve moves the nodes; by default nowhere."""
+
     @abstractmethod
     def bind(self, mixed: MixedCells) -> None:
         """Take the mixed cells a remap left (no compilation: the forms stay)."""

@@ -387,6 +387,7 @@ class ExplicitWilkins:
 
         # Predictor.
         u_pred = self._advance_velocity(u0, first.nodal_force, dt)
+        self.closure.hold_predictor(u0, u_pred)
         velocity_sum, x_pred = self._moved(u0, u_pred, x0, dt)
         corner_velocity = corner_sum = None
         if self.quadrilaterals:  # the corners of u^n + u* by a sum, not a gather

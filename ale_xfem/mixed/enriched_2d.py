@@ -67,12 +67,10 @@ HELD_INERTIA = 1e20
 BAND_RINGS = 2
 # the weight of the strain rate of a material's velocity over the other material's part of
 # a cut cell, relative to the inertia 4ρ_m|K|/dt of the cell's area at the material's own
-# density.  At 0.1 the extension of a disk 100 times lighter than the fluid around it is
-# held too softly: a pure cell of the disk by the rim loses its internal energy in the
-# Lagrange steps until the EOS leaves its domain (100² crossed triangles, t = 0.37).  Both materials at 0.1 on the cell's whole mass instead held
-# the disk, but took the water-air case of the stability suite (air drawn to near vacuum
-# where Γ meets the wall) from 108 steps to a breakdown after 1132.  At 0.2 free slip loses
-# accuracy (docs/design.md §4).
+# density.  Both materials at 0.1 on the cell's whole mass instead took the water-air case
+# of the stability suite (air drawn to near vacuum where Γ meets the wall) from 108 steps
+# to a breakdown after 1132.  At 0.2 and 0.1 other cases lose accuracy or robustness
+# (docs/design.md §4, "The extension of each material's velocity").
 GHOST_VISCOSITY = 0.3
 # the largest share of what a cell holds of a material that may cross its edges in a step
 # (EnrichedClosure2D._crossings: a sliver cannot give more than it has)
@@ -174,6 +172,18 @@ class EnrichedClosure2D(SharedClosure):
             for d in range(2):
                 out[m, d] = corners.scatter([np.where(pure, r, 0.0) for r in rows[d]])
         return out, rows
+
+    def hold_predictor(self, u0, u_pred) -> None:
+        """The mixed cells' nodes keep their start velocities in the explicit predictor
+        (x* = x^n + dt u^n there, still second order in time): the interface solve moves
+        them, with the materials' own masses and the interface's forces, where the predictor
+        would accelerate them by the mesh's forces over the mesh's masses.  That guess
+        squeezed a pure cell of a disk 100 times lighter than the fluid around it by 6 % in
+        its predicted state (its predicted viscosity 30 times its pressure), whose work on
+        the step's velocities took 0.17 of its specific energy a step until the EOS left its
+        domain (100² crossed triangles, GHOST_VISCOSITY 0.1)."""
+        nodes = self.mesh.cell_nodes[self.mixed.cells].ravel()
+        u_pred[:, nodes] = u0[:, nodes]
 
     def implicit_solve(self, step, state, first, predicted, mean_force, dt, dt_over_node_mass):
         mixed, mesh = self.mixed, self.mesh

@@ -99,6 +99,12 @@ class EnrichedCellsOnRanks(SharedClosure):
         return Breakdown(failure.quantity, where if held else -1, failure.value, failure.position,
                          allowed=failure.allowed, materials=failure.materials, detail=failure.detail)
 
+    def hold_predictor(self, u0, u_pred) -> None:
+        """As EnrichedClosure2D's, on the nodes this rank holds of every rank's mixed cells."""
+        whole = self.distribution.whole_mixed.cells
+        _, local = self._local_nodes(np.unique(self.distribution.problem.mesh.cell_nodes[whole]))
+        u_pred[:, local] = u0[:, local]
+
     def implicit_solve(self, step, state, first, predicted, mean_force, dt, dt_over_node_mass):
         distribution, ranks = self.distribution, self.mixed.across_ranks
         whole_state = self.whole_state = distribution.gathered(state, self.reach)
