@@ -544,9 +544,9 @@ class EnrichedClosure2D(SharedClosure):
         an end on a mixed cell's node, where m moves with ū_m and the mesh with ū_mesh
         (``mesh_velocity``, (2, n_nodes)): R = dt ∫_e (ū_mesh − ū_m)·n_e into the cell the
         edge goes counter-clockwise round, both velocities linear along the edge.  Returns
-        each crossing's donor and receiver cells, volume |R| (``r``, signed into the donor
-        as negative), what the donor holds (its area), its density and specific energy
-        (its new state's), and the edge's two nodes (``ends``)."""
+        each crossing's donor and receiver cells, its volume |R| (``r``), what the donor
+        holds (its area), its density and specific energy (its new state's), and the
+        edge's two nodes (``ends``)."""
         last, mesh = self._last, self.mesh
         a, b, plus, minus = edges_of(mesh.cell_nodes)
         material = last["cell_material"]  # −1 on the mixed cells
