@@ -91,15 +91,12 @@ class CutCells:
         [m] (2, n_nodes) (both linear along an edge): dt ∫_{e∩m} (ū_mesh − ū_m)·n_e on
         this geometry; zero on the boundary.  ``nodes`` (n, k) the cells' nodes."""
         t0, t1 = self.edge_alpha[..., 0], self.edge_alpha[..., 1]
-        # ∫ (1 − t) and ∫ t over α's interval, then β's (the rest of [0, 1])
-        weights = ((t1 - t0) - 0.5 * (t1**2 - t0**2), 0.5 * (t1**2 - t0**2))
+        weights = edge_weights(t0, t1)  # α's interval, then β's (the rest of [0, 1])
         out = np.empty((2,) + t0.shape)
         for m in range(2):
             relative = np.moveaxis((mesh_velocity - velocity[m])[:, nodes], 0, -1)  # (n, k, 2) at the vertices
-            at_start = np.einsum("nkd,nkd->nk", relative, self.edge_outward)
-            at_end = np.einsum("nkd,nkd->nk", np.roll(relative, -1, axis=1), self.edge_outward)
-            first, second = weights if m == 0 else (0.5 - weights[0], 0.5 - weights[1])
-            out[m] = dt * (first * at_start + second * at_end)
+            out[m] = crossed_volume(relative, np.roll(relative, -1, axis=1), self.edge_outward,
+                                    weights if m == 0 else (0.5 - weights[0], 0.5 - weights[1]), dt)
         out[:, self.edge_neighbour < 0] = 0.0
         return out
 
@@ -123,6 +120,26 @@ class CutCells:
                 gradients.append(gradient)
             self._part_integrals = (np.stack(values), np.stack(gradients))
         return self._part_integrals
+
+
+def edge_weights(t0, t1):
+    """(∫ (1 − t) dt, ∫ t dt) over [t0, t1] ⊂ [0, 1], t an edge's parameter from its start
+    to its end: the shares of a linear field's values at the edge's ends in its integral
+    over that part of the edge."""
+    second = 0.5 * (t1**2 - t0**2)
+    return (t1 - t0) - second, second
+
+
+def crossed_volume(relative_start, relative_end, outward, weights, dt: float):
+    """The volume that crosses part of an edge into the cell it bounds over a step of
+    ``dt``: dt ∫ w·n_e over that part, the velocity relative to the edge w linear from
+    ``relative_start`` to ``relative_end`` (…, 2) at its ends, ``outward`` (…, 2) |e| n_e
+    out of that cell, ``weights`` the part's :func:`edge_weights`.  The materials'
+    crossings of the Lagrangian edges (:meth:`CutCells.crossing_volumes` on the mixed cells,
+    ``EnrichedClosure2D._pure_edge_crossings`` between pure cells)."""
+    at_start = np.einsum("...d,...d->...", relative_start, outward)
+    at_end = np.einsum("...d,...d->...", relative_end, outward)
+    return dt * (weights[0] * at_start + weights[1] * at_end)
 
 
 def cut_cells(cell_nodes, node_position, cells, reconstruction: Reconstruction, cell_material,

@@ -53,7 +53,7 @@ import dolfinx_solver  # noqa: F401  (before dolfinx: it loads MPI and PETSc)
 from ale_xfem.lagrange.breakdown import Breakdown
 from ale_xfem.mixed.closure_kernels import add_viscosity
 from ale_xfem.mixed.common import SharedClosure
-from ale_xfem.mixed.cut_cells_2d import by_material, edges_of, enriched_geometry
+from ale_xfem.mixed.cut_cells_2d import by_material, crossed_volume, edge_weights, edges_of, enriched_geometry
 from ale_xfem.mixed.enriched_step_2d import EnrichedStep2D, MaterialStart
 from ale_xfem.mixed.equilibrium import MixedCellFailure
 from ale_xfem.model.mesh import cells_around
@@ -558,8 +558,8 @@ class EnrichedClosure2D(SharedClosure):
                               & (slides[a] | slides[b]))
         a, b, plus, minus = a[edge], b[edge], plus[edge], minus[edge]
         x0 = last["x0"]
-        outward = np.stack([x0[1, b] - x0[1, a], x0[0, a] - x0[0, b]])  # |e| n_e, out of ``plus``
-        r = last["dt"] * 0.5 * np.sum((relative[:, a] + relative[:, b]) * outward, axis=0)  # into ``plus``
+        outward = np.stack([x0[1, b] - x0[1, a], x0[0, a] - x0[0, b]], axis=-1)  # |e| n_e, out of ``plus``
+        r = crossed_volume(relative[:, a].T, relative[:, b].T, outward, edge_weights(0.0, 1.0), last["dt"])  # into ``plus``
         into_plus = r > 0.0
         donor = np.where(into_plus, minus, plus)
         held = mesh.cell_geometry(x_new, donor)[0]
