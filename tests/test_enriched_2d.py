@@ -585,8 +585,10 @@ def test_the_interface_system_is_symmetric(stabilisation, slip, cell):
 def test_a_constraint_that_only_selects_unknowns_reduces_to_the_submatrix_with_ptaps_bits():
     """Cᵀ A C of a constraint that only selects unknowns (the band's inactive cells left
     out, nothing tied) is taken as A's submatrix (forms.bound_system.BoundSystem._reduce):
-    the same pattern and the same bits as PETSc's PtAP; a constraint that joins two unknowns
-    is still a PtAP."""
+    the same pattern and the same bits as PETSc's PtAP; a constraint that joins unknowns
+    (tied nodes, and sliding ones along a normal: coefficients other than 1) is the compiled
+    product's, with PtAP's pattern and bits too, and so is its refill when the same
+    constraint comes back with new values of A."""
     from petsc4py import PETSc
 
     case, system, mass, rhs = _kink_system()
@@ -594,25 +596,36 @@ def test_a_constraint_that_only_selects_unknowns_reduces_to_the_submatrix_with_p
     bound = system.system
     bound.assemble()
     size = bound.matrix.getSize()[0]
-    kept = np.flatnonzero(np.random.default_rng(2).random(size) < 0.4)
+    generator = np.random.default_rng(2)
+    kept = np.flatnonzero(generator.random(size) < 0.4)
 
-    def constraint(rows, columns):
+    def constraint(rows, columns, values=None):
         pointer = np.zeros(size + 1, dtype=PETSc.IntType)
         np.cumsum(np.bincount(rows, minlength=size), out=pointer[1:])
+        values = np.ones(rows.size) if values is None else values
         return PETSc.Mat().createAIJ(size=(size, int(columns.max()) + 1),
-                                     csr=(pointer, columns.astype(PETSc.IntType), np.ones(rows.size)))
+                                     csr=(pointer, columns.astype(PETSc.IntType), values))
+
+    def same_bits(ours, theirs):
+        for a, b in zip(ours.getValuesCSR(), theirs.getValuesCSR()):
+            assert a.shape == b.shape and np.array_equal(a.view(np.uint8), b.view(np.uint8))
 
     selection = constraint(kept, np.arange(kept.size))
     reduced = bound._reduce(selection)
     assert bound._selection[1] is not None  # taken as a submatrix
-    for ours, theirs in zip(reduced.getValuesCSR(), bound.matrix.PtAP(selection).getValuesCSR()):
-        assert np.array_equal(ours, theirs)
-    joined_columns = np.arange(kept.size)
-    joined_columns[1] = 0  # the first two kept unknowns one
-    joined_columns[2:] -= 1
-    joined = constraint(kept, joined_columns)
-    bound._reduce(joined)
-    assert bound._selection[1] is None  # a PtAP
+    same_bits(reduced, bound.matrix.PtAP(selection))
+    # the first two kept unknowns one; the next two kept rows each split between two columns
+    # (a sliding node's components along a normal)
+    rows = np.concatenate([kept[:2], np.repeat(kept[2:4], 2), kept[4:]])
+    columns = np.concatenate([[0, 0], [1, 2, 1, 2], np.arange(3, kept.size - 1)])
+    values = np.concatenate([[1.0, 1.0], [0.6, -0.8, 0.8, 0.6], np.ones(kept.size - 4)])
+    joined = constraint(rows, columns, values)
+    reduced = bound._reduce(joined)
+    assert bound._selection[1] is None  # the compiled product
+    same_bits(reduced, bound.matrix.PtAP(joined))
+    bound.matrix.scale(generator.uniform(0.5, 2.0))  # new values, the same pattern
+    assert bound._reduce(joined, reduced) is reduced
+    same_bits(reduced, bound.matrix.PtAP(joined))
 
 
 def test_a_scene_asking_for_lu_keeps_mumps():
