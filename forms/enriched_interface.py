@@ -432,16 +432,20 @@ class InterfaceSystem:
     def set_materials(self, compliance, offset, weight=None, penalty=None) -> None:
         """Per active cell (the order given to :meth:`activate`): compliance (2, n) g_m = −1/(D_m dt V_m),
         offset (2, n) c_m; Nitsche: weight (n,) w_α and penalty (n,) γ."""
-        take = self.input_index
         if self.forms.stabilisation == "nitsche" and (weight is None or penalty is None):
             raise ValueError("set_materials: the Nitsche system needs its weight and penalty (nitsche_weights)")
-        dofs = self._dg0[self.active]
-        for m, side in enumerate("ab"):
-            self.functions[f"compliance_{side}"].x.array[dofs] = compliance[m][take]
-            self.functions[f"offset_{side}"].x.array[dofs] = offset[m][take]
+        self._set_compliances(compliance, offset)
+        take, dofs = self.input_index, self._dg0[self.active]
         if weight is not None:
             self.functions["weight"].x.array[dofs] = weight[take]
             self.functions["penalty"].x.array[dofs] = penalty[take]
+
+    def _set_compliances(self, compliance, offset) -> None:
+        """The pressure rows' coefficients of :meth:`set_materials`."""
+        take, dofs = self.input_index, self._dg0[self.active]
+        for m, side in enumerate("ab"):
+            self.functions[f"compliance_{side}"].x.array[dofs] = compliance[m][take]
+            self.functions[f"offset_{side}"].x.array[dofs] = offset[m][take]
 
     def solve(self, mass, rhs, tied=None, sliding=None, tie_normal=None):
         """Assemble and solve.  mass[m], rhs[m]: (2, n_parent_nodes) per material — 4M/dt per
@@ -477,18 +481,15 @@ class InterfaceSystem:
 
     def resolve(self, compliance, offset):
         """:meth:`solve` again after :meth:`solve`, with new compliances and offsets (as
-        :meth:`set_materials`; not for Nitsche, whose weights change with them): the only
+        :meth:`set_materials`; Nitsche's weight and penalty kept as they were set): the only
         entries that change are the pressure rows' diagonal and right side, each
         proportional to its compliance, set here without assembling the matrix or reducing
         it again (the factorisation redone, or refined on when the change is small:
         :meth:`forms.bound_system.BoundSystem.solve_with_diagonal`)."""
-        if self.forms.stabilisation == "nitsche":
-            raise ValueError("resolve: the Nitsche system's weights and penalty change with the compliances; "
-                             "set_materials and solve")
         if self._assembled is None:
             raise RuntimeError("resolve: solve first, on this geometry and these cells")
         right, diagonal, assembled_compliance, velocity_shape = self._assembled
-        self.set_materials(compliance, offset)
+        self._set_compliances(compliance, offset)
         dofs = self._active_pressure_dofs()
         new_diagonal = diagonal * (self._active_compliance() / assembled_compliance)
         right = right.copy()
