@@ -869,8 +869,9 @@ def test_the_compiled_2d_swept_pass_gives_the_numpy_pass_bits(mesh_name, order):
             x, target_a, target_b, a, b, plus, minus, is_mixed, material, n_materials)
         rho, eps, flux_mass, flux_energy = swept_kernels_2d.donor_fluxes(flux_volume, *got_cells, donor)
         if order == 2:
-            gradients = node_averaged_gradient(mesh, x, np.stack([rho[material, cells], eps[material, cells]]))
-            swept_kernels_2d.second_order(x, mesh.cell_nodes, material, is_mixed, rho, eps, gradients, swept,
+            value = swept_kernels_2d.slot_values(rho, eps, material)
+            gradients = node_averaged_gradient(mesh, x, value)
+            swept_kernels_2d.second_order(x, mesh.cell_nodes, material, is_mixed, value, gradients, swept,
                                           donor, flux_volume, flux_mass, flux_energy)
         for quantity, flux in zip(got_cells, (flux_volume, flux_mass, flux_energy)):
             swept_kernels_2d.exchange(quantity, flux, donor, receiver)

@@ -578,7 +578,7 @@ class Remapper2D:
         (swept_kernels_2d.second_order)."""
         mesh = self.mesh
         material = layout.cell_material[0]
-        cells = np.arange(mesh.n_cells)
-        gradients = node_averaged_gradient(mesh, x, np.stack([rho[material, cells], eps[material, cells]]))
-        swept_kernels_2d.second_order(x, mesh.cell_nodes, material, is_mixed, rho, eps, gradients, swept, donor,
+        value = swept_kernels_2d.slot_values(rho, eps, material)
+        gradients = node_averaged_gradient(mesh, x, value)
+        swept_kernels_2d.second_order(x, mesh.cell_nodes, material, is_mixed, value, gradients, swept, donor,
                                       flux_volume, flux_mass, flux_energy)

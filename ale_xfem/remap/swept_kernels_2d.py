@@ -291,19 +291,29 @@ def donor_fluxes(flux_volume, volume, mass, energy, donor):  # pragma: no cover 
 
 
 @numba.njit(**KERNEL)
-def second_order(x, cell_nodes, material, is_mixed, rho, eps, gradients, swept, donor, flux_volume,
-                 flux_mass, flux_energy):  # pragma: no cover (compiled)
-    """Order 2 (remapper_2d's module docstring): in pure donors whose every node touches
-    cells of their own material alone, a linear density and energy density, the gradients
-    ``gradients`` (2, n_cells, 2) (node-averaged) limited by Barth–Jespersen so that the
-    corners stay within the node-neighbour range, evaluated at the swept region's centroid:
-    ``flux_mass`` and ``flux_energy`` corrected in place."""
-    n_cells, k = cell_nodes.shape
-    n_nodes = x.shape[1]
+def slot_values(rho, eps, material):  # pragma: no cover (compiled)
+    """(2, n_cells): each cell's density and energy density of its slot-0 material
+    ``material`` (n_cells,), from ``rho``, ``eps`` (n_materials, n_cells) — the fields the
+    order-2 reconstruction limits (:func:`second_order`)."""
+    n_cells = material.size
     value = np.empty((2, n_cells))
     for c in range(n_cells):
         value[0, c] = rho[material[c], c]
         value[1, c] = eps[material[c], c]
+    return value
+
+
+@numba.njit(**KERNEL)
+def second_order(x, cell_nodes, material, is_mixed, value, gradients, swept, donor, flux_volume,
+                 flux_mass, flux_energy):  # pragma: no cover (compiled)
+    """Order 2 (remapper_2d's module docstring): in pure donors whose every node touches
+    cells of their own material alone, a linear density and energy density (``value`` (2,
+    n_cells), :func:`slot_values`), the gradients ``gradients`` (2, n_cells, 2)
+    (node-averaged) limited by Barth–Jespersen so that the corners stay within the
+    node-neighbour range, evaluated at the swept region's centroid: ``flux_mass`` and
+    ``flux_energy`` corrected in place."""
+    n_cells, k = cell_nodes.shape
+    n_nodes = x.shape[1]
     centre = np.empty((2, n_cells))
     last = k - 1
     for c in range(n_cells):
