@@ -69,7 +69,8 @@ def galerkin_product(a_pointer, a_columns, a_values, c_pointer, c_columns, c_val
     sums in its order: (A C)_iq = Σ_j a_ij c_jq over A's row i in order, then (Cᵀ A C)_pq =
     Σ_i c_ip (A C)_iq over the rows i in increasing order, each sum from +0 — but only over
     the rows C keeps (a row of C with no entry adds nothing), where PETSc's goes over all of
-    A.  Columns in increasing order in each row."""
+    A.  Columns in increasing order in each row.  (The two sparse accumulations are written
+    out: through a shared compiled helper the product took three times as long.)"""
     rows = a_pointer.size - 1
     # A C, over the rows C keeps
     bound = 0
