@@ -84,10 +84,15 @@ def unit_mean_normals(cell_nodes, normal, n_nodes: int) -> np.ndarray:
     """(n_nodes, gdim): at each node the unit mean of the ``normal`` (n, gdim) of the cells
     around it among the cells whose nodes are ``cell_nodes`` (n, k); zero where they cancel
     or no cell is."""
-    total = np.zeros((n_nodes, normal.shape[1]))
-    np.add.at(total, np.asarray(cell_nodes).ravel(), np.repeat(normal, np.shape(cell_nodes)[1], axis=0))
+    # (summed over the cells' own nodes, in the cells' order, then placed: the mesh's other
+    # nodes are most of them)
+    nodes, local = np.unique(np.asarray(cell_nodes).ravel(), return_inverse=True)
+    total = np.zeros((nodes.size, normal.shape[1]))
+    np.add.at(total, local.ravel(), np.repeat(normal, np.shape(cell_nodes)[1], axis=0))
     size = np.linalg.norm(total, axis=1)[:, None]
-    return np.divide(total, size, out=np.zeros_like(total), where=size > 0)
+    out = np.zeros((n_nodes, normal.shape[1]))
+    out[nodes] = np.divide(total, size, out=np.zeros_like(total), where=size > 0)
+    return out
 
 
 def nitsche_weights(volume, stiffness, interface_length, penalty_factor: float):
