@@ -65,11 +65,13 @@ def keep_factor_solver(preconditioner, factor_solver: str | None, options) -> No
 @numba.njit(cache=True)
 def galerkin_product(a_pointer, a_columns, a_values, c_pointer, c_columns, c_values, n):  # pragma: no cover (compiled)
     """Cᵀ A C in CSR (pointer, columns, values) from A (N × N) and C (N × ``n``) in CSR:
-    PETSc's sequential PtAP (MatPtAPNumeric_SeqAIJ_SeqAIJ_SparseAxpy) — its pattern, and its
-    sums in its order: (A C)_iq = Σ_j a_ij c_jq over A's row i in order, then (Cᵀ A C)_pq =
-    Σ_i c_ip (A C)_iq over the rows i in increasing order, each sum from +0 — but only over
-    the rows C keeps (a row of C with no entry adds nothing), where PETSc's goes over all of
-    A.  Columns in increasing order in each row.  (The two sparse accumulations are written
+    the sums of a row-by-row sparse-axpy PtAP, in its order (as PETSc's SparseAxpy
+    algorithm writes them): (A C)_iq = Σ_j a_ij c_jq over A's row i in order, then
+    (Cᵀ A C)_pq = Σ_i c_ip (A C)_iq over the rows i in increasing order, each sum from +0 —
+    but only over the rows C keeps (a row of C with no entry adds nothing).  The pattern and
+    the bits are those of this PETSc's sequential PtAP (tests/test_enriched_2d.py compares
+    them, with joined unknowns and coefficients other than 1).  Columns in increasing order
+    in each row.  (The two sparse accumulations are written
     out: through a shared compiled helper the product took three times as long.)"""
     rows = a_pointer.size - 1
     # A C, over the rows C keeps
