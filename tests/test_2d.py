@@ -822,7 +822,8 @@ def test_the_compiled_2d_swept_pass_gives_the_numpy_pass_bits(mesh_name, order):
     piecewise-constant fields (zero gradients)."""
     from oracles import cell_momentum_2d, swept_pass_2d
 
-    from ale_xfem.model.mesh import mesh_edges, node_averaged_gradient
+    from ale_xfem.model.cell_kernels import CELL_TYPE_CODES
+    from ale_xfem.model.mesh import mesh_edges
     from ale_xfem.remap import swept_kernels_2d
 
     def bits(a):
@@ -870,9 +871,9 @@ def test_the_compiled_2d_swept_pass_gives_the_numpy_pass_bits(mesh_name, order):
         rho, eps, flux_mass, flux_energy = swept_kernels_2d.donor_fluxes(flux_volume, *got_cells, donor)
         if order == 2:
             value = swept_kernels_2d.slot_values(rho, eps, material)
-            gradients = node_averaged_gradient(mesh, x, value)
-            swept_kernels_2d.second_order(x, mesh.cell_nodes, material, is_mixed, value, gradients, swept,
-                                          donor, flux_volume, flux_mass, flux_energy)
+            swept_kernels_2d.second_order(CELL_TYPE_CODES[mesh.cell_type.name], x, mesh.compiled_cell_nodes,
+                                          *mesh.node_corners, material, is_mixed, value, swept, donor,
+                                          flux_volume, flux_mass, flux_energy)
         for quantity, flux in zip(got_cells, (flux_volume, flux_mass, flux_energy)):
             swept_kernels_2d.exchange(quantity, flux, donor, receiver)
         got = (donor, receiver, size, swept, flux_volume, flux_mass, flux_energy, rho, eps)

@@ -162,40 +162,73 @@ def corner_sums(cell_nodes, values, out, part, distinct):  # pragma: no cover (c
             out[node_index] += part[node_index]
 
 
-@numba.njit(**LOOP)
-def node_averaged_gradients(cell_type, x, cell_nodes, values, gradient, area, shape, weight, nodal, part,
-                            distinct):  # pragma: no cover (compiled)
-    """``gradient`` (m, n_cells, 2): the gradient in every triangle or quadrilateral of cell
-    fields ``values`` (m, n_cells) averaged to the nodes by area: ∇v_K = (1/A_K) Σ_i v̄_i
-    ∂A_K/∂x_i with v̄_i = Σ_K A_K v_K / Σ_K A_K over the cells around node i — what
-    ale_xfem.model.mesh.node_averaged_gradient computed over the whole mesh in numpy (kept
-    in tests/oracles.py), in its order of operations.  Scratch: ``area`` (n_cells,), ``shape`` (6, n_cells), ``weight``,
-    ``nodal``, ``part`` (n_nodes,) each; ``distinct``: as :func:`corner_sums`."""
-    n_cells, k = cell_nodes.shape
+@numba.njit(**BODY)
+def node_area_sums(first, cell, corner, node_index, area, values):  # pragma: no cover (compiled)
+    """(Σ A_K, Σ A_K v_K of the two fields ``values`` (2, n_cells)) over the cells K around
+    node ``node_index``, in :func:`corner_sums`' order: corner by corner, each corner's cells
+    in order, each corner's sum (from +0) then added.  The node is corner ``corner[j]`` of
+    cell ``cell[j]`` for j in ``first[node]:first[node + 1]``, by corner then by cell
+    (ale_xfem.model.mesh.node_corners): a loop over the nodes gathers each node's sums and
+    writes them once (three sums a pass: kept apart, each gathered by a pass of its own or
+    held in a scratch array, the loop took 1.7 times as long)."""
+    weight, sum0, sum1 = 0.0, 0.0, 0.0
+    j, end = first[node_index], first[node_index + 1]
+    while j < end:
+        i = corner[j]
+        part_weight, part0, part1 = 0.0, 0.0, 0.0
+        while j < end and corner[j] == i:
+            c = cell[j]
+            part_weight += area[c]
+            part0 += values[0, c] * area[c]
+            part1 += values[1, c] * area[c]
+            j += 1
+        weight += part_weight
+        sum0 += part0
+        sum1 += part1
+    return weight, sum0, sum1
+
+
+@numba.njit(**BODY)
+def cell_shapes(cell_type, x, cell_nodes, area, shape):  # pragma: no cover (compiled)
+    """``area`` (n_cells,) and ``shape`` (6, n_cells) of every triangle or quadrilateral at
+    positions ``x``, read through ``cell_nodes`` (:func:`cell_shape`, without the
+    hourglass shape)."""
     at = (False, (0, 0, 0, 0))  # the nodes read through cell_nodes (node_access's form)
-    for c in range(n_cells):
+    for c in range(cell_nodes.shape[0]):
         area[c], (shape[0, c], shape[1, c], shape[2, c], shape[3, c], shape[4, c], shape[5, c]) = cell_shape(
             cell_type, x, cell_nodes, at, c, False)
-    corner_sums(cell_nodes, area, weight, part, distinct)
-    for f in range(values.shape[0]):
-        for c in range(n_cells):  # (the gradient's rows hold the weighted values meanwhile)
-            gradient[f, c, 0] = values[f, c] * area[c]
-        corner_sums(cell_nodes, gradient[f, :, 0], nodal, part, distinct)
-        for node_index in range(nodal.size):
-            nodal[node_index] /= weight[node_index]
-        for c in range(n_cells):
-            gradient[f, c, 0], gradient[f, c, 1] = averaged_gradient(
-                cell_type, cell_nodes, c, nodal, area[c],
-                (shape[0, c], shape[1, c], shape[2, c], shape[3, c], shape[4, c], shape[5, c]))
 
 
 @numba.njit(**LOOP)
-def averaged_gradient(cell_type, cell_nodes, c, nodal, area, s):  # pragma: no cover (compiled)
+def node_averaged_gradients(cell_type, x, cell_nodes, first, cell, corner, values, gradient, area, shape,
+                            nodal):  # pragma: no cover (compiled)
+    """``gradient`` (2, n_cells, 2): the gradient in every triangle or quadrilateral of two
+    cell fields ``values`` (2, n_cells) averaged to the nodes by area: ∇v_K = (1/A_K) Σ_i
+    v̄_i ∂A_K/∂x_i with v̄_i = Σ_K A_K v_K / Σ_K A_K over the cells around node i — what
+    ale_xfem.model.mesh.node_averaged_gradient computed over the whole mesh in numpy (kept
+    in tests/oracles.py), in its order of operations.  ``first``, ``cell``, ``corner``: the
+    cells around each node (ale_xfem.model.mesh.node_corners), whose sums each node gathers
+    (:func:`node_area_sums`).  Scratch: ``area`` (n_cells,), ``shape`` (6, n_cells),
+    ``nodal`` (n_nodes, 2)."""
+    cell_shapes(cell_type, x, cell_nodes, area, shape)
+    for node_index in range(nodal.shape[0]):
+        weight, sum0, sum1 = node_area_sums(first, cell, corner, node_index, area, values)
+        nodal[node_index, 0] = sum0 / weight
+        nodal[node_index, 1] = sum1 / weight
+    for c in range(cell_nodes.shape[0]):
+        s = (shape[0, c], shape[1, c], shape[2, c], shape[3, c], shape[4, c], shape[5, c])
+        for f in range(2):
+            gradient[f, c, 0], gradient[f, c, 1] = averaged_gradient(cell_type, cell_nodes, c, nodal, f, area[c], s)
+
+
+@numba.njit(**BODY)
+def averaged_gradient(cell_type, cell_nodes, c, nodal, column, area, s):  # pragma: no cover (compiled)
     """∇v_K = (1/A_K) Σ_i v̄_i ∂A_K/∂x_i of cell c (area, shape ``s``: :func:`cell_shape`)
-    from its nodes' values ``nodal``: a quadrilateral's g_0 (v̄_0 − v̄_2) + g_1 (v̄_1 − v̄_3)."""
+    from its nodes' values ``nodal[:, column]`` (node rows): a quadrilateral's
+    g_0 (v̄_0 − v̄_2) + g_1 (v̄_1 − v̄_3)."""
     if cell_type == QUADRILATERAL:
-        across02 = nodal[cell_nodes[c, 0]] - nodal[cell_nodes[c, 2]]
-        across13 = nodal[cell_nodes[c, 1]] - nodal[cell_nodes[c, 3]]
+        across02 = nodal[cell_nodes[c, 0], column] - nodal[cell_nodes[c, 2], column]
+        across13 = nodal[cell_nodes[c, 1], column] - nodal[cell_nodes[c, 3], column]
         px, py, rx, ry = s[0], s[1], s[2], s[3]
         gx = 0.5 * ry * across02 + -0.5 * py * across13
         gy = -0.5 * rx * across02 + 0.5 * px * across13
@@ -203,7 +236,7 @@ def averaged_gradient(cell_type, cell_nodes, c, nodal, area, s):  # pragma: no c
         gx = 0.0
         gy = 0.0
         for i in range(cell_nodes.shape[1]):
-            v = nodal[cell_nodes[c, i]]
+            v = nodal[cell_nodes[c, i], column]
             gx += v * s[2 * i]
             gy += v * s[2 * i + 1]
     return gx / area, gy / area

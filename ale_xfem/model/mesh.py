@@ -197,22 +197,39 @@ def node_neighbour_cells(cell_nodes: np.ndarray, n_nodes: int) -> np.ndarray:
     return np.ascontiguousarray(neighbours)
 
 
+def node_corners(cell_nodes: np.ndarray, n_nodes: int):
+    """The cells around each node: (first (n_nodes + 1,), cell, corner), node i being corner
+    ``corner[j]`` of cell ``cell[j]`` for j in first[i]:first[i + 1], by corner, then by
+    cell — what the compiled loops that gather over a node's cells read
+    (cell_kernels.node_area_sums)."""
+    k = cell_nodes.shape[1]
+    nodes = np.asarray(cell_nodes, dtype=np.int64).ravel()
+    order = np.argsort(nodes * k + np.tile(np.arange(k), cell_nodes.shape[0]), kind="stable")
+    first = np.zeros(n_nodes + 1, dtype=np.int64)
+    np.cumsum(np.bincount(nodes, minlength=n_nodes), out=first[1:])
+    return first, order // k, order % k
+
+
 def node_averaged_gradient(mesh, node_position, values) -> np.ndarray:
     """The gradient in each cell of a 2D mesh of cell fields averaged to the nodes by area:
     ∇v_K = (1/A_K) Σ_i v̄_i ∂A_K/∂x_i with v̄_i = Σ_K A_K v_K / Σ_K A_K over the cells around
-    node i (exact for a linear field: the remap's slopes).  ``values`` (n_cells,) or (m,
-    n_cells) → gradients (…, n_cells, 2), the geometry done once; a compiled loop
-    (cell_kernels.node_averaged_gradients)."""
+    node i (exact for a linear field: the remap's slopes, which
+    ale_xfem.remap.swept_kernels_2d.second_order computes with its limiter in the same
+    loops).  ``values`` (n_cells,) or (m, n_cells) → gradients (…, n_cells, 2); a compiled
+    loop (cell_kernels.node_averaged_gradients)."""
     if mesh.cell_type.name not in ("triangle", "quadrilateral"):
         raise ValueError(f"node_averaged_gradient: a 2D mesh, not {mesh.cell_type.name}s")
     values = np.asarray(values)
-    fields = np.ascontiguousarray(values.reshape(-1, values.shape[-1]), dtype=float)
-    grad = np.empty((fields.shape[0], mesh.n_cells, 2))
-    cell_kernels.node_averaged_gradients(cell_kernels.CELL_TYPE_CODES[mesh.cell_type.name],
-                                         np.ascontiguousarray(node_position, dtype=float), mesh.compiled_cell_nodes,
-                                         fields, grad, np.empty(mesh.n_cells), np.empty((6, mesh.n_cells)),
-                                         *(np.empty(mesh.n_nodes) for _ in range(3)), mesh.distinct_corners)
-    return grad.reshape(values.shape[:-1] + grad.shape[1:])
+    fields = values.reshape(-1, values.shape[-1])
+    grad = np.empty((fields.shape[0] + fields.shape[0] % 2, mesh.n_cells, 2))
+    x = np.ascontiguousarray(node_position, dtype=float)
+    for f in range(0, fields.shape[0], 2):  # two fields a pass
+        pair = np.ascontiguousarray(fields[f:f + 2] if f + 1 < fields.shape[0] else fields[[f, f]], dtype=float)
+        cell_kernels.node_averaged_gradients(cell_kernels.CELL_TYPE_CODES[mesh.cell_type.name], x,
+                                             mesh.compiled_cell_nodes, *mesh.node_corners, pair, grad[f:f + 2],
+                                             np.empty(mesh.n_cells), np.empty((6, mesh.n_cells)),
+                                             np.empty((mesh.n_nodes, 2)))
+    return grad[:fields.shape[0]].reshape(values.shape[:-1] + grad.shape[1:])
 
 
 def patch_gradient(mesh, node_position, values, cells=None, around=None) -> np.ndarray:
@@ -392,6 +409,15 @@ class MeshArrays:
         self.compiled_cell_nodes = np.ascontiguousarray(self.cell_nodes, dtype=np.int64)
         self.corner_runs = cell_kernels.corner_runs(self.compiled_cell_nodes)
         self.distinct_corners = cell_kernels.distinct_corners(self.compiled_cell_nodes)
+        self._node_corners = None
+
+    @property
+    def node_corners(self):
+        """The cells around each node, for the compiled loops that gather over them
+        (:func:`node_corners`; made on first use)."""
+        if self._node_corners is None:
+            self._node_corners = node_corners(self.compiled_cell_nodes, self.n_nodes)
+        return self._node_corners
 
     @property
     def n_nodes(self) -> int:

@@ -61,7 +61,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ale_xfem.model.mesh import mesh_edges, node_averaged_gradient, node_neighbour_cells
+from ale_xfem.model.cell_kernels import CELL_TYPE_CODES
+from ale_xfem.model.mesh import mesh_edges, node_neighbour_cells
 from ale_xfem.model.mixed_cells import MixedCells
 from ale_xfem.remap import swept_kernels_2d
 from ale_xfem.remap.failure import RemapFailure
@@ -574,11 +575,10 @@ class Remapper2D:
 
     def _second_order(self, x, layout, is_mixed, rho, eps, swept, donor, flux_volume, flux_mass, flux_energy):
         """Limited linear density and energy density in pure donors, at the centroid of the
-        swept region (module docstring): the node-averaged gradients here, the rest compiled
-        (swept_kernels_2d.second_order)."""
+        swept region (module docstring; compiled: swept_kernels_2d.second_order)."""
         mesh = self.mesh
         material = layout.cell_material[0]
         value = swept_kernels_2d.slot_values(rho, eps, material)
-        gradients = node_averaged_gradient(mesh, x, value)
-        swept_kernels_2d.second_order(x, mesh.cell_nodes, material, is_mixed, value, gradients, swept, donor,
-                                      flux_volume, flux_mass, flux_energy)
+        swept_kernels_2d.second_order(CELL_TYPE_CODES[mesh.cell_type.name], x, mesh.compiled_cell_nodes,
+                                      *mesh.node_corners, material, is_mixed, value, swept, donor, flux_volume,
+                                      flux_mass, flux_energy)

@@ -22,7 +22,8 @@ import numpy as np
 
 from ale_xfem.geometry.polygon_kernels import (KERNEL, area_below_line, clip_by_line, fan_centroid, maximum,
                                                minimum, shoelace)
-from ale_xfem.model.cell_kernels import corner_sums
+from ale_xfem.model.cell_kernels import (QUADRILATERAL, TRIANGLE, averaged_gradient, cell_shapes, corner_sums,
+                                         node_area_sums)
 
 
 @numba.njit(**KERNEL)
@@ -304,63 +305,99 @@ def slot_values(rho, eps, material):  # pragma: no cover (compiled)
 
 
 @numba.njit(**KERNEL)
-def second_order(x, cell_nodes, material, is_mixed, value, gradients, swept, donor, flux_volume,
-                 flux_mass, flux_energy):  # pragma: no cover (compiled)
+def second_order(cell_type, x, cell_nodes, first, cell, corner, material, is_mixed, value, swept, donor,
+                 flux_volume, flux_mass, flux_energy):  # pragma: no cover (compiled)
+    """:func:`second_order_loops` compiled for ``cell_type`` (cell_kernels' code), a constant
+    of its loops."""
+    if cell_type == QUADRILATERAL:
+        second_order_loops(QUADRILATERAL, x, cell_nodes, first, cell, corner, material, is_mixed, value, swept,
+                           donor, flux_volume, flux_mass, flux_energy)
+    else:
+        second_order_loops(TRIANGLE, x, cell_nodes, first, cell, corner, material, is_mixed, value, swept, donor,
+                           flux_volume, flux_mass, flux_energy)
+
+
+@numba.njit(**KERNEL, inline="always")
+def second_order_loops(cell_type, x, cell_nodes, first, cell, corner, material, is_mixed, value, swept, donor,
+                       flux_volume, flux_mass, flux_energy):  # pragma: no cover (compiled)
     """Order 2 (remapper_2d's module docstring): in pure donors whose every node touches
     cells of their own material alone, a linear density and energy density (``value`` (2,
-    n_cells), :func:`slot_values`), the gradients ``gradients`` (2, n_cells, 2)
-    (node-averaged) limited by Barth–Jespersen so that the corners stay within the
-    node-neighbour range, evaluated at the swept region's centroid: ``flux_mass`` and
-    ``flux_energy`` corrected in place."""
+    n_cells), :func:`slot_values`), their gradients averaged to the nodes by area
+    (ale_xfem.model.mesh.node_averaged_gradient, computed here in the same loops) and
+    limited by Barth–Jespersen so that the corners stay within the node-neighbour range,
+    evaluated at the swept region's centroid: ``flux_mass`` and ``flux_energy`` corrected in
+    place.  ``cell_type``: cell_kernels' code; ``first``, ``cell``, ``corner``: the cells
+    around each node (ale_xfem.model.mesh.node_corners).
+
+    Three passes before the regions': the cells' geometry; each node's averages and
+    ranges, gathered from its cells and kept in one row per node (position, the two
+    averages, the two ranges, the range of its cells' materials), so that the third pass,
+    each cell's gradients and limiters, reads a node's values together (scattered over
+    seven node arrays, the limiters alone took 0.86 ms at 200², together 0.62 ms).  A
+    node's ranges are taken over its cells by corner, then by cell: the extremes of a set,
+    whose order changes nothing but the sign of a zero where +0 and −0 tie."""
     n_cells, k = cell_nodes.shape
     n_nodes = x.shape[1]
-    centre = np.empty((2, n_cells))
     last = k - 1
+    area = np.empty(n_cells)
+    shape = np.empty((6, n_cells))
+    centre = np.empty((2, n_cells))
+    cell_shapes(cell_type, x, cell_nodes, area, shape)
     for c in range(n_cells):
         n0, n1, n2, n3 = cell_nodes[c, 0], cell_nodes[c, 1], cell_nodes[c, 2], cell_nodes[c, last]
         _, centre[0, c], centre[1, c] = fan_centroid(x[0, n0], x[1, n0], x[0, n1], x[1, n1], x[0, n2], x[1, n2],
                                                      x[0, n3], x[1, n3], k)
-    # slopes only in cells whose every node touches cells of their own material alone
-    low_tag = np.full(n_nodes, np.iinfo(np.int64).max)
-    high_tag = np.full(n_nodes, -2)
-    low = np.full((2, n_nodes), np.inf)
-    high = np.full((2, n_nodes), -np.inf)
-    for c in range(n_cells):
-        tag = -1 if is_mixed[c] else material[c]
-        for i in range(k):
-            node = cell_nodes[c, i]
-            low_tag[node] = min(low_tag[node], tag)
-            high_tag[node] = max(high_tag[node], tag)
-            for f in range(2):
-                low[f, node] = minimum(low[f, node], value[f, c])
-                high[f, node] = maximum(high[f, node], value[f, c])
+    # each node's row, one cache line: x, y, the two fields' averages, lowest and highest
+    # of each over its cells; and the material of all its cells (−1: mixed cells only; −2:
+    # several)
+    block = np.empty((n_nodes + 1) * 8)
+    shift = (64 - block.ctypes.data % 64) % 64 // 8
+    row = block[shift:shift + 8 * n_nodes].reshape((n_nodes, 8))
+    node_material = np.empty(n_nodes, dtype=np.int64)
+    for node_index in range(n_nodes):
+        weight, sum0, sum1 = node_area_sums(first, cell, corner, node_index, area, value)
+        low_tag, high_tag = np.iinfo(np.int64).max, -2
+        low0, high0, low1, high1 = np.inf, -np.inf, np.inf, -np.inf
+        for j in range(first[node_index], first[node_index + 1]):
+            c = cell[j]
+            tag = -1 if is_mixed[c] else material[c]
+            low_tag = min(low_tag, tag)
+            high_tag = max(high_tag, tag)
+            low0 = minimum(low0, value[0, c])
+            high0 = maximum(high0, value[0, c])
+            low1 = minimum(low1, value[1, c])
+            high1 = maximum(high1, value[1, c])
+        row[node_index, 0], row[node_index, 1] = x[0, node_index], x[1, node_index]
+        row[node_index, 2], row[node_index, 3] = sum0 / weight, sum1 / weight
+        row[node_index, 4], row[node_index, 5], row[node_index, 6], row[node_index, 7] = low0, high0, low1, high1
+        node_material[node_index] = low_tag if low_tag == high_tag else -2
     slope = np.zeros((2, 2, n_cells))
     for c in range(n_cells):
         if is_mixed[c]:
             continue
-        tag = material[c]
         inside = True
         for i in range(k):
-            node = cell_nodes[c, i]
-            inside &= (low_tag[node] == tag) & (high_tag[node] == tag)
-        if not inside:  # no slope (numpy's zero limiter: a non-finite gradient gives NaN)
-            for f in range(2):
-                slope[f, 0, c] = gradients[f, c, 0] * 0.0
-                slope[f, 1, c] = gradients[f, c, 1] * 0.0
-            continue
+            inside &= node_material[cell_nodes[c, i]] == material[c]
+        s = (shape[0, c], shape[1, c], shape[2, c], shape[3, c], shape[4, c], shape[5, c])
+        cx, cy = centre[0, c], centre[1, c]
         for f in range(2):
-            gx, gy = gradients[f, c, 0], gradients[f, c, 1]
+            gx, gy = averaged_gradient(cell_type, cell_nodes, c, row, 2 + f, area[c], s)
+            if not inside:  # no slope (numpy's zero limiter: a non-finite gradient gives NaN)
+                slope[f, 0, c] = gx * 0.0
+                slope[f, 1, c] = gy * 0.0
+                continue
+            v = value[f, c]
             limiter = 1.0
             for i in range(k):
                 node = cell_nodes[c, i]
-                delta = gx * (x[0, node] - centre[0, c])
-                delta += gy * (x[1, node] - centre[1, c])
+                delta = gx * (row[node, 0] - cx)
+                delta += gy * (row[node, 1] - cy)
                 # room ≥ 0 where δ = 0 (a cell's range holds its value): the bound is +∞ or
-                # NaN there, and NaN sets no bound
-                room = (high[f, node] if delta >= 0 else low[f, node]) - value[f, c]
+                # NaN there, and NaN sets no bound (np.fmin; of equals, the bound)
+                high, low = row[node, 5 + 2 * f], row[node, 4 + 2 * f]
+                room = (high if delta >= 0 else low) - v
                 bound = clip_unit(room / delta)
-                if not (bound != bound):  # np.fmin: NaN sets no bound, of equals the bound
-                    limiter = limiter if limiter < bound else bound
+                limiter = limiter if (bound != bound) | (limiter < bound) else bound
             slope[f, 0, c] = gx * limiter
             slope[f, 1, c] = gy * limiter
     # the swept regions' centroids (every region's, in a loop that vectorises), then the
