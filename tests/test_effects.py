@@ -10,7 +10,7 @@ import pytest
 
 from ale_xfem.problem import build_problem
 from ale_xfem.run import simulate
-from ale_xfem.scene import load_scene, resolve_scene_path
+from ale_xfem.scene import SceneError, load_scene, resolve_scene_path
 
 STATE_ARRAYS = ("node_position", "node_velocity", "material_mass", "material_energy", "material_volume",
                 "material_density", "material_pressure", "material_sound_speed")
@@ -96,15 +96,39 @@ def test_an_interface_table_with_the_interface_on_a_node_changes_nothing(tmp_pat
     assert not off["mixed_cells_enriched"].on and "on a node" in off["mixed_cells_enriched"].why
 
 
-def test_remap_keys_of_a_lagrangian_scene_change_nothing(tmp_path, counters):
-    """mesh.motion = "lagrangian" written out, with a remap order: no remapper is built and
-    the run is bit-identical to the scene that never mentions them."""
-    plain = _run(resolve_scene_path("sod"))[1]
+def test_remap_keys_of_a_lagrangian_scene_are_errors_and_left_out_of_its_resolved_scene(tmp_path, counters):
+    """mesh.motion = "lagrangian" with a remap order written out: the key cannot act (nothing
+    is remapped), so the scene is refused, naming it, before anything runs; without it no
+    remapper is built, and the resolved scene holds no remap key (it runs as is)."""
     path = _scene_file(tmp_path, "sod", "\n[numerics]\nremap_order = 1\n")
-    problem, explicit = _run(path, "mesh.motion=lagrangian")
-    _assert_bit_identical(plain, explicit)
-    assert counters["remappers"] == 0
-    assert not any(name.startswith("remap") for name in problem.effects)
+    with pytest.raises(SceneError) as error:
+        load_scene(path, ["mesh.motion=lagrangian"])
+    assert error.value.key == "numerics.remap_order" and "mesh.motion" in str(error.value)
+    problem, _ = _run(resolve_scene_path("sod"), "mesh.motion=lagrangian")
+    assert counters["remappers"] == 0 and not any(name.startswith("remap") for name in problem.effects)
+    assert not {"remap_order", "remap_energy"} & set(problem.scene.resolved["numerics"])
+    eulerian = load_scene(resolve_scene_path("sod"), ["mesh.motion=eulerian"]).resolved["numerics"]
+    assert (eulerian["remap_order"], eulerian["remap_energy"]) == (2, "total")
+
+
+@pytest.mark.parametrize("override, key", [
+    ("numerics.hourglass=0.2", "numerics.hourglass"),  # intervals have no hourglass modes
+    ("numerics.viscous_time_step=false", "numerics.viscous_time_step"),  # 2D only
+    ("numerics.interface_tolerance=1e-8", "numerics.interface_tolerance"),  # no [interface]
+    ("numerics.remap_energy=internal", "numerics.remap_energy"),  # nothing remapped
+])
+def test_numerics_keys_that_cannot_act_in_a_1d_tube_are_errors(override, key):
+    with pytest.raises(SceneError) as error:
+        load_scene(resolve_scene_path("sod"), [override])
+    assert error.value.key == key
+
+
+def test_the_hourglass_key_on_triangles_is_an_error_and_acts_on_quadrilaterals():
+    with pytest.raises(SceneError) as error:
+        load_scene(resolve_scene_path("noh"), ["mesh.cell_type=triangle", "numerics.hourglass=0.1"])
+    assert error.value.key == "numerics.hourglass" and "triangle" in str(error.value)
+    assert "hourglass" not in load_scene(resolve_scene_path("noh"), ["mesh.cell_type=triangle"]).resolved["numerics"]
+    assert load_scene(resolve_scene_path("noh"), ["numerics.hourglass=0.1"]).numerics.hourglass == 0.1
 
 
 def test_a_zero_transverse_velocity_leaves_the_dynamics_bit_identical(tmp_path):

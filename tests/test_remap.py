@@ -326,7 +326,7 @@ def test_a_remap_onto_the_unmoved_mesh_is_the_identity(scene, overrides, order):
     from ale_xfem.remap.remapper_1d import Remapper
     from ale_xfem.remap.remapper_2d import Remapper2D
 
-    problem = build_problem(load_scene(resolve_scene_path(scene), overrides + [f"numerics.remap_order={order}"]))
+    problem = build_problem(load_scene(resolve_scene_path(scene), overrides))  # (Lagrangian: no remap key acts)
     state = simulate(problem, stop_after_steps=10).state
     assert problem.mixed is not None
     remapper = (Remapper2D if problem.mesh.dimension == 2 else Remapper)(problem, "eulerian", order)

@@ -291,8 +291,11 @@ def validate(data: dict, source: str = "") -> Scene:
     materials = _validate_materials(data["materials"])
     regions = _validate_regions(data["regions"], materials, mesh, dimension)
     boundaries = _validate_boundaries(data.setdefault("boundaries", {}), dimension)
-    numerics = _validate_numerics(data.setdefault("numerics", {}))
+    numerics_table = data.setdefault("numerics", {})
+    written = set(numerics_table) if isinstance(numerics_table, dict) else set()
+    numerics = _validate_numerics(numerics_table)
     interface = _validate_interface(data["interface"], dimension) if "interface" in data else None
+    _numerics_that_act(numerics_table, written, dimension, mesh, interface, numerics)
 
     scene = Scene(name, description, dimension, t_end, mesh, materials, regions, boundaries, numerics,
                   interface, resolved=data, source=source)
@@ -518,6 +521,42 @@ def _validate_numerics(table: Any) -> Numerics:
         hourglass=_real(table["hourglass"], "numerics.hourglass", lambda v: 0 <= v <= 1, "a real number in [0, 1]"),
         viscous_time_step=_boolean(table["viscous_time_step"], "numerics.viscous_time_step"),
     )
+
+
+def _numerics_that_act(table: dict, written: set, dimension: int, mesh, interface, numerics: Numerics) -> None:
+    """A [numerics] key that cannot act in the scene is an error if the scene (or --set)
+    wrote it, and its default is left out of the resolved scene otherwise (which holds only
+    keys that act, as [interface] does): the remap's keys without a remap, the hourglass
+    control off quadrilaterals, the viscous time step outside 2D or without viscosity, the
+    mixed cells' solver settings without [interface]."""
+    motion = mesh.motion
+    enriched_2d = dimension == 2 and interface is not None and interface.model == "enriched"
+    cell_type = mesh.cell_type
+    viscosity = numerics.q_quadratic > 0 or numerics.q_linear > 0
+    where = {
+        "remap_order": (motion != "lagrangian", f"mesh.motion = '{motion}': it sets the order of the remap's "
+                        "reconstruction, and a Lagrangian mesh sweeps nothing (remove it, or set mesh.motion = "
+                        "'eulerian' or 'smoothed')"),
+        "remap_energy": (motion != "lagrangian" or enriched_2d, f"mesh.motion = '{motion}': nothing is remapped "
+                         "(remove it, or set mesh.motion = 'eulerian' or 'smoothed')"),
+        "hourglass": (dimension == 2 and cell_type == "quadrilateral",
+                      (f"mesh.cell_type = '{cell_type}': triangles have no hourglass modes" if dimension == 2
+                       else "a 1D mesh: intervals have no hourglass modes") + " (remove it)"),
+        "viscous_time_step": (dimension == 2 and viscosity,
+                              "a 1D mesh: the 1D time step has no such choice (remove it)" if dimension == 1 else
+                              "numerics.q_quadratic = numerics.q_linear = 0: there is no viscosity to resolve "
+                              "(remove it)"),
+        "interface_tolerance": (interface is not None, "no [interface] table: no mixed cell is ever solved "
+                                "(remove it)"),
+        "interface_max_iterations": (interface is not None, "no [interface] table: no mixed cell is ever solved "
+                                     "(remove it)"),
+    }
+    for key, (acts, why) in where.items():
+        if acts:
+            continue
+        if key in written:
+            raise SceneError(f"numerics.{key}", table[key], f"no value with {why}")
+        del table[key]
 
 
 def _choice_int(value: Any, key: str, choices: tuple[int, ...]) -> int:
