@@ -897,8 +897,8 @@ def test_the_compiled_2d_swept_pass_gives_the_numpy_pass_bits(mesh_name, order):
             u[:, keep] = 0.0
         old_cell_mass, new_cell_mass = mass.sum(axis=0), got_cells[1].sum(axis=0)
         want = cell_momentum_2d(mesh, u, old_cell_mass, new_cell_mass, flux_mass, donor, receiver)
-        have = swept_kernels_2d.cell_momentum(u, mesh.cell_nodes, old_cell_mass, new_cell_mass, flux_mass, donor,
-                                              receiver, mesh.distinct_corners)
+        have = swept_kernels_2d.cell_momentum(u, mesh.compiled_cell_nodes, *mesh.node_corners, old_cell_mass,
+                                              new_cell_mass, flux_mass, donor, receiver)
         for name, a_, b_ in zip(("velocity", "node mass", "kinetic energy", "loss"), want, have):
             np.testing.assert_array_equal(bits(b_), bits(a_), err_msg=f"{name}, {case}")
 

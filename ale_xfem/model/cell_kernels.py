@@ -132,42 +132,13 @@ def cell_shape(cell_type, x, cell_nodes, at, k, hourglass):  # pragma: no cover 
     return (px * ry - py * rx) * 0.5, (px, py, rx, ry, hx, hy)
 
 
-def distinct_corners(cell_nodes) -> bool:
-    """Whether no node is the same corner of two cells (a structured grid's quadrilaterals;
-    not DOLFINx's triangles): :func:`corner_sums` then adds each cell's value to its nodes
-    directly."""
-    return all(np.unique(column).size == column.size for column in np.asarray(cell_nodes).T)
-
-
-@numba.njit(**LOOP)
-def corner_sums(cell_nodes, values, out, part, distinct):  # pragma: no cover (compiled)
-    """``out`` (n_nodes,) = Σ over corners of each cell's ``values`` (n_cells,) onto the
-    nodes, corner by corner: each corner's sum over the cells in order (in ``part``, scratch
-    of n_nodes), then added — the order of ale_xfem.model.mesh.Corners.scatter.  Where no
-    node is the same corner of two cells (``distinct``: :func:`distinct_corners`) a corner's
-    sum at a node is its one value, added directly: the same bits (a sum that starts at +0
-    is never −0)."""
-    n_cells, k = cell_nodes.shape
-    out[:] = 0.0
-    if distinct:
-        for i in range(k):
-            for c in range(n_cells):
-                out[cell_nodes[c, i]] += values[c]
-        return
-    for i in range(k):
-        part[:] = 0.0
-        for c in range(n_cells):
-            part[cell_nodes[c, i]] += values[c]
-        for node_index in range(out.size):
-            out[node_index] += part[node_index]
-
-
 @numba.njit(**BODY)
 def node_area_sums(first, cell, corner, node_index, area, values):  # pragma: no cover (compiled)
     """(Σ A_K, Σ A_K v_K of the two fields ``values`` (2, n_cells)) over the cells K around
-    node ``node_index``, in :func:`corner_sums`' order: corner by corner, each corner's cells
-    in order, each corner's sum (from +0) then added.  The node is corner ``corner[j]`` of
-    cell ``cell[j]`` for j in ``first[node]:first[node + 1]``, by corner then by cell
+    node ``node_index``, in the order of ale_xfem.model.mesh.Corners.scatter (the numpy
+    code's, so its bits): corner by corner, each corner's cells in order, each corner's sum
+    (from +0) then added.  The node is corner ``corner[j]`` of cell ``cell[j]`` for j in
+    ``first[node]:first[node + 1]``, by corner then by cell
     (ale_xfem.model.mesh.node_corners): a loop over the nodes gathers each node's sums and
     writes them once (three sums a pass: kept apart, each gathered by a pass of its own or
     held in a scratch array, the loop took 1.7 times as long)."""

@@ -408,7 +408,6 @@ class MeshArrays:
         # what the compiled loops take (ale_xfem.model.cell_kernels)
         self.compiled_cell_nodes = np.ascontiguousarray(self.cell_nodes, dtype=np.int64)
         self.corner_runs = cell_kernels.corner_runs(self.compiled_cell_nodes)
-        self.distinct_corners = cell_kernels.distinct_corners(self.compiled_cell_nodes)
         self._node_corners = None
 
     @property

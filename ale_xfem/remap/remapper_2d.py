@@ -266,7 +266,8 @@ class Remapper2D:
         # -- nodal momentum through the cells (compiled) -------------------------------------
         u = state.node_velocity
         velocity, node_mass, kinetic_before, loss = swept_kernels_2d.cell_momentum(
-            u, mesh.cell_nodes, old_cell_mass, mass.sum(axis=0), flux_mass, donor, receiver, mesh.distinct_corners)
+            u, mesh.compiled_cell_nodes, *mesh.node_corners, old_cell_mass, mass.sum(axis=0), flux_mass, donor,
+            receiver)
         owned_mass = node_mass if self.scope.owned_nodes is None else node_mass[self.scope.owned_nodes]
         self.scope.verdict(RemapFailure("a node lost all its mass in the remap") if np.any(owned_mass <= 0) else None)
         # walls take the normal velocity (that kinetic energy is heat too); pistons impose

@@ -22,8 +22,7 @@ import numpy as np
 
 from ale_xfem.geometry.polygon_kernels import (KERNEL, area_below_line, clip_by_line, fan_centroid, maximum,
                                                minimum, shoelace)
-from ale_xfem.model.cell_kernels import (QUADRILATERAL, TRIANGLE, averaged_gradient, cell_shapes, corner_sums,
-                                         node_area_sums)
+from ale_xfem.model.cell_kernels import QUADRILATERAL, TRIANGLE, averaged_gradient, cell_shapes, node_area_sums
 
 
 @numba.njit(**KERNEL)
@@ -485,21 +484,47 @@ def mixed_donor_parts(swept, edges, x, cell_nodes, donor, size, normal, offset, 
     return inside, alpha, alpha_whole
 
 
+@numba.njit(**KERNEL, inline="always")
+def corner_shares_at(first, cell, corner, node_index, share):  # pragma: no cover (compiled)
+    """The five cell fields ``share`` (5, n_cells) of :func:`cell_momentum` summed over the
+    cells around node ``node_index`` in cell_kernels.node_area_sums' order: corner by
+    corner, each corner's cells in order, each corner's sum (from +0) then added (``first``,
+    ``cell``, ``corner``: ale_xfem.model.mesh.node_corners, by corner then by cell)."""
+    t0, t1, t2, t3, t4 = 0.0, 0.0, 0.0, 0.0, 0.0
+    j, end = first[node_index], first[node_index + 1]
+    while j < end:
+        i = corner[j]
+        p0, p1, p2, p3, p4 = 0.0, 0.0, 0.0, 0.0, 0.0
+        while j < end and corner[j] == i:
+            c = cell[j]
+            p0 += share[0, c]
+            p1 += share[1, c]
+            p2 += share[2, c]
+            p3 += share[3, c]
+            p4 += share[4, c]
+            j += 1
+        t0 += p0
+        t1 += p1
+        t2 += p2
+        t3 += p3
+        t4 += p4
+    return t0, t1, t2, t3, t4
+
+
 @numba.njit(**KERNEL)
-def cell_momentum(u, cell_nodes, old_cell_mass, new_cell_mass, flux_mass, donor, receiver,
-                  distinct):  # pragma: no cover (compiled)
+def cell_momentum(u, cell_nodes, first, cell, corner, old_cell_mass, new_cell_mass, flux_mass, donor,
+                  receiver):  # pragma: no cover (compiled)
     """Nodal momentum through the cells (remapper_2d's module docstring), one velocity field
-    ``u`` (dim, n_nodes): each cell holds the momentum of its corners at m_K/k each, the
+    ``u`` (2, n_nodes): each cell holds the momentum of its corners at m_K/k each, the
     swept regions carry their mass at the donor cell's mean velocity, each node receives its
-    cells' change by corner share.  Returns (velocity (dim, n_nodes), node masses, and per
+    cells' change by corner share.  Returns (velocity (2, n_nodes), node masses, and per
     node the kinetic energy before and what the remap dissipated: that, plus what the
-    fluxes brought, less the kinetic energy after).  ``distinct``: no node is the same
-    corner of two cells (cell_kernels.corner_sums)."""
+    fluxes brought, less the kinetic energy after).  ``first``, ``cell``, ``corner``: the
+    cells around each node (ale_xfem.model.mesh.node_corners), from which each node gathers
+    its five corner shares in one pass (:func:`corner_shares_at`; scattered by the cells,
+    corner by corner, they were twenty passes)."""
     n_cells, k = cell_nodes.shape
     dim, n_nodes = u.shape
-    part = np.empty(n_nodes)
-    old_node_mass = np.empty(n_nodes)
-    corner_sums(cell_nodes, old_cell_mass / k, old_node_mass, part, distinct)
     cell_velocity = np.zeros((dim, n_cells))
     for d in range(dim):
         for c in range(n_cells):
@@ -511,8 +536,6 @@ def cell_momentum(u, cell_nodes, old_cell_mass, new_cell_mass, flux_mass, donor,
     total_flux = flux_mass[0].copy()
     for m in range(1, flux_mass.shape[0]):
         total_flux += flux_mass[m]
-    change = np.zeros((dim, n_cells))
-    kinetic_change = np.zeros(n_cells)
     into, out = np.zeros((dim + 1, n_cells)), np.zeros((dim + 1, n_cells))
     for j in range(n):
         speed2 = 0.0
@@ -525,30 +548,28 @@ def cell_momentum(u, cell_nodes, old_cell_mass, new_cell_mass, flux_mass, donor,
         kinetic = 0.5 * total_flux[j] * speed2
         into[dim, receiver[j]] += kinetic
         out[dim, donor[j]] += kinetic
+    # each corner's share: the old and new masses, the momentum's change per component and
+    # the kinetic energy the fluxes brought
+    share = np.empty((5, n_cells))
     for c in range(n_cells):
-        for d in range(dim):
-            change[d, c] = (into[d, c] - out[d, c]) / k
-        kinetic_change[c] = (into[dim, c] - out[dim, c]) / k
-    node_mass = np.empty(n_nodes)
-    corner_sums(cell_nodes, new_cell_mass / k, node_mass, part, distinct)
+        share[0, c] = old_cell_mass[c] / k
+        share[1, c] = new_cell_mass[c] / k
+        share[2, c] = (into[0, c] - out[0, c]) / k
+        share[3, c] = (into[1, c] - out[1, c]) / k
+        share[4, c] = (into[2, c] - out[2, c]) / k
     velocity = np.empty((dim, n_nodes))
-    for d in range(dim):
-        moved = np.empty(n_nodes)
-        corner_sums(cell_nodes, change[d], moved, part, distinct)
-        for node in range(n_nodes):
-            velocity[d, node] = (u[d, node] * old_node_mass[node] + moved[node]) / node_mass[node]
-    kinetic_in = np.empty(n_nodes)
-    corner_sums(cell_nodes, kinetic_change, kinetic_in, part, distinct)
+    node_mass = np.empty(n_nodes)
     kinetic_before = np.empty(n_nodes)
     loss = np.empty(n_nodes)
     for node in range(n_nodes):
-        before = u[0, node] * u[0, node]
-        after = velocity[0, node] * velocity[0, node]
-        for d in range(1, dim):
-            before += u[d, node] * u[d, node]
-            after += velocity[d, node] * velocity[d, node]
-        kinetic_before[node] = 0.5 * old_node_mass[node] * before
-        loss[node] = kinetic_before[node] + kinetic_in[node] - 0.5 * node_mass[node] * after
+        old_mass, new_mass, moved0, moved1, kinetic_in = corner_shares_at(first, cell, corner, node, share)
+        node_mass[node] = new_mass
+        u0, u1 = u[0, node], u[1, node]
+        v0 = (u0 * old_mass + moved0) / new_mass
+        v1 = (u1 * old_mass + moved1) / new_mass
+        velocity[0, node], velocity[1, node] = v0, v1
+        kinetic_before[node] = 0.5 * old_mass * (u0 * u0 + u1 * u1)
+        loss[node] = kinetic_before[node] + kinetic_in - 0.5 * new_mass * (v0 * v0 + v1 * v1)
     return velocity, node_mass, kinetic_before, loss
 
 
