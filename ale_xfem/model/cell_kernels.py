@@ -140,8 +140,9 @@ def node_area_sums(first, cell, corner, node_index, area, values):  # pragma: no
     (from +0) then added.  The node is corner ``corner[j]`` of cell ``cell[j]`` for j in
     ``first[node]:first[node + 1]``, by corner then by cell
     (ale_xfem.model.mesh.node_corners): a loop over the nodes gathers each node's sums and
-    writes them once (three sums a pass: kept apart, each gathered by a pass of its own or
-    held in a scratch array, the loop took 1.7 times as long)."""
+    writes them once (three sums a pass: each gathered by a pass of its own, the loop took
+    1.7 times as long, and held in a scratch array, three times; swept_kernels_2d's
+    corner_shares_at is the same gather of five sums)."""
     weight, sum0, sum1 = 0.0, 0.0, 0.0
     j, end = first[node_index], first[node_index + 1]
     while j < end:

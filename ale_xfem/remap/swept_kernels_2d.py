@@ -487,8 +487,10 @@ def mixed_donor_parts(swept, edges, x, cell_nodes, donor, size, normal, offset, 
 @numba.njit(**KERNEL, inline="always")
 def corner_shares_at(first, cell, corner, node_index, share):  # pragma: no cover (compiled)
     """The five cell fields ``share`` (5, n_cells) of :func:`cell_momentum` summed over the
-    cells around node ``node_index`` in cell_kernels.node_area_sums' order: corner by
-    corner, each corner's cells in order, each corner's sum (from +0) then added (``first``,
+    cells around node ``node_index`` in cell_kernels.node_area_sums' order (that gather, of
+    three sums, written for five: a width given at run time kept its sums in memory, three
+    times slower): corner by corner, each corner's cells in order, each corner's sum (from
+    +0) then added (``first``,
     ``cell``, ``corner``: ale_xfem.model.mesh.node_corners, by corner then by cell)."""
     t0, t1, t2, t3, t4 = 0.0, 0.0, 0.0, 0.0, 0.0
     j, end = first[node_index], first[node_index + 1]
