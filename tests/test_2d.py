@@ -989,9 +989,11 @@ def test_the_compiled_per_material_momentum_remap_gives_the_numpy_bits(mesh_name
 
 def test_the_compiled_per_material_arrays_and_trace_search_give_the_numpy_results():
     """The slots as dense arrays by material (swept_kernels_2d.by_material) and the trace
-    search (traces, present_materials) against the numpy expressions the remap used: the
-    same bits, the same (material, cell) pairs in np.nonzero's order."""
-    from ale_xfem.remap.swept_kernels_2d import by_material, present_materials, traces
+    search (traces, present_materials, standing_traces, untouched_traces) against the numpy
+    expressions the remap used: the same bits, the same (material, cell) pairs in
+    np.nonzero's order."""
+    from ale_xfem.remap.swept_kernels_2d import (by_material, present_materials, standing_traces, traces,
+                                                 untouched_traces)
 
     rng = np.random.default_rng(41)
     n_cells, n_materials, trace = 300, 3, 1e-4
@@ -1021,6 +1023,16 @@ def test_the_compiled_per_material_arrays_and_trace_search_give_the_numpy_result
     some = np.unique(want_cells)
     np.testing.assert_array_equal(present_materials(dense_volume[:, some], area[some], standing[:, some], trace),
                                   present[:, some])
+    # the traces standing before a remap, and those the fluxes leave as they were
+    standing, where, before = standing_traces(dense_volume, area, trace)
+    want = (dense_volume > 0.0) & (dense_volume <= trace * area)
+    np.testing.assert_array_equal(standing, want)
+    np.testing.assert_array_equal(where, np.stack(np.nonzero(want)))
+    np.testing.assert_array_equal(before, dense_volume[want])
+    after = dense_volume * np.where(rng.random((n_materials, n_cells)) < 0.5, 1.0 + 2e-6, 1.0 + 5e-7)
+    untouched_traces(standing, where, before, after)
+    np.testing.assert_array_equal(standing, want & (np.abs(after - dense_volume) <= 1e-6 * dense_volume))
+    assert 0 < np.count_nonzero(standing) < np.count_nonzero(want)
 
 
 @pytest.mark.parametrize("n_materials", [2, 3])

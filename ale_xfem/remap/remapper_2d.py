@@ -220,9 +220,7 @@ class Remapper2D:
         # earlier remap kept them): they stay while the remap leaves them as they are (to
         # round-off), so that a state remapped onto an unmoved mesh is left as it is
         _, _, area = self._target_geometry(X)
-        standing = (volume > 0.0) & (volume <= TRACE * area)
-        standing_where = np.nonzero(standing)
-        standing_volume = volume[standing_where]
+        standing, standing_where, standing_volume = swept_kernels_2d.standing_traces(volume, area, TRACE)
 
         # -- the swept regions (compiled: ale_xfem.remap.swept_kernels_2d) --------------------
         Xa, Xb, area = self._target_geometry(X)
@@ -248,8 +246,7 @@ class Remapper2D:
         self.scope.cells(volume, mass, energy)  # (on several ranks: the ghost cells' from their owners)
         # a trace the fluxes changed is a trace this remap made: it moves (kept, traces of a
         # shock's path took energy below zero on the shock on a disk)
-        touched = np.abs(volume[standing_where] - standing_volume) > 1e-6 * standing_volume
-        standing[tuple(w[touched] for w in standing_where)] = False
+        swept_kernels_2d.untouched_traces(standing, standing_where, standing_volume, volume)
         if state.material_node_velocity is not None and mixed is None:
             # no mixed cell this step: every material moved with the mesh, with the equal
             # corner shares of its cells as masses

@@ -93,6 +93,41 @@ def material_slots(volume, mass, energy, area, standing, trace):  # pragma: no c
 
 
 @numba.njit(**KERNEL)
+def standing_traces(volume, area, trace):  # pragma: no cover (compiled)
+    """The materials below ``trace`` of their cell's ``area`` before a remap (``volume``
+    (n_materials, n_cells)): (a mask (n_materials, n_cells), their (material, cell) pairs in
+    np.nonzero's order (2, n), their volumes (n,)) — what :func:`untouched_traces` reads
+    after the fluxes."""
+    n_materials, n_cells = volume.shape
+    standing = np.zeros((n_materials, n_cells), dtype=np.bool_)
+    count = 0
+    for m in range(n_materials):
+        for c in range(n_cells):
+            here = (volume[m, c] > 0.0) & (volume[m, c] <= trace * area[c])
+            standing[m, c] = here
+            count += here
+    where = np.empty((2, count), dtype=np.int64)
+    before = np.empty(count)
+    j = 0
+    for m in range(n_materials):
+        for c in range(n_cells):
+            if standing[m, c]:
+                where[0, j], where[1, j], before[j] = m, c, volume[m, c]
+                j += 1
+    return standing, where, before
+
+
+@numba.njit(**KERNEL)
+def untouched_traces(standing, where, before, volume):  # pragma: no cover (compiled)
+    """A standing trace (:func:`standing_traces`) whose volume the fluxes changed by more than
+    10⁻⁶ of it is no longer standing (``standing`` changed in place)."""
+    for j in range(before.size):
+        m, c = where[0, j], where[1, j]
+        if abs(volume[m, c] - before[j]) > 1e-6 * before[j]:
+            standing[m, c] = False
+
+
+@numba.njit(**KERNEL)
 def present_materials(volume, area, standing, trace):  # pragma: no cover (compiled)
     """(n_materials, n): whether each material counts in each of the cells whose areas
     ``area`` (n,) are given — above ``trace`` of the area, or a ``standing`` trace with
