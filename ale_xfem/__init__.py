@@ -25,7 +25,7 @@ KERNEL_SOURCES = ("ale_xfem/eos/kernels.py", "ale_xfem/model/cell_kernels.py", "
                   "ale_xfem/mixed/equilibrium.py", "ale_xfem/mixed/closure_kernels.py",
                   "ale_xfem/mixed/enriched_steps.py", "ale_xfem/remap/swept_kernels.py",
                   "ale_xfem/remap/swept_kernels_2d.py", "ale_xfem/geometry/polygon_kernels.py",
-                  "forms/cut_quadrature.py")
+                  "ale_xfem/model/plic.py", "forms/cut_quadrature.py")
 
 
 # How LLVM compiles them.  A loop that reads and writes many arrays vectorises only where

@@ -545,6 +545,30 @@ def material_slots(volume, mass, energy, area, standing, trace):
     return count, cell_material, slot_mass, slot_volume, slot_energy
 
 
+def mixed_cell_cuts(problem, state, layout, mixed):
+    """What PLIC needs of a state's mixed cells, as numpy computed it (ale_xfem.model.plic,
+    before plic.mixed_cell_cuts compiled it): (cells, corners (n, k, 2), Youngs' normals of
+    their slot-0 material, its volume fractions)."""
+    from ale_xfem.geometry.shapes import polygon_area as shapes_polygon_area
+    from ale_xfem.model.mesh import cells_around
+    from ale_xfem.model.plic import youngs_normals
+
+    mesh, cells = problem.mesh, mixed.cells
+    around = cells_around(mesh, cells)
+    area = mesh.cell_geometry(state.node_position, around)[0]
+    fractions = np.zeros((len(problem.materials), mesh.n_cells))
+    for slot in range(layout.cell_material.shape[0]):
+        material = layout.cell_material[slot, around]
+        here = material >= 0
+        fractions[material[here], around[here]] += state.material_volume[slot, around[here]] / area[here]
+    alpha = layout.cell_material[0, cells]
+    materials = np.unique(alpha)
+    normals = youngs_normals(mesh, state.node_position, fractions[materials], cells, around)
+    normals = normals[np.searchsorted(materials, alpha), np.arange(cells.size)]
+    vertices = np.moveaxis(state.node_position[:, mesh.cell_nodes[cells]], 0, -1)
+    return cells, vertices, normals, state.material_volume[0, cells] / shapes_polygon_area(vertices)
+
+
 # -- the vectorised numpy polygon geometry of ale_xfem.geometry.shapes, before its functions
 # called the compiled one-polygon kernels of ale_xfem.geometry.polygon_kernels
 

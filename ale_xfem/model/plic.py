@@ -16,11 +16,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from ale_xfem.geometry import polygon_kernels
-from ale_xfem.model.mesh import cells_around, patch_gradient
-from ale_xfem.geometry.shapes import clip_half_plane, polygon_area, polygon_centroid
+from ale_xfem.geometry.polygon_kernels import KERNEL
+from ale_xfem.model.cell_kernels import CELL_TYPE_CODES, QUADRILATERAL, patch_gradients
+from ale_xfem.model.mesh import patch_gradient
+from ale_xfem.geometry.shapes import clip_half_plane, polygon_centroid
 
 
 @dataclass
@@ -89,36 +92,100 @@ def part_centroids(reconstruction: Reconstruction) -> tuple[np.ndarray, np.ndarr
     return polygon_centroid(reconstruction.alpha), polygon_centroid(reconstruction.beta)
 
 
-def material_fractions(problem, state, layout=None, cells=None) -> np.ndarray:
-    """(n_materials, n_cells): each material's share of each cell's area (``cells``: of
-    those cells only, 0 elsewhere)."""
-    layout = problem.layout if layout is None else layout
-    mesh = problem.mesh
-    cells = np.arange(mesh.n_cells) if cells is None else cells
-    area = mesh.cell_geometry(state.node_position, cells)[0]
-    fractions = np.zeros((len(problem.materials), mesh.n_cells))
-    for slot in range(layout.cell_material.shape[0]):
-        material = layout.cell_material[slot, cells]
-        here = material >= 0
-        # (a material appears once per cell in a slot: no repeated index)
-        fractions[material[here], cells[here]] += state.material_volume[slot, cells[here]] / area[here]
-    return fractions
-
-
 def _mixed_cell_cuts(problem, state, layout, mixed):
     """What PLIC needs of a state's mixed cells: their corners (n, k, 2), Youngs' normals
-    of their slot-0 (α) material and α's volume fractions."""
+    of their slot-0 (α) material and α's volume fractions (compiled: :func:`mixed_cell_cuts`)."""
     layout = problem.layout if layout is None else layout
     mixed = problem.mixed if mixed is None else mixed
-    mesh, cells = problem.mesh, mixed.cells
-    around = cells_around(mesh, cells)  # all Youngs' normals read
-    fractions = material_fractions(problem, state, layout, around)
-    alpha = layout.cell_material[0, cells]
-    materials = np.unique(alpha)  # each α material's normals, in one pass
-    normals = youngs_normals(mesh, state.node_position, fractions[materials], cells, around)
-    normals = normals[np.searchsorted(materials, alpha), np.arange(cells.size)]
-    vertices = np.moveaxis(state.node_position[:, mesh.cell_nodes[cells]], 0, -1)  # the mixed cells only
-    return cells, vertices, normals, state.material_volume[0, cells] / polygon_area(vertices)
+    mesh = problem.mesh
+    first, cell, _ = mesh.node_corners
+    vertices, normals, fraction = mixed_cell_cuts(
+        CELL_TYPE_CODES[mesh.cell_type.name], np.ascontiguousarray(state.node_position, dtype=float),
+        mesh.compiled_cell_nodes, first, cell, np.asarray(mixed.cells, dtype=np.int64), layout.cell_material,
+        state.material_volume, len(problem.materials))
+    return mixed.cells, vertices, normals, fraction
+
+
+@numba.njit(**KERNEL)
+def mixed_cell_cuts(cell_type, x, cell_nodes, first, cell, cells, cell_material, material_volume,
+                    n_materials):  # pragma: no cover (compiled)
+    """(corners (n, k, 2), Youngs' unit normals out of α (n, 2), α's volume fractions (n,))
+    of the mixed cells ``cells``, α each one's slot-0 material: the materials' fractions in
+    every cell sharing a node with them (``first``, ``cell``: ale_xfem.model.mesh.node_corners),
+    each α material's patch gradients (cell_kernels.patch_gradients), normalised — what
+    numpy computed here over those cells (kept in tests/oracles.py: mixed_cell_cuts), in its
+    order of operations (a cell's area as mesh.cell_geometry takes it: a
+    quadrilateral's from its diagonals, a triangle's by the shoelace from 0)."""
+    n_cells, k = cell_nodes.shape
+    n = cells.size
+    # every cell sharing a node with the mixed cells, in increasing order
+    seen = np.zeros(n_cells, dtype=np.bool_)
+    reached = np.empty(n * k * 8 + 1, dtype=np.int64)
+    count = 0
+    for j in range(n):
+        for i in range(k):
+            node = cell_nodes[cells[j], i]
+            for e in range(first[node], first[node + 1]):
+                c = cell[e]
+                if not seen[c]:
+                    seen[c] = True
+                    if count == reached.size:
+                        grown = np.empty(2 * reached.size, dtype=np.int64)
+                        grown[:count] = reached[:count]
+                        reached = grown
+                    reached[count] = c
+                    count += 1
+    around = np.sort(reached[:count])
+    # the α materials present (np.unique's order) and each one's fractions there
+    alpha_of = np.full(n_materials, -1, dtype=np.int64)
+    for j in range(n):
+        alpha_of[cell_material[0, cells[j]]] = 0
+    m_count = 0
+    for m in range(n_materials):
+        if alpha_of[m] == 0:
+            alpha_of[m] = m_count
+            m_count += 1
+    fractions = np.zeros((m_count, n_cells))
+    for j in range(around.size):
+        c = around[j]
+        if cell_type == QUADRILATERAL:
+            n0, n1, n2, n3 = cell_nodes[c, 0], cell_nodes[c, 1], cell_nodes[c, 2], cell_nodes[c, 3]
+            px, py = x[0, n0] - x[0, n2], x[1, n0] - x[1, n2]
+            rx, ry = x[0, n1] - x[0, n3], x[1, n1] - x[1, n3]
+            area = px * ry
+            area -= py * rx
+            area *= 0.5
+        else:
+            area = 0.0
+            for i in range(k):
+                a, b = cell_nodes[c, i], cell_nodes[c, (i + 1) % k]
+                area = area + x[0, a] * x[1, b] - x[0, b] * x[1, a]
+            area = 0.5 * area
+        for slot in range(cell_material.shape[0]):
+            m = cell_material[slot, c]
+            if m >= 0 and alpha_of[m] >= 0:
+                fractions[alpha_of[m], c] += material_volume[slot, c] / area
+    n_nodes = x.shape[1]
+    gradient = np.empty((m_count, n, 2))
+    patch_gradients(x, cell_nodes, around, cells, fractions, gradient, np.empty(n_nodes), np.empty(n_nodes),
+                    np.empty((n_nodes, 2)), np.empty((n_nodes, 2)))
+    vertices = np.empty((n, k, 2))
+    normals = np.empty((n, 2))
+    for j in range(n):
+        f = alpha_of[cell_material[0, cells[j]]]
+        gx, gy = gradient[f, j, 0], gradient[f, j, 1]
+        size = np.sqrt(gx * gx + gy * gy)
+        if size > 0:
+            normals[j, 0], normals[j, 1] = -gx / size, -gy / size
+        else:
+            normals[j, 0], normals[j, 1] = 0.0, 0.0
+        for i in range(k):
+            vertices[j, i, 0], vertices[j, i, 1] = x[0, cell_nodes[cells[j], i]], x[1, cell_nodes[cells[j], i]]
+    area = polygon_kernels.polygon_areas(vertices)
+    fraction = np.empty(n)
+    for j in range(n):
+        fraction[j] = material_volume[0, cells[j]] / area[j]
+    return vertices, normals, fraction
 
 
 def reconstruct_state(problem, state, layout=None, mixed=None) -> Reconstruction:
