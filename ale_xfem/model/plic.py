@@ -21,7 +21,7 @@ import numpy as np
 
 from ale_xfem.geometry import polygon_kernels
 from ale_xfem.geometry.polygon_kernels import KERNEL
-from ale_xfem.model.cell_kernels import CELL_TYPE_CODES, QUADRILATERAL, patch_gradients
+from ale_xfem.model.cell_kernels import CELL_TYPE_CODES, cell_shape, patch_gradients
 from ale_xfem.model.mesh import patch_gradient
 from ale_xfem.geometry.shapes import clip_half_plane, polygon_centroid
 
@@ -114,8 +114,8 @@ def mixed_cell_cuts(cell_type, x, cell_nodes, first, cell, cells, cell_material,
     every cell sharing a node with them (``first``, ``cell``: ale_xfem.model.mesh.node_corners),
     each α material's patch gradients (cell_kernels.patch_gradients), normalised — what
     numpy computed here over those cells (kept in tests/oracles.py: mixed_cell_cuts), in its
-    order of operations (a cell's area as mesh.cell_geometry takes it: a
-    quadrilateral's from its diagonals, a triangle's by the shoelace from 0)."""
+    order of operations (a cell's area by cell_kernels.cell_shape, as the explicit step
+    takes it: the same bits as mesh.cell_geometry's)."""
     n_cells, k = cell_nodes.shape
     n = cells.size
     # every cell sharing a node with the mixed cells, in increasing order
@@ -146,21 +146,10 @@ def mixed_cell_cuts(cell_type, x, cell_nodes, first, cell, cells, cell_material,
             alpha_of[m] = m_count
             m_count += 1
     fractions = np.zeros((m_count, n_cells))
+    at = (False, (0, 0, 0, 0))  # the nodes read through cell_nodes (cell_kernels.node_access's form)
     for j in range(around.size):
         c = around[j]
-        if cell_type == QUADRILATERAL:
-            n0, n1, n2, n3 = cell_nodes[c, 0], cell_nodes[c, 1], cell_nodes[c, 2], cell_nodes[c, 3]
-            px, py = x[0, n0] - x[0, n2], x[1, n0] - x[1, n2]
-            rx, ry = x[0, n1] - x[0, n3], x[1, n1] - x[1, n3]
-            area = px * ry
-            area -= py * rx
-            area *= 0.5
-        else:
-            area = 0.0
-            for i in range(k):
-                a, b = cell_nodes[c, i], cell_nodes[c, (i + 1) % k]
-                area = area + x[0, a] * x[1, b] - x[0, b] * x[1, a]
-            area = 0.5 * area
+        area, _ = cell_shape(cell_type, x, cell_nodes, at, c, False)
         for slot in range(cell_material.shape[0]):
             m = cell_material[slot, c]
             if m >= 0 and alpha_of[m] >= 0:
