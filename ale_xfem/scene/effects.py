@@ -19,13 +19,37 @@ class Effect:
     why: str  # the key(s) and value(s) that decide it
 
 
+def sweeps(scene) -> bool:
+    """Whether every step is remapped onto another mesh (swept regions through the edges:
+    mesh.motion other than "lagrangian")."""
+    return scene.mesh.motion != "lagrangian"
+
+
+def remaps_in_place(scene, mixed: bool) -> bool:
+    """Whether every step is remapped onto the Lagrangian mesh itself: 2D enriched cells on a
+    Lagrangian mesh, whose materials slide across the mesh's edges at Γ (``mixed``: cells
+    hold two materials)."""
+    interface = scene.interface
+    return (scene.mesh.motion == "lagrangian" and mixed and scene.dimension == 2
+            and interface.model == "enriched")
+
+
+def has_hourglass_modes(scene) -> bool:
+    """Quadrilaterals (2D): intervals and triangles have no hourglass modes."""
+    return scene.dimension == 2 and scene.mesh.cell_type == "quadrilateral"
+
+
+def has_viscosity(numerics) -> bool:
+    return numerics.q_quadratic > 0 or numerics.q_linear > 0
+
+
 def scene_effects(scene, n_mixed_cells: int, pistons: list[str]) -> list[Effect]:
     """Every effect the code knows, on or off, for a scene whose initial layout has
     ``n_mixed_cells`` cells holding two materials, with velocity boundaries on ``pistons``."""
     numerics, interface = scene.numerics, scene.interface
     effects = [Effect("lagrange_explicit", True, "always: the explicit Wilkins loop of the pure cells")]
     q = f"numerics.q_quadratic = {numerics.q_quadratic:g}, numerics.q_linear = {numerics.q_linear:g}"
-    viscosity = numerics.q_quadratic > 0 or numerics.q_linear > 0
+    viscosity = has_viscosity(numerics)
     effects.append(Effect("artificial_viscosity", viscosity,
                           q + (" (one > 0)" if viscosity else " (both 0: no viscosity is computed)")))
     effects.append(Effect("piston", bool(pistons),
@@ -37,7 +61,7 @@ def scene_effects(scene, n_mixed_cells: int, pistons: list[str]) -> list[Effect]
                               "a region's velocity has two components (carried by the remap, no part in the "
                               "dynamics)" if transverse else "every region's velocity = [u]: one component"))
     else:
-        quadrilaterals = scene.mesh.cell_type == "quadrilateral"
+        quadrilaterals = has_hourglass_modes(scene)
         effects.append(Effect("hourglass_control", quadrilaterals and numerics.hourglass > 0,
                               f"mesh.cell_type = \"{scene.mesh.cell_type}\", numerics.hourglass = "
                               f"{numerics.hourglass:g}" + ("" if quadrilaterals else
@@ -83,8 +107,8 @@ def scene_effects(scene, n_mixed_cells: int, pistons: list[str]) -> list[Effect]
     motion = scene.mesh.motion
     # 2D enriched cells on a Lagrangian mesh: their materials slide across the mesh's edges
     # at Γ, so every step is remapped onto the Lagrangian mesh itself (no swept region)
-    in_place = motion == "lagrangian" and enriched_2d
-    remapped = motion != "lagrangian" or in_place
+    in_place = remaps_in_place(scene, mixed)
+    remapped = sweeps(scene) or in_place
     if in_place:
         motion_why = (": with 2D enriched mixed cells the materials cross the mesh's edges at Γ, so each step "
                       "is remapped onto the Lagrangian mesh itself (no swept region: only what crossed moves)")
@@ -92,7 +116,7 @@ def scene_effects(scene, n_mixed_cells: int, pistons: list[str]) -> list[Effect]
         motion_why = "" if remapped else ": the mesh moves with the material, nothing is remapped"
     effects.append(Effect(f"remap_{motion}" if remapped else "remap", remapped,
                           f"mesh.motion = \"{motion}\"" + motion_why))
-    swept = motion != "lagrangian"  # an in-place remap sweeps nothing to reconstruct
+    swept = sweeps(scene)  # an in-place remap sweeps nothing to reconstruct
     effects.append(Effect(f"remap_order_{numerics.remap_order}", swept,
                           f"numerics.remap_order = {numerics.remap_order}" if swept
                           else "needs a moving remap (mesh.motion other than \"lagrangian\")"))

@@ -20,6 +20,7 @@ import numpy as np
 
 from ale_xfem import eos as eos_models
 from ale_xfem.geometry import shapes
+from ale_xfem.scene import effects
 
 BOUNDARY_SIDES_1D = ("left", "right")
 BOUNDARY_SIDES_2D = ("left", "right", "bottom", "top")
@@ -295,10 +296,10 @@ def validate(data: dict, source: str = "") -> Scene:
     written = set(numerics_table) if isinstance(numerics_table, dict) else set()
     numerics = _validate_numerics(numerics_table)
     interface = _validate_interface(data["interface"], dimension) if "interface" in data else None
-    _numerics_that_act(numerics_table, written, dimension, mesh, interface, numerics)
 
     scene = Scene(name, description, dimension, t_end, mesh, materials, regions, boundaries, numerics,
                   interface, resolved=data, source=source)
+    _numerics_that_act(scene, written)
     if dimension == 1:
         _check_coverage(scene)
     _check_motion(scene)
@@ -523,28 +524,29 @@ def _validate_numerics(table: Any) -> Numerics:
     )
 
 
-def _numerics_that_act(table: dict, written: set, dimension: int, mesh, interface, numerics: Numerics) -> None:
+def _numerics_that_act(scene: Scene, written: set) -> None:
     """A [numerics] key that cannot act in the scene is an error if the scene (or --set)
     wrote it, and its default is left out of the resolved scene otherwise (which holds only
     keys that act, as [interface] does): the remap's keys without a remap, the hourglass
     control off quadrilaterals, the viscous time step outside 2D or without viscosity, the
-    mixed cells' solver settings without [interface]."""
-    motion = mesh.motion
-    enriched_2d = dimension == 2 and interface is not None and interface.model == "enriched"
-    cell_type = mesh.cell_type
-    viscosity = numerics.q_quadratic > 0 or numerics.q_linear > 0
+    mixed cells' solver settings without [interface].  Whether a remap sweeps, remaps in
+    place, and whether the cells have hourglass modes or a viscosity is decided where the
+    effects are (ale_xfem.scene.effects); the [interface] table may hold mixed cells."""
+    table = scene.resolved["numerics"]
+    motion, cell_type, interface = scene.mesh.motion, scene.mesh.cell_type, scene.interface
     where = {
-        "remap_order": (motion != "lagrangian", f"mesh.motion = '{motion}': it sets the order of the remap's "
+        "remap_order": (effects.sweeps(scene), f"mesh.motion = '{motion}': it sets the order of the remap's "
                         "reconstruction, and a Lagrangian mesh sweeps nothing (remove it, or set mesh.motion = "
                         "'eulerian' or 'smoothed')"),
-        "remap_energy": (motion != "lagrangian" or enriched_2d, f"mesh.motion = '{motion}': nothing is remapped "
-                         "(remove it, or set mesh.motion = 'eulerian' or 'smoothed')"),
-        "hourglass": (dimension == 2 and cell_type == "quadrilateral",
-                      (f"mesh.cell_type = '{cell_type}': triangles have no hourglass modes" if dimension == 2
+        "remap_energy": (effects.sweeps(scene) or effects.remaps_in_place(scene, interface is not None),
+                         f"mesh.motion = '{motion}': nothing is remapped (remove it, or set mesh.motion = "
+                         "'eulerian' or 'smoothed')"),
+        "hourglass": (effects.has_hourglass_modes(scene),
+                      (f"mesh.cell_type = '{cell_type}': triangles have no hourglass modes" if scene.dimension == 2
                        else "a 1D mesh: intervals have no hourglass modes") + " (remove it)"),
-        "viscous_time_step": (dimension == 2 and viscosity,
-                              "a 1D mesh: the 1D time step has no such choice (remove it)" if dimension == 1 else
-                              "numerics.q_quadratic = numerics.q_linear = 0: there is no viscosity to resolve "
+        "viscous_time_step": (scene.dimension == 2 and effects.has_viscosity(scene.numerics),
+                              "a 1D mesh: the 1D time step has no such choice (remove it)" if scene.dimension == 1
+                              else "numerics.q_quadratic = numerics.q_linear = 0: there is no viscosity to resolve "
                               "(remove it)"),
         "interface_tolerance": (interface is not None, "no [interface] table: no mixed cell is ever solved "
                                 "(remove it)"),
