@@ -128,7 +128,10 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
     interface system is solved (ale_xfem.parallel.distribution.INTERFACE_SOLVES).
     With a remapped mesh, problem.layout, problem.mixed and
     problem.node_mass follow the run (they describe the returned state; on several MPI
-    ranks they are the ranks' own gathered, at the end and at each observed state)."""
+    ranks they are the ranks' own gathered, at the end and at each observed state):
+    ``problem.state = result.state`` continues the run, and a problem whose state is still
+    the one it was built with runs from it again, as built (Problem.start_run)."""
+    problem.start_run()
     t_end = problem.scene.t_end if t_end is None else t_end
     max_steps = problem.scene.numerics.max_steps
     # On several MPI ranks each steps its share of the cells (ale_xfem.parallel), and the
@@ -274,6 +277,7 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
               "mixed_cell_solve": stepper.mixed_seconds, "remap": remap_seconds}
     if distribution is not None:  # within the others: exchanges and reductions, the most any rank spent
         phases["communication"] = -distribution.least(-distribution.seconds)
+    problem.end_run(state)
     result = RunResult(status, state, steps, wall, diagnostic, dt_min=float(dt_min if steps else 0.0),
                        dt_max=float(dt_max), phase_seconds=phases, ranks=ranks(),
                        interface_solve=interface_solve if distribution is not None and has_interface_system(problem)

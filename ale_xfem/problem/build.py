@@ -3,7 +3,7 @@ conditions, the exact solution when the scene has one, and the list of active ef
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -57,11 +57,59 @@ class Problem:
     corner_mass: np.ndarray | None = None  # (2, n_cells) mass lumped on each cell's left/right node
     setup_failure: str = ""  # a set-up step that could not be done (the run reports it)
     effect_table: list[Effect] = field(default_factory=list)  # every effect, on or off, and why
+    # A run leaves layout, mixed and node_mass describing the state it returns (a remap
+    # changes them): ``described`` is the state they describe (None while a run changes
+    # them), ``built`` the state the problem was built with and its own (start_run)
+    built: RunStart | None = None
+    described: State | None = None
+
+    def remember_start(self) -> None:
+        """The problem as built: the state a run starts from unless told otherwise."""
+        self.built = RunStart(self.state, self.layout, self.mixed, self.node_mass)
+        self.described = self.state
+
+    def start_run(self) -> None:
+        """Before a run: the layout, mixed cells and nodal masses of ``state`` — those the
+        last run left if it returned this state (``problem.state = result.state`` continues
+        a run), the problem's own as built if it is the built state (a problem run twice
+        gives the same result twice); any other state has none here (ValueError).  The
+        run's mixed cells count their solves in a copy of the counters, so that a run never
+        changes the problem as built."""
+        if self.built is None:  # (a problem not made by build_problem: as it is)
+            self.remember_start()
+        if self.state is not self.described:
+            if self.built is None or self.state is not self.built.state:
+                raise ValueError("problem.state is neither the state the problem was built with nor the state a "
+                                 "run of it returned (result.state), so its material layout and mixed cells are "
+                                 "unknown: build the problem again, or set problem.state to a run's result.state")
+            self.layout, self.mixed, self.node_mass = self.built.layout, self.built.mixed, self.built.node_mass
+        if self.mixed is not None:
+            self.mixed = replace(self.mixed, stats=dict(self.mixed.stats))
+        self.described = None
+
+    def end_run(self, state: State) -> None:
+        """After a run: layout, mixed and node_mass describe ``state``, the state it returned."""
+        self.described = state
+
+
+@dataclass(frozen=True)
+class RunStart:
+    """A state with the material layout, mixed cells and nodal masses that describe it."""
+
+    state: State
+    layout: MaterialLayout
+    mixed: MixedCells | None
+    node_mass: np.ndarray
 
 
 def build_problem(scene: Scene) -> Problem:
-    if scene.dimension == 2:
-        return _build_problem_2d(scene)
+    """The problem of a validated scene, ready to run from its initial state."""
+    problem = _build_problem_2d(scene) if scene.dimension == 2 else _build_problem_1d(scene)
+    problem.remember_start()
+    return problem
+
+
+def _build_problem_1d(scene: Scene) -> Problem:
     mesh = interval_mesh(scene.mesh.extent, scene.mesh.cells)
     names = list(scene.materials)
     materials = [Material(n, scene.materials[n].eos, scene.materials[n].make_eos()) for n in names]
