@@ -99,6 +99,9 @@ def _parser() -> argparse.ArgumentParser:
                        help="what 2D enriched mixed cells (bubbles, Nitsche) cost over one velocity field: the "
                             "sheared tube, Eulerian, 100 × 100 and 200 × 200 (or --cells N,M: N × N, M × M), "
                             "time per step by phase")
+    bench.add_argument("--plic", action="store_true",
+                       help="one PLIC reconstruction with Youngs' and with LVIRA's normals (interface.normal): "
+                            "the rotated two-material tube's mixed cells, 200 × 200 (or --cells N: N × N)")
     bench.add_argument("--peers", action="store_true",
                        help="Sod's tube: PyClaw's second-order solver against our Lagrangian and enriched "
                             "runs, 100 ... 3200 cells (`make bench-peers` installs PyClaw)")
@@ -270,7 +273,11 @@ def _bench(args) -> int:
             return EXIT_BAD_INPUT
         run_rank_bench(ranks, 1_000_000 if args.cells == "1000,10000,100000,1000000" else sizes[0])
         return EXIT_OK
-    if args.enriched:
+    if args.plic:
+        from ale_xfem.studies.bench import run_plic_bench
+
+        run_plic_bench(200 if args.cells == "1000,10000,100000,1000000" else sizes[0])
+    elif args.enriched:
         from ale_xfem.studies.bench import run_enriched_bench
 
         run_enriched_bench(sizes if args.cells != "1000,10000,100000,1000000" else (100, 200))

@@ -92,7 +92,7 @@ def make_stepper(problem: Problem, mesh=None, layout=None, node_mass=None, bound
     enriched_2d = {}
     if interface is not None and interface.stabilisation is not None:  # 2D enriched mixed cells
         enriched_2d = dict(stabilisation=interface.stabilisation, slip=interface.slip,
-                           nitsche_penalty=interface.nitsche_penalty or 1.0)
+                           nitsche_penalty=interface.nitsche_penalty or 1.0, normal=interface.normal)
     closures = closures_class(problem.mesh if mesh is None else mesh, problem.materials,
                         assembled_predictor="interface_predictor_assembled" in problem.effects,
                         petsc_options=dict(interface.petsc_options) if interface is not None else None,
@@ -154,7 +154,7 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
                                   **({} if distribution is None else distribution.remap_parts()))
             interface = problem.scene.interface
             if interface is not None and interface.model == "enriched":  # the step's masses
-                remapper.material_geometry = partial(material_geometry, remapper.mesh)
+                remapper.material_geometry = partial(material_geometry, remapper.mesh, normal=interface.normal)
         else:
             remapper = Remapper(problem, problem.scene.mesh.motion, problem.scene.numerics.remap_order)
             if distribution is not None:
@@ -483,7 +483,7 @@ def _l1_errors_2d(problem: Problem, state: State) -> dict:
     density = np.repeat(state.material_density[0][:, None], shape.shape[0], axis=1)
     pressure = np.repeat(state.material_pressure[0][:, None], shape.shape[0], axis=1)
     if problem.mixed is not None:  # the points on β's side of the reconstructed interface
-        plic = reconstruct_state(problem, state)
+        plic = reconstruct_state(problem, state, normal=problem.scene.interface.normal)
         c = plic.cells
         beta = np.einsum("cmd,cd->cm", points[c], plic.normal) > plic.offset[:, None]
         density[c] = np.where(beta, state.material_density[1, c][:, None], density[c])

@@ -152,6 +152,17 @@ def test_phase_ratios_pair_runs_of_the_same_round():
     assert _ratios(runs[1], runs[0], less_runs=runs[0]) == pytest.approx((0.5, 0.5, 0.5))
 
 
+def test_bench_plic_prints_both_normals(capsys):
+    """`bench --plic --cells N`: one reconstruction of the rotated tube's mixed cells on N ×
+    N cells with each normal; LVIRA's turn Youngs' (by a little: their mean change of angle
+    is below 5°, and not zero on quadrilaterals)."""
+    assert main(["bench", "--plic", "--cells", "24"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    rows = {line.split()[0]: line.split()[1:] for line in lines if line.split()[:1] in (["youngs"], ["lvira"])}
+    assert set(rows) == {"youngs", "lvira"} and all(float(v) >= 0 for r in rows.values() for v in r)
+    assert float(rows["youngs"][2]) == 0.0 and 0.0 < float(rows["lvira"][2]) < 5.0
+
+
 def test_bench_rejects_bad_sizes(capsys):
     assert main(["bench", "--cells", "10,x"]) == 2
 

@@ -284,6 +284,25 @@ def test_what_the_sliding_block_keeps_with_free_slip_depends_less_on_the_mesh():
     assert enriched_change < single_change / 2, kept
 
 
+def test_plic_normals_are_a_key_of_2d_interfaces():
+    """``[interface] normal``: youngs (the default: written out, the run is the same to the
+    bit) or lvira in 2D (another run), its effect listed when it acts; in 1D (no PLIC) or of
+    another value, a one-line error naming the key."""
+    lvira = build_problem(load_scene(resolve_scene_path("slip-line"), ["mesh.cells=[8,8]", 'interface.normal="lvira"']))
+    assert lvira.scene.interface.normal == "lvira" and "interface_normal_lvira" in lvira.effects
+    default = build_problem(load_scene(resolve_scene_path("slip-line"), ["mesh.cells=[8,8]"]))
+    assert default.scene.interface.normal == "youngs" and "interface_normal_lvira" not in default.effects
+    written = build_problem(load_scene(resolve_scene_path("slip-line"), ["mesh.cells=[8,8]", 'interface.normal="youngs"']))
+    plain, youngs = simulate(default, stop_after_steps=4), simulate(written, stop_after_steps=4)
+    for name in ("node_position", "material_node_velocity", "material_mass", "material_energy", "material_volume"):
+        assert np.array_equal(getattr(plain.state, name), getattr(youngs.state, name)), name
+    assert not np.array_equal(simulate(lvira, stop_after_steps=4).state.material_volume, plain.state.material_volume)
+    for scene, value in (("sod-two-gamma-enriched", '"lvira"'), ("slip-line", '"elvira"')):
+        with pytest.raises(SceneError) as error:
+            load_scene(resolve_scene_path(scene), [f"interface.normal={value}"])
+        assert error.value.key == "interface.normal"
+
+
 @pytest.mark.parametrize("change, key", [
     ({"interface": {"model": "enriched", "stabilisation": "bubble", "nitsche_penalty": 2.0}},
      "interface.nitsche_penalty"),
@@ -530,8 +549,11 @@ def test_a_lagrangian_mesh_carries_a_slip_line_while_the_slide_stays_below_a_cel
 
 @pytest.mark.parametrize("cell", [pytest.param("quadrilateral", marks=pytest.mark.xfail(strict=True, reason=(
     "on a Lagrangian mesh of quadrilaterals the slip line's density, pressure and normal velocity errors are "
-    "7.92, 3.25 and 2.41 times the Eulerian run's (32², t = 0.05; triangles 1.08, 1.07, 0.79): what crossed "
-    "the Lagrangian edges is carried at first order, and the cut cells shear: docs/design.md §4"))), "triangle"])
+    "7.92, 3.25 and 2.40 times the Eulerian run's (32², t = 0.05; triangles 1.08, 1.07, 0.79): its contact "
+    "passes through a node, and Youngs' normals (1.6° off on these quadrilaterals, exact on triangles) "
+    "misplace the PLIC lines in the sheared cut cells (61 % of the density error at points of the wrong "
+    "material); off the nodes, or with interface.normal = 'lvira', the check holds (the tests below): "
+    "docs/design.md §4"))), "triangle"])
 def test_a_lagrangian_mesh_gives_the_eulerian_meshs_figures_on_a_slip_line(cell):
     """The slip line below a cell of slide (as above): a Lagrangian mesh gives the
     Eulerian run's density and pressure errors within twice them, its normal velocity's
@@ -539,6 +561,55 @@ def test_a_lagrangian_mesh_gives_the_eulerian_meshs_figures_on_a_slip_line(cell)
     _, free, _, eulerian = slip_line_by_motion(cell)
     for quantity, factor in (("L1_density", 2.0), ("L1_normal_velocity", 1.1), ("L1_pressure", 2.0)):
         assert free.errors[quantity] < factor * eulerian.errors[quantity], quantity
+
+
+# where the slip line's contact crosses the row of nodes y = 0.5: through the node (0.5, 0.5)
+# as shipped, or 0.1, 0.3, 0.5 of a 32² cell off it
+CONTACT_POINTS = {"through a node": "[0.5,0.5]", "0.1 cell off": "[0.503125,0.5]", "0.3 cell off": "[0.509375,0.5]",
+                  "0.5 cell off": "[0.515625,0.5]"}
+
+
+@functools.lru_cache(maxsize=None)
+def quadrilateral_slip_line(where, motion, normal):
+    """The steady slip line on 32² quadrilaterals to t = 0.05 (a slide of 0.8 cell), its
+    contact through ``where`` (CONTACT_POINTS), PLIC's normals ``normal``: the result."""
+    return run_scene("slip-line", "mesh.cells=[32,32]", f"mesh.motion={motion}", "t_end=0.05",
+                     f"regions.1.half_plane.point={CONTACT_POINTS[where]}", f'interface.normal="{normal}"')[1]
+
+
+@pytest.mark.parametrize("where", ["0.1 cell off", "0.3 cell off", "0.5 cell off"])
+def test_a_lagrangian_mesh_of_quadrilaterals_carries_a_slip_line_that_misses_the_nodes(where):
+    """The quadrilaterals' failure above is that of a contact through a node, with Youngs'
+    normals: moved off the nodes, the Lagrangian run passes the same check, its density,
+    normal-velocity and pressure errors within 2, 1.1 and 2 times the Eulerian run's (1.08 to
+    1.27, 0.83 to 0.96 and 0.94 to 1.04 measured at these three places; the density's
+    depends on where the contact lies: 2.38 times at 0.0992 cell off)."""
+    lagrangian = quadrilateral_slip_line(where, "lagrangian", "youngs").errors
+    eulerian = quadrilateral_slip_line(where, "eulerian", "youngs").errors
+    for quantity, factor in (("L1_density", 2.0), ("L1_normal_velocity", 1.1), ("L1_pressure", 2.0)):
+        assert lagrangian[quantity] < factor * eulerian[quantity], (quantity, lagrangian[quantity], eulerian[quantity])
+
+
+@pytest.mark.parametrize("where", list(CONTACT_POINTS))
+def test_lvira_normals_let_a_lagrangian_mesh_give_the_eulerian_meshs_figures_on_a_slip_line(where):
+    """``[interface] normal = "lvira"`` (exact for a straight line, where Youngs' errs by
+    about 1.6° on these quadrilaterals): through the node, the check that fails above with
+    Youngs' normals (7.92, 2.40, 3.25 times) holds, the Lagrangian run's errors within 2,
+    1.1 and 2 times the Eulerian run's (1.24, 0.95, 1.16); off the nodes LVIRA's pressure and
+    normal-velocity errors are below 0.6 of Youngs' on both meshes (0.36 to 0.52 measured);
+    mass and momentum kept to round-off."""
+    lagrangian = quadrilateral_slip_line(where, "lagrangian", "lvira")
+    eulerian = quadrilateral_slip_line(where, "eulerian", "lvira")
+    assert lagrangian.status == "ok"
+    assert abs(lagrangian.conservation["mass"]) < 1e-14 and abs(lagrangian.conservation["momentum"]) < 1e-14
+    if where == "through a node":
+        for quantity, factor in (("L1_density", 2.0), ("L1_normal_velocity", 1.1), ("L1_pressure", 2.0)):
+            assert lagrangian.errors[quantity] < factor * eulerian.errors[quantity], quantity
+        return
+    for motion, result in (("lagrangian", lagrangian), ("eulerian", eulerian)):
+        youngs = quadrilateral_slip_line(where, motion, "youngs").errors
+        for quantity in ("L1_pressure", "L1_normal_velocity"):
+            assert result.errors[quantity] < 0.6 * youngs[quantity], (motion, quantity)
 
 
 def test_a_slide_of_more_than_a_cell_on_a_lagrangian_mesh_stops_with_a_diagnostic():

@@ -131,40 +131,47 @@ def area_below_line(px, py, m, nx, ny, offset):  # pragma: no cover (compiled)
 
 
 @numba.njit(**KERNEL)
+def cut_offset(px, py, k, nx, ny, fraction, projection, below):  # pragma: no cover (compiled)
+    """PLIC's cut in one cell, the polygon of the first ``k`` points of ``px``, ``py``: the
+    offset s with area({x·n ≤ s} ∩ K) = fraction · area(K), n = (``nx``, ``ny``) a unit
+    normal (``projection``, ``below``: scratch of k numbers).  Between two consecutive vertex
+    projections the cut's length is linear in s, so the area is quadratic: the bracket from
+    the areas below the projections, the quadratic through its ends and middle solved in it."""
+    for i in range(k):
+        projection[i] = px[i] * nx + py[i] * ny
+    projection.sort()
+    target = fraction * shoelace(px, py, k)
+    count = 0
+    for i in range(k):
+        below[i] = area_below_line(px, py, k, nx, ny, projection[i])
+        count += below[i] < target
+    j = min(max(count - 1, 0), k - 2)
+    lo, hi = projection[j], projection[j + 1]
+    a_lo, a_hi = below[j], below[j + 1]
+    a_mid = area_below_line(px, py, k, nx, ny, 0.5 * (lo + hi))
+    # A(lo + t (hi − lo)) = a_lo + β t + γ t², t ∈ [0, 1]; the root of γt² + βt = rhs in
+    # [0, 1] as t = 2 rhs / (β + √(β² + 4γ rhs)), free of cancellation, γ = 0 allowed
+    gamma = 2.0 * (a_hi + a_lo - 2.0 * a_mid)
+    beta = a_hi - a_lo - gamma
+    rhs = maximum(target - a_lo, 0.0)
+    denominator = beta + np.sqrt(maximum(beta * beta + 4.0 * gamma * rhs, 0.0))
+    t = 2.0 * rhs / denominator if denominator > 0 else 0.0
+    return lo + minimum(maximum(t, 0.0), 1.0) * (hi - lo)
+
+
+@numba.njit(**KERNEL)
 def cut_offsets(vertices, normal, fraction):  # pragma: no cover (compiled)
-    """PLIC's cut in each cell (ale_xfem.model.plic.cut_offsets): the offset s with
-    area({x·n ≤ s} ∩ K) = fraction · area(K), for cells with corners ``vertices`` (n, k, 2),
-    unit normals (n, 2) and fractions (n,).  Between two consecutive vertex projections the
-    cut's length is linear in s, so the area is quadratic: the bracket from the areas below
-    the projections, the quadratic through its ends and middle solved in it."""
+    """PLIC's cut in each cell (ale_xfem.model.plic.cut_offsets; :func:`cut_offset`), for
+    cells with corners ``vertices`` (n, k, 2), unit normals (n, 2) and fractions (n,)."""
     n, k = vertices.shape[0], vertices.shape[1]
     offset = np.empty(n)
     px, py = np.empty(k), np.empty(k)
     projection = np.empty(k)
     below = np.empty(k)
     for c in range(n):
-        nx, ny = normal[c, 0], normal[c, 1]
         for i in range(k):
             px[i], py[i] = vertices[c, i, 0], vertices[c, i, 1]
-            projection[i] = px[i] * nx + py[i] * ny
-        projection.sort()
-        target = fraction[c] * shoelace(px, py, k)
-        count = 0
-        for i in range(k):
-            below[i] = area_below_line(px, py, k, nx, ny, projection[i])
-            count += below[i] < target
-        j = min(max(count - 1, 0), k - 2)
-        lo, hi = projection[j], projection[j + 1]
-        a_lo, a_hi = below[j], below[j + 1]
-        a_mid = area_below_line(px, py, k, nx, ny, 0.5 * (lo + hi))
-        # A(lo + t (hi − lo)) = a_lo + β t + γ t², t ∈ [0, 1]; the root of γt² + βt = rhs
-        # in [0, 1] as t = 2 rhs / (β + √(β² + 4γ rhs)), free of cancellation, γ = 0 allowed
-        gamma = 2.0 * (a_hi + a_lo - 2.0 * a_mid)
-        beta = a_hi - a_lo - gamma
-        rhs = maximum(target - a_lo, 0.0)
-        denominator = beta + np.sqrt(maximum(beta * beta + 4.0 * gamma * rhs, 0.0))
-        t = 2.0 * rhs / denominator if denominator > 0 else 0.0
-        offset[c] = lo + minimum(maximum(t, 0.0), 1.0) * (hi - lo)
+        offset[c] = cut_offset(px, py, k, normal[c, 0], normal[c, 1], fraction[c], projection, below)
     return offset
 
 

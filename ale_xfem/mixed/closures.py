@@ -19,12 +19,14 @@ class Closures:
     ``petsc_options`` (None: a direct solve)."""
 
     def __init__(self, mesh, materials, assembled_predictor: bool = False, petsc_options: dict | None = None,
-                 stabilisation: str = "bubble", slip: str = "free", nitsche_penalty: float = 1.0):
+                 stabilisation: str = "bubble", slip: str = "free", nitsche_penalty: float = 1.0,
+                 normal: str = "youngs"):
         self.mesh, self.materials = mesh, materials
         self.assembled_predictor = assembled_predictor
         self.petsc_options = petsc_options
-        # 2D enriched cells: their stabilisation, slip and Nitsche factor
-        self.enriched_2d_options = dict(stabilisation=stabilisation, slip=slip, nitsche_penalty=nitsche_penalty)
+        # 2D enriched cells: their stabilisation, slip, Nitsche factor and PLIC's normals
+        self.enriched_2d_options = dict(stabilisation=stabilisation, slip=slip, nitsche_penalty=nitsche_penalty,
+                                        normal=normal)
         self.made = {}  # model → its closure
         # what binds an enriched closure's assembled system to its cells (None: its own
         # InterfaceSystem; on several MPI ranks, possibly one shared out over them)

@@ -36,7 +36,7 @@ import numpy as np
 
 from ale_xfem.geometry.shapes import polygon_area, polygon_centroid
 from ale_xfem.model.mesh import mesh_edges
-from ale_xfem.model.plic import Reconstruction, reconstruct, youngs_normals
+from ale_xfem.model.plic import Reconstruction, reconstruct, refined_normals, youngs_normals
 from forms.cut_quadrature import (NEWTON_STEPS, NEWTON_TOLERANCE, bilinear_jacobian, fan_point,
                                   reference_point, triangle_reference_point)
 
@@ -390,12 +390,12 @@ class EnrichedGeometry:
     internal: np.ndarray  # (2, n_nodes) bool: the node carries the material's mass
 
 
-def enriched_geometry(mesh, position, volume, mass, cells) -> EnrichedGeometry:
+def enriched_geometry(mesh, position, volume, mass, cells, normal: str = "youngs") -> EnrichedGeometry:
     """The :class:`EnrichedGeometry` of a mesh of triangles or quadrilaterals (``mesh``:
     its cell_nodes, n_nodes and cell type, as ``MeshArrays``) at ``position`` (2, n_nodes):
     ``volume``, ``mass`` (2, n_cells) each material's area and mass per cell, ``cells`` the
-    mixed cells.  The interface: PLIC with Youngs' normals of material 0's fraction (as the
-    remap reconstructs it)."""
+    mixed cells.  The interface: PLIC with Youngs' normals of material 0's fraction, LVIRA's
+    with ``normal`` = "lvira" (as the remap reconstructs it: ale_xfem.model.plic)."""
     cell_nodes = mesh.cell_nodes
     k, n_cells, n_nodes = cell_nodes.shape[1], cell_nodes.shape[0], position.shape[1]
     cells = np.asarray(cells)
@@ -405,7 +405,8 @@ def enriched_geometry(mesh, position, volume, mass, cells) -> EnrichedGeometry:
     fraction = np.divide(volume[0], total, out=np.zeros(n_cells), where=total > 0.0)
     cell_material = np.where(mass[1] > 0.0, 1, 0)
     cell_material[cells] = -1
-    normals = youngs_normals(mesh, position, fraction[None, :], cells)[0]
+    normals = refined_normals(mesh, position, fraction, cells,
+                              youngs_normals(mesh, position, fraction[None, :], cells)[0], normal)
     vertices = np.moveaxis(position[:, cell_nodes[cells]], 0, -1)
     reconstruction = reconstruct(vertices, normals, fraction[cells], cells)
     alpha = np.zeros(cells.size, dtype=np.int64)
@@ -442,16 +443,17 @@ def _on_material_edges(a, b, plus, minus, cell_material, n_nodes):  # pragma: no
     return on_edge
 
 
-def material_geometry(mesh, position, volume, mass, cells):
+def material_geometry(mesh, position, volume, mass, cells, normal: str = "youngs"):
     """(each material's corner masses (2, k, n_cells) and nodal masses (2, n_nodes), the
     material each node lies in (n_nodes,), which nodes carry each material's mass (2,
     n_nodes)) of a mesh whose mixed
     cells ``cells`` are enriched, ``volume`` and ``mass`` (2, n_cells) by material: the
     condensed masses of :func:`enriched_geometry`, or, with no cell cut, each cell's equal
     corner shares (each node then lies in the material of its cells).  What the set-up, the
-    Lagrange step and the remap all hand each material's momentum to the nodes with."""
+    Lagrange step and the remap all hand each material's momentum to the nodes with
+    (``normal``: PLIC's, :func:`enriched_geometry`)."""
     if np.asarray(cells).size:
-        geometry = enriched_geometry(mesh, position, volume, mass, cells)
+        geometry = enriched_geometry(mesh, position, volume, mass, cells, normal)
         return geometry.corner_mass, geometry.node_mass, geometry.owner, geometry.internal
     k = mesh.cell_nodes.shape[1]
     corner_mass = np.repeat(mass[:, None, :] / k, k, axis=1)

@@ -94,11 +94,12 @@ class EnrichedClosure2D(SharedClosure):
 
     def __init__(self, mesh, materials, mixed: MixedCells, stabilisation: str = "bubble",
                  slip: str = "free", nitsche_penalty: float = 1.0, petsc_options: dict | None = None,
-                 system=None):
+                 system=None, normal: str = "youngs"):
         if len(materials) != 2:
             raise ValueError("2D enriched mixed cells need exactly two materials")
         self.forms = InterfaceForms(mesh.dolfinx_mesh.comm, stabilisation, slip, mesh.cell_type.name)
         self.nitsche_penalty, self.petsc_options = nitsche_penalty, petsc_options
+        self.normal = normal  # PLIC's normals in the cut cells: "youngs" | "lvira" (ale_xfem.model.plic)
         self.bound_system = InterfaceSystem if system is None else system
         self.system, self._system_cells, self._in_band = None, None, None
         self._last = None
@@ -195,7 +196,7 @@ class EnrichedClosure2D(SharedClosure):
         energy = by_material(state.material_energy, layout)
         pressure = by_material(state.material_pressure, layout)
         try:
-            geometry = enriched_geometry(mesh, x0, volume, mass, cells)
+            geometry = enriched_geometry(mesh, x0, volume, mass, cells, self.normal)
         except ValueError as failure:
             raise Breakdown("interface reconstruction", int(cells[0]), float("nan"),
                             mesh.cell_centroids(x0)[cells[0]], detail=str(failure)) from None

@@ -53,7 +53,7 @@ def cells_rows(problem, state) -> dict[str, np.ndarray]:
     }
     if problem.mixed is None:
         return rows
-    plic = reconstruct_state(problem, state)
+    plic = reconstruct_state(problem, state, normal=problem.scene.interface.normal)
     c = plic.cells
     alpha_centre, beta_centre = part_centroids(plic)
     rows = {k: v.copy() for k, v in rows.items()}
@@ -264,7 +264,7 @@ def plot_density_2d(problem, result, path: Path) -> Path:
     if first.size:
         segments += list(np.stack([state.node_position[:, first].T, state.node_position[:, second].T], axis=1))
     if problem.mixed is not None:  # the reconstructed interface
-        plic = reconstruct_state(problem, state)
+        plic = reconstruct_state(problem, state, normal=problem.scene.interface.normal)
         segments += list(np.stack([plic.start, plic.end], axis=1))
     if segments:
         field.add_collection(LineCollection(segments, colors="black", linewidths=1.2))

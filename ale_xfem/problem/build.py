@@ -392,7 +392,7 @@ def with_material_velocities(problem: Problem, corner_momentum, corner_mass) -> 
     cells = problem.mixed.cells if problem.mixed is not None else np.zeros(0, dtype=np.int64)
     corner, node_mass, owner, internal = material_geometry(
         mesh, state.node_position, by_material(state.material_volume, layout), by_material(state.material_mass, layout),
-        cells)
+        cells, problem.scene.interface.normal)
     velocity = np.zeros((2, 2, n_nodes))
     for m in range(2):
         weight = np.bincount(flat, corner_mass[m].ravel(), n_nodes)

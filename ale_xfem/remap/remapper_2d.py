@@ -136,6 +136,7 @@ class Remapper2D:
             max_iterations=problem.scene.numerics.interface_max_iterations, nonlinear=True,
             model="single_velocity" if interface is None else interface.model,
             relaxation=interface is None or interface.relaxation)
+        self.normal = "youngs" if interface is None else interface.normal  # PLIC's in the mixed donors
         # 2D enriched mixed cells: (position, volume, mass, mixed cells) → (each material's
         # corner and nodal masses, the material each node lies in, which nodes carry each
         # material's mass) — the masses of the Lagrange step's momentum rows
@@ -542,7 +543,7 @@ class Remapper2D:
         from ale_xfem.model.plic import interface_lines
 
         # the Lagrangian state's interface: α = {x·n ≤ s} in each mixed cell
-        mixed_cells, normal, offset = interface_lines(self, state, layout, mixed)
+        mixed_cells, normal, offset = interface_lines(self, state, layout, mixed, self.normal)
         where = np.full(self.mesh.n_cells, -1, dtype=np.int64)
         where[mixed_cells] = np.arange(mixed_cells.size)
         edges = np.flatnonzero(where[donor] >= 0)

@@ -101,6 +101,11 @@ def scene_effects(scene, n_mixed_cells: int, pistons: list[str]) -> list[Effect]
             effects.append(Effect(f"interface_slip_{slip}", enriched_2d and interface.slip == slip,
                                   f"interface.slip = \"{interface.slip}\"" if enriched_2d
                                   else "needs enriched mixed cells in 2D"))
+        normal = "youngs" if interface is None else interface.normal
+        effects.append(Effect("interface_normal_lvira", mixed and normal == "lvira",
+                              f"interface.normal = \"{normal}\"" + (": PLIC's normals refined by LVIRA, exact for a "
+                                                                    "straight interface on any mesh" if mixed else
+                                                                    " (needs mixed cells)")))
     effects.append(Effect("pressure_relaxation", mixed and interface.relaxation,
                           f"interface.relaxation = {str(interface.relaxation).lower()}" if mixed
                           else "needs mixed cells"))

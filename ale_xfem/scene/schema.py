@@ -148,6 +148,7 @@ class InterfaceSpec:
     predictor: str = "closed_form"
     petsc_options: tuple = ()  # (name, value) pairs for the assembled interface system's KSP
     nitsche_penalty: float | None = None  # 2D enriched, Nitsche: the dimensionless penalty factor
+    normal: str = "youngs"  # 2D: PLIC's normals, youngs | lvira (Youngs' refined: ale_xfem.model.plic)
 
 
 @dataclass(frozen=True)
@@ -575,15 +576,23 @@ ENRICHED_ONLY = ("solver", "predictor", "slip")
 ONE_D_ONLY = ("solver", "predictor")
 # [interface] keys of 2D enriched mixed cells, with their defaults
 TWO_D_DEFAULTS = {"stabilisation": "bubble", "nitsche_penalty": 1.0}
+# [interface] keys of every 2D scene with an interface, with their defaults: PLIC's normals
+PLIC_DEFAULTS = {"normal": "youngs"}
 
 
 def _validate_interface(table: Any, dimension: int) -> InterfaceSpec:
     """[interface]; a key that cannot act in the scene is an error naming what would make it
     act (the resolved scene holds only keys that act)."""
-    _keys(table, "interface", (), tuple(INTERFACE_DEFAULTS) + tuple(TWO_D_DEFAULTS) + ("petsc_options",))
+    _keys(table, "interface", (), tuple(INTERFACE_DEFAULTS) + tuple(TWO_D_DEFAULTS) + tuple(PLIC_DEFAULTS)
+          + ("petsc_options",))
     model = _choice(table.setdefault("model", INTERFACE_DEFAULTS["model"]), "interface.model",
                     ("enriched", "single_velocity"))
     enriched_2d = dimension == 2 and model == "enriched"
+    if dimension == 1 and "normal" in table:
+        raise SceneError("interface.normal", table["normal"], "no value in 1D: it chooses the normals of the 2D "
+                         "interface reconstruction (PLIC); remove it")
+    if dimension == 2:
+        normal = _choice(table.setdefault("normal", PLIC_DEFAULTS["normal"]), "interface.normal", ("youngs", "lvira"))
     for key in TWO_D_DEFAULTS:
         if key in table and not enriched_2d:
             raise SceneError(f"interface.{key}", table[key], "no value: it acts only on 2D enriched mixed cells "
@@ -634,6 +643,7 @@ def _validate_interface(table: Any, dimension: int) -> InterfaceSpec:
                           ("closed_form", "assembled")),
         petsc_options=_petsc_options(table.get("petsc_options", {})),
         nitsche_penalty=penalty,
+        **({"normal": normal} if dimension == 2 else {}),
     )
 
 

@@ -285,7 +285,8 @@ def enriched_cases_2d(disk: dict, water_air: dict, cells: int = 200) -> list[Cas
     water against air at 30° to an Eulerian mesh, the heavy disk struck by a shock, a column
     of sliver cut cells (the interface 10⁻⁶ of a cell from a mesh line, two-gamma Sod along
     its normal: exact, ``cells`` × 2/5 a side), and Noh's implosion through a circular
-    interface between two copies of its gas (a smoothed mesh, ``cells`` / 4 a side)."""
+    interface between two copies of its gas (a smoothed mesh, ``cells`` / 4 a side); the
+    first three with bubbles and LVIRA's normals too."""
     n = max(10, 2 * cells // 5)
     sliver_column = {
         "name": "sliver-column-2d", "description": "two-gamma Sod along x, the interface 1e-6 of a cell right of "
@@ -317,6 +318,14 @@ def enriched_cases_2d(disk: dict, water_air: dict, cells: int = 200) -> list[Cas
                     + f"; enriched mixed cells ({stabilisation})",
                     "interface": {"model": "enriched", "stabilisation": stabilisation}}
             cases.append(Case(name, data["description"], data, data["mesh"]["cells"], exact=exact, refinement=2))
+    # PLIC's normals by LVIRA (interface.normal = "lvira") on the cases whose interface is straight, sliver or
+    # struck by a shock
+    for base, exact in ((water_air, False), (disk, False), (sliver_column, True)):
+        name = base["name"].removesuffix("-2d") + "-enriched-bubble-lvira"
+        data = {**base, "name": name, "description": base["description"].split(" (single-velocity")[0]
+                + "; enriched mixed cells (bubble), LVIRA's normals",
+                "interface": {"model": "enriched", "stabilisation": "bubble", "normal": "lvira"}}
+        cases.append(Case(name, data["description"], data, data["mesh"]["cells"], exact=exact, refinement=2))
     return cases
 
 
