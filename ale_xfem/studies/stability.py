@@ -310,22 +310,21 @@ def enriched_cases_2d(disk: dict, water_air: dict, cells: int = 200) -> list[Cas
                     {"material": "core", "disk": {"center": [0.0, 0.0], "radius": 0.7}, **inflow}],
         "boundaries": {"left": "wall", "bottom": "wall", "right": "free", "top": "free"},
     }
+    # each with bubbles and with Nitsche; those whose interface is straight, sliver or struck by
+    # a shock also with bubbles and PLIC's normals by LVIRA (interface.normal = "lvira")
+    variants = [(base, exact, stabilisation, None)
+                for base, exact in ((water_air, False), (disk, False), (sliver_column, True), (noh_interface, False))
+                for stabilisation in ("bubble", "nitsche")]
+    variants += [(base, exact, "bubble", "lvira") for base, exact in ((water_air, False), (disk, False),
+                                                                      (sliver_column, True))]
     cases = []
-    for base, exact in ((water_air, False), (disk, False), (sliver_column, True), (noh_interface, False)):
-        for stabilisation in ("bubble", "nitsche"):
-            name = base["name"].removesuffix("-2d") + f"-enriched-{stabilisation}"
-            data = {**base, "name": name, "description": base["description"].split(" (single-velocity")[0]
-                    + f"; enriched mixed cells ({stabilisation})",
-                    "interface": {"model": "enriched", "stabilisation": stabilisation}}
-            cases.append(Case(name, data["description"], data, data["mesh"]["cells"], exact=exact, refinement=2))
-    # PLIC's normals by LVIRA (interface.normal = "lvira") on the cases whose interface is straight, sliver or
-    # struck by a shock
-    for base, exact in ((water_air, False), (disk, False), (sliver_column, True)):
-        name = base["name"].removesuffix("-2d") + "-enriched-bubble-lvira"
-        data = {**base, "name": name, "description": base["description"].split(" (single-velocity")[0]
-                + "; enriched mixed cells (bubble), LVIRA's normals",
-                "interface": {"model": "enriched", "stabilisation": "bubble", "normal": "lvira"}}
-        cases.append(Case(name, data["description"], data, data["mesh"]["cells"], exact=exact, refinement=2))
+    for base, exact, stabilisation, normal in variants:
+        name = base["name"].removesuffix("-2d") + f"-enriched-{stabilisation}" + (f"-{normal}" if normal else "")
+        description = (base["description"].split(" (single-velocity")[0] + f"; enriched mixed cells ({stabilisation})"
+                       + (", LVIRA's normals" if normal else ""))
+        interface = {"model": "enriched", "stabilisation": stabilisation, **({"normal": normal} if normal else {})}
+        data = {**base, "name": name, "description": description, "interface": interface}
+        cases.append(Case(name, description, data, data["mesh"]["cells"], exact=exact, refinement=2))
     return cases
 
 
