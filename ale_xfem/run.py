@@ -92,7 +92,8 @@ def make_stepper(problem: Problem, mesh=None, layout=None, node_mass=None, bound
     enriched_2d = {}
     if interface is not None and interface.stabilisation is not None:  # 2D enriched mixed cells
         enriched_2d = dict(stabilisation=interface.stabilisation, slip=interface.slip,
-                           nitsche_penalty=interface.nitsche_penalty or 1.0, normal=interface.normal)
+                           nitsche_penalty=interface.nitsche_penalty or 1.0, normal=interface.normal,
+                           ghost_viscosity=interface.ghost_viscosity)
     closures = closures_class(problem.mesh if mesh is None else mesh, problem.materials,
                         assembled_predictor="interface_predictor_assembled" in problem.effects,
                         petsc_options=dict(interface.petsc_options) if interface is not None else None,

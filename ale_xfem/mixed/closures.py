@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from ale_xfem.lagrange.closure import MixedCellClosure
 from ale_xfem.mixed.enriched import EnrichedClosure
-from ale_xfem.mixed.enriched_2d import EnrichedClosure2D
+from ale_xfem.mixed.enriched_2d import GHOST_VISCOSITY, EnrichedClosure2D
 from ale_xfem.mixed.single_velocity import SingleVelocityClosure
 from ale_xfem.model.mixed_cells import MixedCells
 
@@ -20,13 +20,14 @@ class Closures:
 
     def __init__(self, mesh, materials, assembled_predictor: bool = False, petsc_options: dict | None = None,
                  stabilisation: str = "bubble", slip: str = "free", nitsche_penalty: float = 1.0,
-                 normal: str = "youngs"):
+                 normal: str = "youngs", ghost_viscosity: float = GHOST_VISCOSITY):
         self.mesh, self.materials = mesh, materials
         self.assembled_predictor = assembled_predictor
         self.petsc_options = petsc_options
-        # 2D enriched cells: their stabilisation, slip, Nitsche factor and PLIC's normals
+        # 2D enriched cells: their stabilisation, slip, Nitsche factor, PLIC's normals and
+        # the weight of their ghost viscosity
         self.enriched_2d_options = dict(stabilisation=stabilisation, slip=slip, nitsche_penalty=nitsche_penalty,
-                                        normal=normal)
+                                        normal=normal, ghost_viscosity=ghost_viscosity)
         self.made = {}  # model → its closure
         # what binds an enriched closure's assembled system to its cells (None: its own
         # InterfaceSystem; on several MPI ranks, possibly one shared out over them)

@@ -15,7 +15,7 @@ stress on both materials alike).  Each material's nodal velocity is then u_m^{n+
 − u_m^n; a node moves with the material it lies in (``EnrichedGeometry.owner``), and the
 step's own update of those nodes is replaced by that; walls hold their components in
 every material's rows and their reaction enters the step's bookkeeping.  A ghost
-viscosity (``GHOST_VISCOSITY``) steadies each material's velocity beyond its part; what it
+viscosity (``interface.ghost_viscosity``, by default ``GHOST_VISCOSITY``) steadies each material's velocity beyond its part; what it
 and Nitsche's penalty dissipate, and what the moved share of f^n gains or loses, is heat,
 shared by the cell's materials by mass.
 
@@ -67,10 +67,13 @@ HELD_INERTIA = 1e20
 BAND_RINGS = 2
 # the weight of the strain rate of a material's velocity over the other material's part of
 # a cut cell, relative to the inertia 4ρ_m|K|/dt of the cell's area at the material's own
-# density.  Both materials at 0.1 on the cell's whole mass instead took the water-air case
-# of the stability suite (air drawn to near vacuum where Γ meets the wall) from 108 steps
-# to a breakdown after 1132.  At 0.2 and 0.1 other cases lose accuracy or robustness
-# (docs/design.md §4, "The extension of each material's velocity").
+# density: the default of the scene key interface.ghost_viscosity (scene.schema's
+# TWO_D_DEFAULTS, which a test holds equal to it).  Both materials at 0.1 on the cell's whole
+# mass instead took the water-air case of the stability suite (air drawn to near vacuum
+# where Γ meets the wall) from 108 steps to a breakdown after 1132.  At 0.2 and 0.1 other
+# cases lose accuracy or robustness; at 1.0 the sheared tube's errors converge faster and
+# the spinning disk's rim keeps more, but a sliding block is dragged more and a slip line
+# on a Lagrangian mesh loses (docs/design.md §4, "The extension of each material's velocity").
 GHOST_VISCOSITY = 0.3
 # the largest share of what a cell holds of a material that may cross its edges in a step
 # (EnrichedClosure2D._crossings: a sliver cannot give more than it has)
@@ -87,19 +90,21 @@ class EnrichedClosure2D(SharedClosure):
     """2D mixed cells with doubled velocities (module docstring).  ``stabilisation``:
     bubble | nitsche | none; ``slip``: free | stick; ``nitsche_penalty``: Nitsche's
     dimensionless factor; ``petsc_options``: the interface system's KSP (default MUMPS);
-    ``system``: what binds the interface system to a band of cells (InterfaceSystem's
+    ``ghost_viscosity``: the weight of the ghost viscosity (scene key
+    ``interface.ghost_viscosity``; ``GHOST_VISCOSITY`` by default); ``system``: what binds the interface system to a band of cells (InterfaceSystem's
     arguments; None: InterfaceSystem; on several MPI ranks, one shared out over them)."""
 
     implicit = True
 
     def __init__(self, mesh, materials, mixed: MixedCells, stabilisation: str = "bubble",
                  slip: str = "free", nitsche_penalty: float = 1.0, petsc_options: dict | None = None,
-                 system=None, normal: str = "youngs"):
+                 system=None, normal: str = "youngs", ghost_viscosity: float = GHOST_VISCOSITY):
         if len(materials) != 2:
             raise ValueError("2D enriched mixed cells need exactly two materials")
         self.forms = InterfaceForms(mesh.dolfinx_mesh.comm, stabilisation, slip, mesh.cell_type.name)
         self.nitsche_penalty, self.petsc_options = nitsche_penalty, petsc_options
         self.normal = normal  # PLIC's normals in the cut cells: "youngs" | "lvira" (ale_xfem.model.plic)
+        self.ghost_viscosity = ghost_viscosity  # the ghost viscosity's weight (GHOST_VISCOSITY by default)
         self.bound_system = InterfaceSystem if system is None else system
         self.system, self._system_cells, self._in_band = None, None, None
         self._last = None
@@ -247,7 +252,7 @@ class EnrichedClosure2D(SharedClosure):
         # the ghost viscosity of each material's extension (forms/enriched_interface.py)
         cell_area = volume[:, cells].sum(axis=0)
         density = np.divide(mass[:, cells], volume[:, cells], out=np.zeros((2, cells.size)), where=volume[:, cells] > 0)
-        system.set_ghost(GHOST_VISCOSITY * 4.0 * density * cell_area / dt)
+        system.set_ghost(self.ghost_viscosity * 4.0 * density * cell_area / dt)
         eos = [self.materials[k].eos.state for k in range(2)]
         solver = EnrichedStep2D(system, cells, eos, reconstruction.length, self.nitsche_penalty,
                                 mixed.tolerance, mixed.max_iterations)

@@ -148,6 +148,9 @@ class InterfaceSpec:
     predictor: str = "closed_form"
     petsc_options: tuple = ()  # (name, value) pairs for the assembled interface system's KSP
     nitsche_penalty: float | None = None  # 2D enriched, Nitsche: the dimensionless penalty factor
+    # 2D enriched: the weight of each material's ghost viscosity over the other material's
+    # part of a cut cell, relative to the inertia 4ρ_m|K|/dt (ale_xfem.mixed.enriched_2d)
+    ghost_viscosity: float | None = None
     normal: str = "youngs"  # 2D: PLIC's normals, youngs | lvira (Youngs' refined: ale_xfem.model.plic)
 
 
@@ -575,7 +578,8 @@ ENRICHED_ONLY = ("solver", "predictor", "slip")
 # assembled system with the predictor/corrector of ale_xfem.mixed.enriched_step_2d)
 ONE_D_ONLY = ("solver", "predictor")
 # [interface] keys of 2D enriched mixed cells, with their defaults
-TWO_D_DEFAULTS = {"stabilisation": "bubble", "nitsche_penalty": 1.0}
+# (ghost_viscosity: ale_xfem.mixed.enriched_2d.GHOST_VISCOSITY, which the scene may not import)
+TWO_D_DEFAULTS = {"stabilisation": "bubble", "nitsche_penalty": 1.0, "ghost_viscosity": 0.3}
 # [interface] keys of every 2D scene with an interface, with their defaults: PLIC's normals
 PLIC_DEFAULTS = {"normal": "youngs"}
 
@@ -616,6 +620,7 @@ def _validate_interface(table: Any, dimension: int) -> InterfaceSpec:
                              "(remove it, or set interface.stabilisation = 'nitsche')")
         if stabilisation == "nitsche":
             table.setdefault("nitsche_penalty", TWO_D_DEFAULTS["nitsche_penalty"])
+        table.setdefault("ghost_viscosity", TWO_D_DEFAULTS["ghost_viscosity"])
     for key, default in INTERFACE_DEFAULTS.items():
         if (key not in ENRICHED_ONLY or model == "enriched") and not (enriched_2d and key in ONE_D_ONLY):
             table.setdefault(key, default)
@@ -628,11 +633,14 @@ def _validate_interface(table: Any, dimension: int) -> InterfaceSpec:
                          f"interface.predictor = 'assembled'); remove it, or {hint}")
     if assembled:
         table.setdefault("petsc_options", {})
-    penalty = None
+    penalty, ghost = None, None
     if not enriched_2d:
         stabilisation = None
-    elif stabilisation == "nitsche":
-        penalty = _real(table["nitsche_penalty"], "interface.nitsche_penalty", lambda v: v > 0, "a real number > 0")
+    else:
+        ghost = _real(table["ghost_viscosity"], "interface.ghost_viscosity", lambda v: v >= 0, "a real number >= 0")
+        if stabilisation == "nitsche":
+            penalty = _real(table["nitsche_penalty"], "interface.nitsche_penalty", lambda v: v > 0,
+                            "a real number > 0")
     return InterfaceSpec(
         model=model,
         solver=_choice(table.get("solver", "nonlinear"), "interface.solver", ("nonlinear", "linearised")),
@@ -643,6 +651,7 @@ def _validate_interface(table: Any, dimension: int) -> InterfaceSpec:
                           ("closed_form", "assembled")),
         petsc_options=_petsc_options(table.get("petsc_options", {})),
         nitsche_penalty=penalty,
+        ghost_viscosity=ghost,
         **({"normal": normal} if dimension == 2 else {}),
     )
 
