@@ -17,6 +17,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from ale_xfem.lagrange.breakdown import Breakdown
+from ale_xfem.lagrange.compile_clock import compile_seconds
 from ale_xfem.lagrange.memory import keep_freed_memory
 from ale_xfem.lagrange.wilkins import ExplicitWilkins
 from ale_xfem.mixed.closures import Closures
@@ -39,7 +40,7 @@ class RunResult:
     status: str  # "ok" | "failed"
     state: State  # the last good state
     steps: int
-    wall_seconds: float
+    wall_seconds: float  # the run's own: loading or compiling the compiled kernels left out
     diagnostic: str = ""
     conservation: dict = field(default_factory=dict)
     errors: dict | None = None
@@ -50,6 +51,7 @@ class RunResult:
     mixed_cells: dict | None = None
     ranks: int = 1  # the MPI ranks it ran on
     interface_solve: str | None = None  # on several ranks, with an interface system: how it was solved
+    compile_seconds: float = 0.0  # spent loading or compiling compiled kernels during the run (once a process)
 
     @property
     def zone_cycles_per_second(self) -> float:
@@ -195,7 +197,7 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
     compiled_steps = (compiled_chunks and remapper is None and stepper.compiles_steps()
                       and not (observe_each and stepper.closure is None))
     chunk = max(1, min(1000, 2_000_000 // problem.mesh.n_cells))  # about 0.1 s between progress updates
-    clock = time.perf_counter()
+    clock, compiling = time.perf_counter(), compile_seconds()
     if problem.setup_failure:
         status, diagnostic = "failed", f"step 0, t = 0: {problem.setup_failure}"
     if observe is not None:
@@ -246,12 +248,12 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
             halved_steps += int(round(np.log2(dt / taken)))
             dt = taken
             if remapper is not None:
-                remap_clock = time.perf_counter()
+                remap_clock, remap_compiling = time.perf_counter(), compile_seconds()
                 new_state, evaluation, impulse, kinetic_change = _remap(
                     problem, stepper, remapper, new_state, evaluation, impulse, distribution)
                 work += remapper.wall_work
                 remap_energy_change += kinetic_change
-                remap_seconds += time.perf_counter() - remap_clock
+                remap_seconds += time.perf_counter() - remap_clock - (compile_seconds() - remap_compiling)
             state = new_state
         except (Breakdown, RemapFailure) as failure:
             status = "failed"
@@ -266,7 +268,8 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
             observe(state, problem)
         if progress is not None:
             progress.update(state.time, steps)
-    wall = time.perf_counter() - clock
+    compiled = compile_seconds() - compiling  # (no part of the run's own time: compile_clock)
+    wall = time.perf_counter() - clock - compiled
     if distribution is not None:
         state = distribution.gathered(state)
         distribution.gather_problem()  # the layout, masses and mixed cells a remap left
@@ -282,7 +285,7 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
     result = RunResult(status, state, steps, wall, diagnostic, dt_min=float(dt_min if steps else 0.0),
                        dt_max=float(dt_max), phase_seconds=phases, ranks=ranks(),
                        interface_solve=interface_solve if distribution is not None and has_interface_system(problem)
-                       else None)
+                       else None, compile_seconds=compiled)
     result.conservation = conservation(start_totals, totals(state, problem.node_mass),
                                        boundary_work, boundary_impulse, scale)
     # each material's own mass: the worst relative change (a remap moves them one by one)

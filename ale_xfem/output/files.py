@@ -31,6 +31,7 @@ def summary(problem: Problem, result: RunResult) -> dict:
         "cells": problem.mesh.n_cells,
         "ranks": result.ranks,
         "wall_seconds": result.wall_seconds,
+        "compile_seconds": result.compile_seconds,
         "zone_cycles_per_second": result.zone_cycles_per_second,
         "effects": list(problem.effects),
         "conservation": result.conservation,
