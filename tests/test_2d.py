@@ -384,6 +384,7 @@ def test_run_2d_writes_cells_csv_png_vtx_and_summary(tmp_path):
 
     reader = pyvista.get_reader(str(out / "noh.pvd"))
     assert reader.time_values[0] == 0.0 and reader.time_values[-1] == pytest.approx(0.6)
+    assert len(reader.time_values) == 4 and len(list(out.glob("noh_*.vtu"))) == 4  # the initial state and 3 more
     reader.set_active_time_value(reader.time_values[-1])
     last = reader.read()[0]
     assert last.n_cells == 144 and {"density", "velocity"} <= set(last.cell_data) | set(last.point_data)
@@ -1614,6 +1615,30 @@ def test_a_planar_riemann_problems_velocity_error_is_split_along_its_normal_and_
     assert end["L1_normal_velocity"] > 1e-3 and end["L1_tangential_velocity"] > 1e-3
     assert max(end["L1_normal_velocity"], end["L1_tangential_velocity"]) <= end["L1_velocity"]
     assert end["L1_velocity"] <= end["L1_normal_velocity"] + end["L1_tangential_velocity"]
+
+
+def test_a_planar_riemann_problem_along_an_axis_between_walls_is_exact_over_the_whole_domain():
+    """sod-2d: Sod's tube along x, walls on every side.  The walls along x meet the planar
+    flow as it is, so the 1D solution holds over the whole square until a wave reaches the
+    left or right side — the shock, at t = 0.5 / 1.7522 = 0.2854 — and the errors are taken
+    there (no window): within 5 % of the 1D run's density error on the same cells along x,
+    no velocity along the contact.  With a tangential velocity (which the walls along x
+    hold), or a normal off the axes, the reference keeps its window."""
+    from ale_xfem.exact import GasState, RiemannSolution
+
+    problem = build_problem(load_scene(resolve_scene_path("sod-2d"), ["mesh.cells=[40,40]"]))
+    reference = problem.exact
+    shock = RiemannSolution.solve(GasState(1.0, 0.0, 1.0, 1.4), GasState(0.125, 0.0, 0.1, 1.4), 0.0).wave_speeds()[1]
+    assert reference.kind == "planar_riemann" and reference.window is None
+    assert reference.valid_until == pytest.approx(0.5 / shock, rel=1e-12) and 0.28 < reference.valid_until < 0.29
+    result = simulate(problem)
+    one_d = simulate(build_problem(load_scene(resolve_scene_path("sod"), ["mesh.cells=40"])))
+    assert result.errors["L1_density"] == pytest.approx(one_d.errors["L1_density"], rel=0.05)
+    assert result.errors["L1_tangential_velocity"] < 1e-12 and "window" not in result.errors
+    sheared = build_problem(load_scene(resolve_scene_path("sod-2d"), ["mesh.cells=[40,40]",
+                                                                       "regions.1.velocity=[0.0, 0.1]"]))
+    assert sheared.exact is None or sheared.exact.window is not None
+    assert build_problem(load_scene(resolve_scene_path("rotated-tube"), ["mesh.cells=[16,16]"])).exact.window
 
 
 def test_a_spinning_disk_is_in_radial_equilibrium_and_recognised_as_a_steady_state():

@@ -727,13 +727,30 @@ def _planar_riemann(scene: Scene) -> ExactReference | None:
     signal = max(abs(slow), abs(fast)) + max(g.sound_speed for g in states + behind) + max(map(abs, tangential))
     centre = (0.5 * (x0 + x1), 0.5 * (y0 + y1))
     radius = min(x1 - x0, y1 - y0) / 2 - signal * scene.t_end
-    if radius <= 0:
-        return None
     pistons = [side for side, b in scene.boundaries.items() if b.kind == "velocity"]
     if pistons:  # its wave may outrun the signal bound of the window
         return ExactReference("planar_riemann", None, 0.0, limit=(
             f"boundaries.{pistons[0]} is a piston, which the planar Riemann problem does not have"))
     reference = PlanarRiemann(solution, last.shape.point, tuple(normal), tuple(tangential))
+    along_axis = np.flatnonzero(np.abs(normal) == 1.0)
+    if along_axis.size == 1 and tangential == [0.0, 0.0]:
+        # along x or y, walls on the two sides the waves run along (slip walls that the planar
+        # flow, with no tangential velocity, meets as they are): exact over the whole domain
+        # until the waves reach the sides they face
+        axis = int(along_axis[0])
+        parallel = ("bottom", "top") if axis == 0 else ("left", "right")
+        if all(scene.boundaries[side].kind == "wall" for side in parallel):
+            lower, upper = scene.mesh.extent[axis]
+            point = last.shape.point[axis]
+            # the distances along n from the discontinuity to the side behind it and the side ahead
+            behind_side, ahead_side = ((point - lower, upper - point) if normal[axis] > 0
+                                       else (upper - point, point - lower))
+            valid = min(behind_side / -slow if slow < 0 else np.inf, ahead_side / fast if fast > 0 else np.inf)
+            return ExactReference("planar_riemann", reference, float(valid), limit=(
+                f"planar in the whole domain (walls along the waves' path) until a wave reaches a side at "
+                f"t = {valid:.4g}"))
+    if radius <= 0:
+        return None
     return ExactReference("planar_riemann", reference,
                           float("inf"), window=(centre, float(radius)),
                           limit=f"errors over the disk of radius {radius:.4g} that no wave from a side reaches by t_end")
