@@ -14,6 +14,8 @@ from pathlib import Path
 EXIT_OK, EXIT_BAD_INPUT, EXIT_BREAKDOWN = 0, 2, 3
 EXIT_DEFECT = 1  # an error of the program itself (Python's own code for an uncaught exception)
 ABORT_GRACE_SECONDS = 0.5  # before an error on one rank aborts them all (_run_on_every_rank)
+DEFAULT_FRAMES = 20  # 2D runs: the VTK series's states after the initial one
+COMPILE_NOTE_SECONDS = 1.0  # a run that compiled kernels for this long says so (loading from the cache: ~0.3 s)
 
 
 def _parser() -> argparse.ArgumentParser:
@@ -32,10 +34,10 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--quiet", action="store_true", help="no progress bar, no summary line")
     run.add_argument("--xt", action="store_true",
                      help="also write <name>-xt.png, the x–t diagram of density (1D)")
-    run.add_argument("--frames", type=int, default=20,
-                     help="2D: states written to the VTK series <name>.pvd (ParaView, pyvista) and the "
-                          "VTX files <name>-cells.bp, <name>-velocity.bp (ParaView, adios2), evenly "
-                          "spaced in time (default 20; 0: none)")
+    run.add_argument("--frames", type=int, default=None, metavar="N",
+                     help="2D: the initial state and N more, evenly spaced in time, written to the VTK "
+                          "series <name>.pvd (ParaView, pyvista) and the VTX files <name>-cells.bp, "
+                          "<name>-velocity.bp (ParaView, adios2) (default 20; 0: none)")
     run.add_argument("--interface-solve", default="replicated", metavar="HOW",
                      help="on several MPI ranks, how enriched mixed cells' interface system (2D, or the 1D "
                           "assembled predictor) is solved: "
@@ -350,10 +352,16 @@ def _run(args) -> int:
         if root:
             print("error: --xt: the x–t diagram is for 1D scenes", file=sys.stderr)
         return EXIT_BAD_INPUT
-    if args.frames < 0:
+    if args.frames is not None and args.frames > 0 and scene.dimension != 2:  # (0 asks for none: any scene)
+        if root:
+            print(f"error: --frames = {args.frames}: the VTK series is for 2D scenes (1D writes profile.csv; "
+                  "--xt draws the x–t diagram)", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    if args.frames is not None and args.frames < 0:
         if root:
             print(f"error: --frames = {args.frames}: an integer >= 0", file=sys.stderr)
         return EXIT_BAD_INPUT
+    frames = DEFAULT_FRAMES if args.frames is None else args.frames
     if args.interface_solve not in INTERFACE_SOLVES:
         if root:
             print(f"error: --interface-solve = {args.interface_solve}: one of {', '.join(INTERFACE_SOLVES)}",
@@ -403,13 +411,13 @@ def _run(args) -> int:
 
         history = XTHistory()
     series = None
-    if scene.dimension == 2 and args.frames > 0:
+    if scene.dimension == 2 and frames > 0:
         from ale_xfem.output.cells_2d import Frames, VTKFiles
         from ale_xfem.output.vtx import VTXFiles
 
         # the VTX files written by every rank (each its share of the cells), the VTK series
         # by rank 0
-        series = Frames(scene.t_end, args.frames, ([VTKFiles(problem, out)] if root else [])
+        series = Frames(scene.t_end, frames, ([VTKFiles(problem, out)] if root else [])
                         + [VTXFiles(problem, out)])
     observe = history.observe if history else series.observe if series else None
     # the frames want the states at their times only: the steps between them may run in
@@ -440,6 +448,9 @@ def _run(args) -> int:
                 line += (f" (velocity along the normal {result.errors['L1_normal_velocity']:.3e}, along the "
                          f"contact {result.errors['L1_tangential_velocity']:.3e})")
         print(line)
+        if result.compile_seconds >= COMPILE_NOTE_SECONDS:
+            print(f"(and {result.compile_seconds:.3g} s compiling the kernels first, not counted above: they are "
+                  "cached for the next runs)")
         print(f"outputs in {out}/")
     return EXIT_OK
 

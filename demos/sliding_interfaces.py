@@ -37,8 +37,10 @@ parser = argparse.ArgumentParser(description="enriched 2D mixed cells against on
 parser.add_argument("--cells", type=int, default=80, help="four times the cells along each side of the runs")
 parser.add_argument("--out", type=Path, default=Path("out/sliding_interfaces"))
 args = parser.parse_args()
+if args.cells < 48:
+    parser.error(f"--cells = {args.cells}: at least 48 (the runs take a quarter of it along each side)")
 args.out.mkdir(parents=True, exist_ok=True)
-n = max(12, args.cells // 4)
+n = args.cells // 4
 CLOSURES = {"one velocity field": {"model": "single_velocity"},
             "enriched, bubbles": {"model": "enriched", "stabilisation": "bubble"},
             "enriched, Nitsche": {"model": "enriched", "stabilisation": "nitsche"},

@@ -26,8 +26,11 @@ def _run(tmp_path: Path, name: str, ranks: int, *overrides: str, frames: int = 0
     run in this process (the serial reference; a process of its own would only add its
     start-up)."""
     out = tmp_path / f"{Path(name).stem}-{ranks}"  # (a shipped scene's name, or a scene file)
-    arguments = ["run", name, "--quiet", "--no-plot", "--frames", str(frames), "--out", str(out), *options,
-                 *[a for o in overrides for a in ("--set", o)]]
+    from ale_xfem.scene import load_scene, resolve_scene_path
+
+    two_d = load_scene(resolve_scene_path(name)).dimension == 2  # (--frames is a 2D option)
+    arguments = ["run", name, "--quiet", "--no-plot", *(["--frames", str(frames)] if two_d else []), "--out",
+                 str(out), *options, *[a for o in overrides for a in ("--set", o)]]
     if ranks == 1:
         from ale_xfem.cli import main
 

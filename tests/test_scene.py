@@ -78,7 +78,7 @@ BAD = {
     "coulomb friction between fluids": (lambda d: d.setdefault("interface", {}).update(slip="coulomb"),
                                         "interface.slip", "carry none"),
     "stick slip": (lambda d: d.setdefault("interface", {}).update(slip="stick"),
-                   "interface.slip", "not available in this version"),
+                   "interface.slip", "it is for 2D enriched cells"),
     "unknown material": (lambda d: set_path(d, ["regions", 1, "material"], "steel"),
                          "regions[1].material", "one of the materials"),
     "material boundary inside a cell": (lambda d: [set_path(d, ["regions", 0, "interval"], [0.0, 0.5037]),
@@ -101,6 +101,11 @@ BAD = {
     "unknown interface model": (lambda d: d.update(interface={"model": "xfem"}), "interface.model", "one of enriched"),
     "velocity with three components": (lambda d: set_path(d, ["regions", 0, "velocity"], [0.0, 1.0, 2.0]),
                                        "regions[0].velocity", "[u] or [u, v]"),
+    "[interface] with one material": (lambda d: [set_path(d, ["regions", 1, "material"], "left"),
+                                                 d.update(interface={"slip": "free"})],
+                                      "interface", "the regions hold one material"),
+    "a boolean shown as the scene writes it": (lambda d: d.setdefault("numerics", {}).update(
+        viscous_time_step=True), "numerics.viscous_time_step", "= true: no value with a 1D mesh"),
 }
 
 
@@ -168,3 +173,15 @@ def test_cli_rejects_bad_scene_with_exit_code_2_and_runs_nothing(tmp_path):
                            "--out", str(out)], capture_output=True, text=True)
     assert done.returncode == 2 and done.stderr.strip() == "error: mesh.cells = 0: an integer >= 1"
     assert not out.exists()
+
+
+def test_a_scene_name_that_is_not_shipped_points_to_the_list():
+    """A bare name that is neither a shipped scene nor a file: the one line says where the
+    shipped scenes are listed, and names the one meant when it is close."""
+    with pytest.raises(SceneError) as error:
+        load_scene(resolve_scene_path("sod-2D"))
+    assert error.value.key == "scene" and "see `ale-xfem list`" in str(error.value)
+    assert "did you mean 'sod-2d'?" in str(error.value) and "\n" not in str(error.value)
+    with pytest.raises(SceneError) as error:
+        load_scene(resolve_scene_path("no-scene-of-that-name"))
+    assert "did you mean" not in str(error.value)

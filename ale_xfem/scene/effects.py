@@ -95,17 +95,19 @@ def scene_effects(scene, n_mixed_cells: int, pistons: list[str]) -> list[Effect]
         for stabilisation in ("bubble", "nitsche", "none"):
             effects.append(Effect(
                 f"interface_stabilisation_{stabilisation}", enriched_2d and interface.stabilisation == stabilisation,
-                f"interface.stabilisation = \"{interface.stabilisation}\" (the implicit interface system: UFL "
-                "forms compiled once per run, PETSc)" if enriched_2d else "needs enriched mixed cells in 2D"))
+                f"interface.stabilisation = \"{interface.stabilisation}\"" + (
+                    " (the implicit interface system: UFL forms compiled once per run, PETSc)"
+                    if interface.stabilisation == stabilisation else "") if enriched_2d
+                else "needs enriched mixed cells in 2D"))
         for slip in ("free", "stick"):
             effects.append(Effect(f"interface_slip_{slip}", enriched_2d and interface.slip == slip,
                                   f"interface.slip = \"{interface.slip}\"" if enriched_2d
                                   else "needs enriched mixed cells in 2D"))
         normal = "youngs" if interface is None else interface.normal
+        refined = ": PLIC's normals refined by LVIRA, exact for a straight interface on any mesh"
         effects.append(Effect("interface_normal_lvira", mixed and normal == "lvira",
-                              f"interface.normal = \"{normal}\"" + (": PLIC's normals refined by LVIRA, exact for a "
-                                                                    "straight interface on any mesh" if mixed else
-                                                                    " (needs mixed cells)")))
+                              f"interface.normal = \"{normal}\"" + ((refined if normal == "lvira" else "") if mixed
+                                                                    else " (needs mixed cells)")))
     effects.append(Effect("pressure_relaxation", mixed and interface.relaxation,
                           f"interface.relaxation = {str(interface.relaxation).lower()}" if mixed
                           else "needs mixed cells"))

@@ -9,6 +9,7 @@ Every problem is reported as one line naming the key, the value and what is allo
 from __future__ import annotations
 
 import copy
+import difflib
 import math
 import re
 import tomllib
@@ -25,7 +26,6 @@ from ale_xfem.scene import effects
 BOUNDARY_SIDES_1D = ("left", "right")
 BOUNDARY_SIDES_2D = ("left", "right", "bottom", "top")
 MOTIONS_AVAILABLE = ("lagrangian", "eulerian", "smoothed", "interface")
-MOTIONS_PLANNED = ()
 MOTIONS_2D = ("lagrangian", "eulerian", "smoothed")  # interface-following is 1D only
 CELL_TYPES_2D = ("quadrilateral", "triangle")
 MESH_KINDS_2D = ("rectangle", "saltzman", "file")
@@ -71,6 +71,8 @@ class SceneError(ValueError):
 def _show(value: Any) -> str:
     if value is _MISSING:
         return "(missing)"
+    if isinstance(value, bool):  # as the scene writes it (TOML)
+        return "true" if value else "false"
     text = repr(value) if isinstance(value, str) else str(value)
     return text if len(text) < 80 else text[:77] + "..."
 
@@ -183,6 +185,11 @@ def load_scene(path: str | Path, overrides: list[str] | tuple[str, ...] = ()) ->
     try:
         text = path.read_text()
     except OSError as error:
+        if not path.exists() and path.parent == Path(".") and path.suffix in ("", ".toml"):
+            close = difflib.get_close_matches(path.stem, [p.stem for p in shipped_scenes()], n=1, cutoff=0.75)
+            hint = f"; did you mean '{close[0]}'?" if close else ""
+            raise SceneError("scene", str(path), f"a shipped scene (see `ale-xfem list`) or a readable TOML file "
+                             f"(no such file{hint})") from None
         raise SceneError("scene", str(path), f"a readable TOML file ({error.strerror})") from None
     try:
         data = tomllib.loads(text)
@@ -260,9 +267,7 @@ def _integer(value: Any, key: str, minimum: int = 1) -> int:
     return int(value)
 
 
-def _choice(value: Any, key: str, choices: tuple[str, ...], planned: tuple[str, ...] = ()) -> str:
-    if value in planned:
-        raise SceneError(key, value, f"not available in this version; available: {', '.join(choices)}")
+def _choice(value: Any, key: str, choices: tuple[str, ...]) -> str:
     if not isinstance(value, str) or value not in choices:
         raise SceneError(key, value, f"one of {', '.join(choices)}")
     return value
@@ -299,6 +304,9 @@ def validate(data: dict, source: str = "") -> Scene:
     numerics_table = data.setdefault("numerics", {})
     written = set(numerics_table) if isinstance(numerics_table, dict) else set()
     numerics = _validate_numerics(numerics_table)
+    if "interface" in data and len({r.material for r in regions}) < 2:
+        raise SceneError("interface", data["interface"], "no table: the regions hold one material, so no cell holds "
+                         "two and an interface has nothing to act on (remove [interface])")
     interface = _validate_interface(data["interface"], dimension) if "interface" in data else None
 
     scene = Scene(name, description, dimension, t_end, mesh, materials, regions, boundaries, numerics,
@@ -317,7 +325,7 @@ def _validate_mesh(table: Any) -> MeshSpec:
         raise SceneError("mesh.extent", mesh_table["extent"], "[x0, x1] with x0 < x1")
     cells = _integer(mesh_table["cells"], "mesh.cells")
     motion = _choice(mesh_table.setdefault("motion", "lagrangian"), "mesh.motion",
-                     MOTIONS_AVAILABLE, MOTIONS_PLANNED)
+                     MOTIONS_AVAILABLE)
     return MeshSpec(extent, cells, motion)
 
 
@@ -343,8 +351,10 @@ def _validate_mesh_2d(table: Any) -> MeshSpec:
         nx = _integer(cells_raw, "mesh.cells")
         (x0, x1), (y0, y1) = extent
         cells = (nx, max(1, round(nx * (y1 - y0) / (x1 - x0))))
-    motion = _choice(mesh_table.setdefault("motion", "lagrangian"), "mesh.motion", MOTIONS_2D,
-                     tuple(m for m in MOTIONS_AVAILABLE if m not in MOTIONS_2D))
+    motion = mesh_table.setdefault("motion", "lagrangian")
+    if motion in MOTIONS_AVAILABLE and motion not in MOTIONS_2D:
+        raise SceneError("mesh.motion", motion, f"one of {', '.join(MOTIONS_2D)} in 2D ('{motion}' is 1D only)")
+    motion = _choice(motion, "mesh.motion", MOTIONS_2D)
     cell_type = _choice(mesh_table.setdefault("cell_type", "quadrilateral"), "mesh.cell_type", CELL_TYPES_2D)
     kind = _choice(mesh_table.setdefault("kind", "rectangle"), "mesh.kind", MESH_KINDS_2D)
     file = mesh_table.get("file", "")
@@ -732,7 +742,10 @@ def _slip(value: Any, model: str, enriched_2d: bool = False) -> str:
                          "deviatoric stress) carry none, so it has nothing to act on")
     if enriched_2d:
         return _choice(value, "interface.slip", ("free", "stick"))
-    return _choice(value, "interface.slip", ("free",), ("stick",))
+    if value == "stick":
+        raise SceneError("interface.slip", value, "'free' in 1D (stick holds the tangential velocity, which 1D does "
+                         "not have: it is for 2D enriched cells)")
+    return _choice(value, "interface.slip", ("free",))
 
 
 def _boolean(value: Any, key: str) -> bool:
