@@ -40,7 +40,7 @@ class RunResult:
     status: str  # "ok" | "failed"
     state: State  # the last good state
     steps: int
-    wall_seconds: float  # the run's own: loading or compiling the compiled kernels left out
+    wall_seconds: float  # the run's own: compiling the compiled kernels left out (lagrange.compile_clock)
     diagnostic: str = ""
     conservation: dict = field(default_factory=dict)
     errors: dict | None = None
@@ -51,7 +51,7 @@ class RunResult:
     mixed_cells: dict | None = None
     ranks: int = 1  # the MPI ranks it ran on
     interface_solve: str | None = None  # on several ranks, with an interface system: how it was solved
-    compile_seconds: float = 0.0  # spent loading or compiling compiled kernels during the run (once a process)
+    compile_seconds: float = 0.0  # spent compiling compiled kernels during the run (not cached yet)
 
     @property
     def zone_cycles_per_second(self) -> float:

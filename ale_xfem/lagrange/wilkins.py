@@ -418,7 +418,7 @@ class ExplicitWilkins:
                                                    dt * self.inverse_node_mass)
             if self.exchange is not None:  # the mixed cells' stress on a ghost node: its owner's sum
                 self.exchange(mean_force)
-            # (a first call's loading or compiling of kernels is no part of the solve's time)
+            # (compiling a kernel at its first call is no part of the solve's time)
             self.mixed_seconds += time.perf_counter() - clock - (compile_seconds() - compiling)
             self.mixed_calls += 1
         u_new = self._advance_velocity(u0, mean_force, dt)

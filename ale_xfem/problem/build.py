@@ -541,19 +541,23 @@ def exact_reference(scene: Scene) -> ExactReference | None:
         f"({scene.boundaries[side].kind}) at t = {valid:.4g}"))
 
 
-def _boundary_conflict(scene: Scene, left, right) -> str:
+def _boundary_conflict(scene: Scene, left, right, sides=("left", "right"), component: int = 0) -> str:
     """The boundary that is not part of the exact (unbounded) problem from t = 0, in one
     phrase, or "": a wall holds only material at rest, a piston only material moving with
-    it, a free end only material at zero pressure; anything else launches a wave at t = 0."""
-    speed = max(abs(left.velocity[0]), abs(right.velocity[0]))
+    it, a free end only material at zero pressure; anything else launches a wave at t = 0.
+    ``left``, ``right``: the regions at the ``sides`` (2D: the two sides a planar problem's
+    waves face, its velocity along them the ``component``)."""
+    speed = max(abs(left.velocity[component]), abs(right.velocity[component]))
     pressure = max(abs(left.pressure), abs(right.pressure))
-    scale = max(pressure + r.density * r.velocity[0] ** 2 for r in (left, right))
-    for side, region in (("left", left), ("right", right)):
-        boundary, u, p = scene.boundaries[side], region.velocity[0], region.pressure
+    scale = max(pressure + r.density * r.velocity[component] ** 2 for r in (left, right))
+    for side, region in zip(sides, (left, right)):
+        boundary, u, p = scene.boundaries[side], region.velocity[component], region.pressure
         if boundary.kind == "wall" and abs(u) > 1e-12 * speed:
             return f"boundaries.{side} = wall stops material moving at u = {u:g}: a wave starts there at t = 0"
-        if boundary.kind == "velocity" and abs(boundary.velocity[0] - u) > 1e-12 * max(speed, abs(boundary.velocity[0])):
-            return (f"boundaries.{side} = {{velocity = [{boundary.velocity[0]:g}]}} moves material at u = {u:g}: "
+        if boundary.kind == "velocity" and abs(boundary.velocity[component] - u) > 1e-12 * max(
+                speed, abs(boundary.velocity[component])):
+            held = ", ".join(f"{v:g}" for v in boundary.velocity)
+            return (f"boundaries.{side} = {{velocity = [{held}]}} moves material at u = {u:g}: "
                     "a wave starts there at t = 0")
         if boundary.kind == "free" and abs(p) > 1e-6 * scale:
             return f"boundaries.{side} = free releases the pressure p = {p:g}: a rarefaction starts there at t = 0"
@@ -734,14 +738,19 @@ def _planar_riemann(scene: Scene) -> ExactReference | None:
     reference = PlanarRiemann(solution, last.shape.point, tuple(normal), tuple(tangential))
     along_axis = np.flatnonzero(np.abs(normal) == 1.0)
     if along_axis.size == 1 and tangential == [0.0, 0.0]:
-        # along x or y, walls on the two sides the waves run along (slip walls that the planar
-        # flow, with no tangential velocity, meets as they are): exact over the whole domain
-        # until the waves reach the sides they face
+        # along x or y, the discontinuity inside the domain, walls on the two sides the waves
+        # run along (slip walls that the planar flow, with no tangential velocity, meets as
+        # they are), and the two sides they face part of the problem from t = 0: exact over
+        # the whole domain until the waves reach those sides
         axis = int(along_axis[0])
-        parallel = ("bottom", "top") if axis == 0 else ("left", "right")
-        if all(scene.boundaries[side].kind == "wall" for side in parallel):
-            lower, upper = scene.mesh.extent[axis]
-            point = last.shape.point[axis]
+        parallel, facing = ((("bottom", "top"), ("left", "right")) if axis == 0
+                            else (("left", "right"), ("bottom", "top")))
+        lower, upper = scene.mesh.extent[axis]
+        point = last.shape.point[axis]
+        # the state at each facing side: the half-plane's (``last``) lies behind its normal
+        at_lower, at_upper = (last, first) if normal[axis] > 0 else (first, last)
+        if (lower < point < upper and all(scene.boundaries[side].kind == "wall" for side in parallel)
+                and not _boundary_conflict(scene, at_lower, at_upper, facing, axis)):
             # the distances along n from the discontinuity to the side behind it and the side ahead
             behind_side, ahead_side = ((point - lower, upper - point) if normal[axis] > 0
                                        else (upper - point, point - lower))

@@ -54,7 +54,7 @@ NUMERICS_DEFAULTS = {
 INTERFACE_DEFAULTS = {
     "model": "enriched",  # enriched (the paper) | single_velocity (baseline closure)
     "solver": "nonlinear",  # nonlinear (predictor + corrector) | linearised (predictor alone)
-    "slip": "free",  # enriched cells: free (stick not built; coulomb an error: fluids carry no shear)
+    "slip": "free",  # enriched cells: free | stick (2D; coulomb an error: fluids carry no shear)
     "relaxation": True,  # pressure relaxation of mixed cells at the start of every step
     "predictor": "closed_form",  # closed_form (1D elimination) | assembled (UFL forms + PETSc)
 }
