@@ -15,7 +15,7 @@ EXIT_OK, EXIT_BAD_INPUT, EXIT_BREAKDOWN = 0, 2, 3
 EXIT_DEFECT = 1  # an error of the program itself (Python's own code for an uncaught exception)
 ABORT_GRACE_SECONDS = 0.5  # before an error on one rank aborts them all (_run_on_every_rank)
 DEFAULT_FRAMES = 20  # 2D runs: the VTK series's states after the initial one
-COMPILE_NOTE_SECONDS = 1.0  # a run that compiled kernels for this long says so (loading from the cache: ~0.3 s)
+COMPILE_NOTE_SECONDS = 1.0  # a run that compiled kernels for this long says so (a fresh install's first run)
 
 
 def _parser() -> argparse.ArgumentParser:

@@ -15,9 +15,9 @@ stress on both materials alike).  Each material's nodal velocity is then u_m^{n+
 − u_m^n; a node moves with the material it lies in (``EnrichedGeometry.owner``), and the
 step's own update of those nodes is replaced by that; walls hold their components in
 every material's rows and their reaction enters the step's bookkeeping.  A ghost
-viscosity (``interface.ghost_viscosity``, by default ``GHOST_VISCOSITY``) steadies each material's velocity beyond its part; what it
-and Nitsche's penalty dissipate, and what the moved share of f^n gains or loses, is heat,
-shared by the cell's materials by mass.
+viscosity (``interface.ghost_viscosity``, by default ``GHOST_VISCOSITY``) steadies each
+material's velocity beyond its part; what it and Nitsche's penalty dissipate, and what the
+moved share of f^n gains or loses, is heat, shared by the cell's materials by mass.
 
 **Material numbering.**  The system's α is material 0 of the scene in every mixed cell (a
 node's velocities must mean the same material in all its cells): 2D enriched scenes have
@@ -91,8 +91,9 @@ class EnrichedClosure2D(SharedClosure):
     bubble | nitsche | none; ``slip``: free | stick; ``nitsche_penalty``: Nitsche's
     dimensionless factor; ``petsc_options``: the interface system's KSP (default MUMPS);
     ``ghost_viscosity``: the weight of the ghost viscosity (scene key
-    ``interface.ghost_viscosity``; ``GHOST_VISCOSITY`` by default); ``system``: what binds the interface system to a band of cells (InterfaceSystem's
-    arguments; None: InterfaceSystem; on several MPI ranks, one shared out over them)."""
+    ``interface.ghost_viscosity``; ``GHOST_VISCOSITY`` by default); ``system``: what binds
+    the interface system to a band of cells (InterfaceSystem's arguments; None:
+    InterfaceSystem; on several MPI ranks, one shared out over them)."""
 
     implicit = True
 
