@@ -13,7 +13,7 @@ from ale_xfem.problem.build import build_problem
 from ale_xfem.remap.remapper_2d import Remapper2D
 from ale_xfem.mixed.cut_cells_2d import by_material, material_geometry
 from ale_xfem.mixed.enriched_2d import GHOST_VISCOSITY
-from ale_xfem.run import simulate
+from ale_xfem.run import make_stepper, simulate
 from ale_xfem.scene.schema import SceneError, load_scene, resolve_scene_path, validate
 from conftest import fitted_rate, run_scene
 
@@ -142,8 +142,8 @@ def test_the_spinning_disks_loss_falls_with_resolution(cell, stabilisation):
     from 20² to 40² (t = 0.5), and the fluid gains less than a tenth of what one velocity
     field hands it on the same mesh.  Measured, bubbles / Nitsche: on quadrilaterals the
     disk keeps 0.979 / 0.966 on 20² and 0.984 / 0.981 on 40², the fluid gaining +0.001 /
-    +0.015 and −0.001 / +0.003; on crossed triangles 0.981 / 0.976 and 0.991 / 0.990, the
-    fluid gaining +0.001 / +0.006 and +0.003 / +0.005 (a gain of a few thousandths that
+    +0.015 and −0.001 / +0.003; on crossed triangles 0.980 / 0.975 and 0.992 / 0.991, the
+    fluid gaining +0.0003 / +0.005 and +0.003 / +0.004 (a gain of a few thousandths that
     does not fall on triangles), where one velocity field hands it 1.26 and
     0.58 on quadrilaterals, 0.65 and 0.35 on triangles (of the disk's, by its cells' mean
     velocities).  (On 80² the fluid's gain grows again: the rim
@@ -238,14 +238,15 @@ def test_momentum_is_kept_whatever_the_interface_solves_residual(monkeypatch):
 
 
 @functools.lru_cache(maxsize=None)
-def sliding_block_kept():
-    """What the sliding block keeps of its momentum along its length at t = 0.25, by
-    closure ("enriched", "single_velocity") and mesh ("[40,20]", "[80,40]")."""
+def sliding_block_kept(cell="quadrilateral"):
+    """What the sliding block keeps of its momentum along its length at t = 0.25 on ``cell``
+    cells, by closure ("enriched", "single_velocity") and mesh ("[40,20]", "[80,40]")."""
     kept = {}
     for model in ("enriched", "single_velocity"):
         for cells in ("[40,20]", "[80,40]"):
             problem = build_problem(load_scene(resolve_scene_path("sliding-block"),
-                                               [f"mesh.cells={cells}", f'interface.model="{model}"']))
+                                               [f"mesh.cells={cells}", f'interface.model="{model}"',
+                                                f"mesh.cell_type={cell}"]))
             block = list(problem.scene.materials).index("block")
             start = material_momenta(problem.state, problem.layout, problem.mesh.cell_nodes)[block]
             axis = start / np.linalg.norm(start)
@@ -268,6 +269,16 @@ def test_the_sliding_block_keeps_its_momentum_where_one_velocity_field_drags_its
         assert kept["enriched", cells] > kept["single_velocity", cells] + 0.005, kept
         assert 0.95 < kept["enriched", cells] < 1.0, kept
     assert kept["single_velocity", "[80,40]"] > kept["single_velocity", "[40,20]"], kept
+
+
+def test_on_triangles_the_block_still_slides_at_their_heavier_ghost_viscosity():
+    """The triangles' default ghost weight (1.0, GHOST_VISCOSITY) drags the block more than
+    0.3 does (it keeps 0.9677 and 0.9717 on 40 × 20 and 80 × 40 crossed triangles, against
+    0.9708 and 0.9729), but still less than one velocity field (0.9651, 0.9676); at 2.0 it
+    would not (0.9648 on 40 × 20): docs/design.md §4."""
+    kept = sliding_block_kept("triangle")
+    for cells in ("[40,20]", "[80,40]"):
+        assert kept["enriched", cells] > kept["single_velocity", cells] + 0.002, kept
 
 
 @pytest.mark.xfail(strict=True, reason=(
@@ -307,13 +318,19 @@ def test_plic_normals_are_a_key_of_2d_interfaces():
 
 def test_the_ghost_viscosity_is_a_key_of_2d_enriched_cells():
     """``[interface] ghost_viscosity``: the weight of each material's ghost viscosity in 2D
-    enriched cells — by default the closure's GHOST_VISCOSITY, written into the resolved
-    scene; another value reaches the closure (another run, and with 0 the extension held
-    by nothing but the interface conditions, still another); in 1D a one-line error naming
+    enriched cells — by default the closure's GHOST_VISCOSITY of the mesh's cell type
+    (heavier on triangles), written into the resolved scene and reaching the closure;
+    another value reaches the closure (another run, and with 0 the extension held by
+    nothing but the interface conditions, still another); in 1D a one-line error naming
     the key."""
+    assert GHOST_VISCOSITY["triangle"] > GHOST_VISCOSITY["quadrilateral"] == 0.3
+    for cell in ("quadrilateral", "triangle"):
+        scene = load_scene(resolve_scene_path("slip-line"), ["mesh.cells=[8,8]", f"mesh.cell_type={cell}"])
+        assert scene.interface.ghost_viscosity == GHOST_VISCOSITY[cell]  # (the scene's default is the closure's)
+        assert scene.resolved["interface"]["ghost_viscosity"] == GHOST_VISCOSITY[cell]
+        problem = build_problem(scene)
+        assert make_stepper(problem).closure.ghost_viscosity == GHOST_VISCOSITY[cell]
     default = build_problem(load_scene(resolve_scene_path("slip-line"), ["mesh.cells=[8,8]"]))
-    assert default.scene.interface.ghost_viscosity == GHOST_VISCOSITY == 0.3  # (the scene's default is the closure's)
-    assert default.scene.resolved["interface"]["ghost_viscosity"] == 0.3
     heavier, none = (build_problem(load_scene(resolve_scene_path("slip-line"),
                                               ["mesh.cells=[8,8]", f"interface.ghost_viscosity={value}"]))
                      for value in ("1.0", "0"))
@@ -388,7 +405,7 @@ def test_the_sheared_tube_keeps_its_slip_line_sharper_than_one_velocity_field():
 
 
 # The sheared tube's convergence: three resolutions per cell type (fitted over triangles 20²
-# to 160² the enriched cells' rates are the same within 0.03; on quadrilaterals u_n and u_t
+# to 160² the enriched cells' rates are the same within 0.04; on quadrilaterals u_n and u_t
 # slow down at 320², local rates 160² → 320² 0.65 and 0.61, one velocity field's u_n 0.76:
 # docs/design.md §4, "Convergence on the sheared tube").
 RATE_SIDES = {"quadrilateral": (40, 80, 160), "triangle": (30, 60, 120)}
@@ -420,12 +437,12 @@ SMEARED_CONTACT = pytest.mark.xfail(strict=True, reason=(
     "the contact's density jump, smeared by the remap: one velocity field's rate is 0.75 on quadrilaterals, "
     "the enriched cells' 0.73: docs/design.md §4, 'Convergence on the sheared tube'"))
 SHEARED_CELLS_DENSITY = pytest.mark.xfail(strict=True, reason=(
-    "on triangles the enriched density error grows against one velocity field's with resolution (9 % above "
-    "it at 30², 28 % at 120²; rates 0.69 and 0.80), where on a steady slip line it is 0.15 to 0.21 times one "
+    "on triangles the enriched density error grows against one velocity field's with resolution (11 % above "
+    "it at 30², 18 % at 120²; rates 0.76 and 0.80), where on a steady slip line it is 0.15 to 0.33 times one "
     "velocity field's: docs/design.md §4, 'Convergence on the sheared tube'"))
 SLOWER_NORMAL_VELOCITY = pytest.mark.xfail(strict=True, reason=(
     "the normal velocity converges more slowly with free slip than with one velocity field (rates 0.798 and "
-    "0.64 on quadrilaterals and triangles, against 0.87 and 0.87; its error 20 % and 45 % above one velocity "
+    "0.73 on quadrilaterals and triangles, against 0.87 and 0.87; its error 20 % and 31 % above one velocity "
     "field's at 160² and 120²): docs/design.md §4, 'Convergence on the sheared tube'"))
 
 
@@ -458,10 +475,11 @@ def test_free_slip_keeps_each_sides_tangential_velocity_where_one_velocity_field
 
 
 @pytest.mark.xfail(strict=True, reason=(
-    "on crossed triangles free slip's error along the contact converges at 0.54 (0.91 on quadrilaterals): "
-    "away from the contact it is a pattern along the contact, of zero mean, about 10 cells long at 120², that "
-    "the cut cells' weakly held extensions send into the gases; the default ghost viscosity (0.3) damps it "
-    "too little, 1.0 gives 0.76 (the test below): docs/design.md §4, 'Convergence on the sheared tube'"))
+    "on crossed triangles free slip's error along the contact converges at 0.76 (0.91 on quadrilaterals): "
+    "away from the contact it is a pattern along the contact, of zero mean, that the cut cells' weakly held "
+    "extensions send into the gases; the triangles' default ghost viscosity (1.0) halves it (rate 0.54 at 0.3, "
+    "the test below) and 2.0 would give 0.95, but a sliding block would then be dragged as by one velocity "
+    "field: docs/design.md §4, 'The extension of each material's velocity'"))
 def test_free_slips_tangential_velocity_converges_at_first_order_on_triangles():
     """As on quadrilaterals: the error along the contact of free slip converges at a rate of
     at least 0.85."""
@@ -469,20 +487,21 @@ def test_free_slips_tangential_velocity_converges_at_first_order_on_triangles():
     assert fitted_rate(RATE_SIDES["triangle"], errors) >= 0.85
 
 
-def test_a_heavier_ghost_viscosity_lets_free_slip_converge_along_the_contact_on_triangles():
+def test_the_triangles_heavier_ghost_viscosity_lets_free_slip_converge_along_the_contact():
     """What slows free slip's error along the contact on crossed triangles (the expected
     failure above) is a pattern along the contact that the cut cells send into the gases
-    from their materials' extensions, which the ghost viscosity holds: with
-    ``interface.ghost_viscosity = 1`` the rate is 0.76 (0.54 at the default 0.3) and the
-    error at 120² 0.54 times the default's; the density and normal velocity gain too
+    from their materials' extensions, which the ghost viscosity holds: at the triangles'
+    default weight (GHOST_VISCOSITY, 1.0) the rate is 0.76 (0.54 at the quadrilaterals'
+    0.3) and the error at 120² 0.54 times 0.3's; the density and normal velocity gain too
     (rates 0.76 and 0.73, against 0.69 and 0.64)."""
-    heavier = sheared_tube_errors("triangle", "enriched", "interface.ghost_viscosity=1.0")
     default = sheared_tube_errors("triangle", "enriched")
-    assert fitted_rate(RATE_SIDES["triangle"], heavier["tangential_velocity"]) >= 0.7
-    assert heavier["tangential_velocity"][-1] < 0.7 * default["tangential_velocity"][-1]
+    lighter = sheared_tube_errors("triangle", "enriched",
+                                  f"interface.ghost_viscosity={GHOST_VISCOSITY['quadrilateral']}")
+    assert fitted_rate(RATE_SIDES["triangle"], default["tangential_velocity"]) >= 0.7
+    assert default["tangential_velocity"][-1] < 0.7 * lighter["tangential_velocity"][-1]
     for quantity in ("density", "normal_velocity"):
-        assert fitted_rate(RATE_SIDES["triangle"], heavier[quantity]) > fitted_rate(RATE_SIDES["triangle"],
-                                                                                      default[quantity]) + 0.05
+        assert fitted_rate(RATE_SIDES["triangle"], default[quantity]) > fitted_rate(RATE_SIDES["triangle"],
+                                                                                      lighter[quantity]) + 0.05
 
 
 def slip_line(model, cell="quadrilateral", side=40):
@@ -509,8 +528,8 @@ def test_one_step_of_a_steady_slip_line_leaves_the_cells_material_volumes_nearly
     material volumes should change.  The edges that Γ cuts turn in the Lagrange step (each
     end moves with its own material) and their swept regions are bow-ties, whose two lobes
     the remap takes each from its own side: after one step the changes within 0.3 of the
-    centre add up to 0.0031 and 0.0090 h² (quadrilaterals, triangles), the largest 5.0 and
-    5.2 × 10⁻⁴ h²; with each bow-tie from one donor they were 0.047 and 0.031 h², the
+    centre add up to 0.0029 and 0.0002 h² (quadrilaterals, triangles), the largest 4.8 ×
+    10⁻⁴ and 7.9 × 10⁻⁵ h²; with each bow-tie from one donor they were 0.047 and 0.031 h², the
     largest 6.6 and 2.6 × 10⁻³ h²."""
     problem = build_problem(load_scene(resolve_scene_path("slip-line"), ["mesh.cells=[24,24]",
                                                                           f"mesh.cell_type={cell}"]))
@@ -530,8 +549,7 @@ def test_one_step_of_the_spinning_disk_brings_no_fleck_of_the_fluid_into_the_dis
     no cell wholly inside it should hold any of the fluid.  Near a node a swept region
     reaches out of its mixed donor; that part is split by the donor's interface line,
     extended: no cell inside the disk takes any fluid (the disk's volumes change by
-    0.034 h² in all on quadrilaterals; 4 cells of fluid on triangles take 2.7 × 10⁻⁵ h² of
-    the disk).  Shared by the donor's volume fractions, it put flecks of the fluid into 28
+    0.033 h² in all on quadrilaterals, 0.011 h² on triangles).  Shared by the donor's volume fractions, it put flecks of the fluid into 28
     and 32 cells inside the disk (quadrilaterals, triangles; 0.066 h² in all on
     quadrilaterals), and the disk lost more of its angular momentum the finer the mesh."""
     problem = build_problem(load_scene(resolve_scene_path("spinning-disk"), [
@@ -555,7 +573,7 @@ def test_a_node_tied_at_a_wall_keeps_the_interface_solve_well_posed():
     of 10²⁰ mixed into every unknown of the node and its round-off swamped the free
     direction: the interface solve gave every mixed cell wrong volume changes, the step
     was halved again and again and the runs stopped (the time step collapsed).  Now each
-    runs to its end without one halved step, in 30, 35 and 41 steps."""
+    runs to its end without one halved step, in 24, 30 and 35 steps."""
     for side in (16, 20, 24):
         _, result = run_scene("rotated-tube-shear", f"mesh.cells=[{side},{side}]", "mesh.cell_type=triangle",
                               "interface.model=enriched")
@@ -582,7 +600,7 @@ def test_a_lagrangian_mesh_carries_a_slip_line_while_the_slide_stays_below_a_cel
     """The steady slip line on a Lagrangian mesh of 32² cells (each node moving with the
     material it lies in, each step remapped in place) to t = 0.05, a slide of 0.025 (0.8
     of a cell): the cut cells shear but hold Γ; free slip keeps the tangential jump (its
-    error 0.53 and 0.51 of one velocity field's on the same mesh, quadrilaterals and
+    error 0.53 and 0.52 of one velocity field's on the same mesh, quadrilaterals and
     triangles), and mass, momentum and energy are kept to round-off."""
     problem, free, single, _ = slip_line_by_motion(cell)
     assert free.status == "ok" and "remap_lagrangian" in problem.effects
@@ -593,7 +611,7 @@ def test_a_lagrangian_mesh_carries_a_slip_line_while_the_slide_stays_below_a_cel
 
 @pytest.mark.parametrize("cell", [pytest.param("quadrilateral", marks=pytest.mark.xfail(strict=True, reason=(
     "on a Lagrangian mesh of quadrilaterals the slip line's density, pressure and normal velocity errors are "
-    "7.92, 3.25 and 2.40 times the Eulerian run's (32², t = 0.05; triangles 1.08, 1.07, 0.79): its contact "
+    "7.92, 3.25 and 2.40 times the Eulerian run's (32², t = 0.05; triangles 0.89, 0.99, 0.71): its contact "
     "passes through a node, and Youngs' normals (1.6° off on these quadrilaterals, exact on triangles) "
     "misplace the PLIC lines in the sheared cut cells (61 % of the density error at points of the wrong "
     "material); off the nodes, or with interface.normal = 'lvira', the check holds (the tests below): "
@@ -601,7 +619,7 @@ def test_a_lagrangian_mesh_carries_a_slip_line_while_the_slide_stays_below_a_cel
 def test_a_lagrangian_mesh_gives_the_eulerian_meshs_figures_on_a_slip_line(cell):
     """The slip line below a cell of slide (as above): a Lagrangian mesh gives the
     Eulerian run's density and pressure errors within twice them, its normal velocity's
-    within 1.1 times (triangles: 1.08, 1.07 and 0.79 times)."""
+    within 1.1 times (triangles: 0.89, 0.99 and 0.71 times)."""
     _, free, _, eulerian = slip_line_by_motion(cell)
     for quantity, factor in (("L1_density", 2.0), ("L1_normal_velocity", 1.1), ("L1_pressure", 2.0)):
         assert free.errors[quantity] < factor * eulerian.errors[quantity], quantity
@@ -670,7 +688,7 @@ def test_a_slide_of_more_than_a_cell_on_a_lagrangian_mesh_stops_with_a_diagnosti
 def test_free_slip_leaves_the_rest_of_a_steady_slip_line_as_one_velocity_field_does(cell):
     """Away from the tangential jump a steady slip line has nothing to get wrong: free
     slip's density, pressure and normal-velocity errors are at most one velocity field's
-    (40²: 0.63, 0.38 and 0.19 of them on quadrilaterals, 0.15, 0.19 and 0.10 on crossed
+    (40²: 0.63, 0.38 and 0.19 of them on quadrilaterals, 0.19, 0.23 and 0.12 on crossed
     triangles).  With the explicit predictor accelerating the mixed cells' nodes by the
     mesh's forces (EnrichedClosure2D.hold_predictor) free slip's pressure error on
     quadrilaterals was 1.17 times one velocity field's."""
@@ -726,10 +744,10 @@ def test_cut_cells_that_appear_during_the_run_take_over_the_materials_velocities
 def test_a_light_disk_spinning_in_a_fluid_a_hundred_times_heavier_stays_steady():
     """A hard case: the spinning disk inside an outer fluid of density 100 on 80² crossed
     triangles, to t = 0.4.  Each material's extension over the other's part is held by a
-    ghost viscosity (0.3 of its inertia in the cell); at 0.1 the rim nodes' velocities
-    wandered outwards and drained the disk's cells there, until the EOS left its domain at
-    t = 0.36.  The run finishes with the
-    disk's angular momentum kept within 2 % and its mass to round-off."""
+    ghost viscosity (the triangles' default, 1.0 of its inertia in the cell); at 0.1 the
+    rim nodes' velocities wandered outwards and drained the disk's cells there, until the
+    EOS left its domain at t = 0.36.  The run finishes with the disk's angular momentum kept
+    within 2 % and its mass to round-off."""
     problem = build_problem(load_scene(resolve_scene_path("spinning-disk"), [
         "mesh.cells=[80,80]", "mesh.cell_type=triangle", "interface.model=enriched", "regions.0.density=100",
         "t_end=0.4"]))
@@ -778,9 +796,10 @@ def test_a_band_around_the_interface_gives_the_run_of_a_system_bound_to_the_mixe
     and active on the mixed cells only solves the same equations as one bound to the mixed
     cells themselves (a band of no rings, bound again at every change), having bound far
     fewer submeshes: on quadrilaterals the sheared tube ends in the same state (1e-13 measured).  On
-    triangles the two runs agree to 1e-12 for 14 steps, then a discrete choice that
-    round-off can tip (as which material a node lies in, decided by an argmax) moves them
-    apart by 1e-5 at step 15, and they stay within 2e-5."""
+    triangles the two runs agree to 3e-12 at each of their 21 steps, but a discrete choice
+    that round-off can tip (as which material a node lies in, decided by an argmax) can
+    move them apart (by 1e-5 at step 15 with the ghost viscosity at 0.3), so the check
+    there allows 1e-4."""
     from ale_xfem.mixed import enriched_2d
 
     def run(rings):
@@ -810,9 +829,11 @@ def test_both_orders_of_the_materials_give_the_same_run(cell):
     to round-off on quadrilaterals (1e-14 measured).  On crossed triangles a node often has
     as many pure cells of each material around it: its owner was the lower material id, and
     the fluid's angular momentum differed by 2 % of the disk's between the two orders; the
-    tie now goes to the larger area, and what is left is a discrete event at step 6 worth
-    1e-8 of the disk's angular momentum and 7e-6 of L1(p) (the runs agree to 1e-17 before
-    it)."""
+    tie now goes to the larger area, and the runs agree to round-off there too (at each of
+    their 17 steps: angular momenta to 1e-15 of the disk's, L1(p) to 3e-13), but a discrete
+    event that round-off can tip may still part them (with the ghost viscosity at 0.3, one
+    at step 6 worth 1e-8 of the disk's angular momentum and 7e-6 of L1(p)), so the check
+    there allows 1e-6."""
     def spinning(order):
         materials = {"outer": {"eos": "ideal_gas", "gamma": 1.4}, "disk": {"eos": "ideal_gas", "gamma": 1.667}}
         if order:

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from ale_xfem.lagrange.closure import MixedCellClosure
 from ale_xfem.mixed.enriched import EnrichedClosure
-from ale_xfem.mixed.enriched_2d import GHOST_VISCOSITY, EnrichedClosure2D
+from ale_xfem.mixed.enriched_2d import EnrichedClosure2D
 from ale_xfem.mixed.single_velocity import SingleVelocityClosure
 from ale_xfem.model.mixed_cells import MixedCells
 
@@ -20,7 +20,7 @@ class Closures:
 
     def __init__(self, mesh, materials, assembled_predictor: bool = False, petsc_options: dict | None = None,
                  stabilisation: str = "bubble", slip: str = "free", nitsche_penalty: float = 1.0,
-                 normal: str = "youngs", ghost_viscosity: float = GHOST_VISCOSITY):
+                 normal: str = "youngs", ghost_viscosity: float | None = None):
         self.mesh, self.materials = mesh, materials
         self.assembled_predictor = assembled_predictor
         self.petsc_options = petsc_options

@@ -15,9 +15,10 @@ stress on both materials alike).  Each material's nodal velocity is then u_m^{n+
 − u_m^n; a node moves with the material it lies in (``EnrichedGeometry.owner``), and the
 step's own update of those nodes is replaced by that; walls hold their components in
 every material's rows and their reaction enters the step's bookkeeping.  A ghost
-viscosity (``interface.ghost_viscosity``, by default ``GHOST_VISCOSITY``) steadies each
-material's velocity beyond its part; what it and Nitsche's penalty dissipate, and what the
-moved share of f^n gains or loses, is heat, shared by the cell's materials by mass.
+viscosity (``interface.ghost_viscosity``, by default ``GHOST_VISCOSITY`` of the mesh's
+cell type) steadies each material's velocity beyond its part; what it and Nitsche's
+penalty dissipate, and what the moved share of f^n gains or loses, is heat, shared by the
+cell's materials by mass.
 
 **Material numbering.**  The system's α is material 0 of the scene in every mixed cell (a
 node's velocities must mean the same material in all its cells): 2D enriched scenes have
@@ -74,7 +75,11 @@ BAND_RINGS = 2
 # cases lose accuracy or robustness; at 1.0 the sheared tube's errors converge faster and
 # the spinning disk's rim keeps more, but a sliding block is dragged more and a slip line
 # on a Lagrangian mesh loses (docs/design.md §4, "The extension of each material's velocity").
-GHOST_VISCOSITY = 0.3
+# On crossed triangles the extension's noise along Γ is stronger: at 1.0 there the sheared
+# tube's errors converge faster and the spinning disk hands its fluid less, and a block
+# still slides more freely than with one velocity field, which at 2.0 it does not; so the
+# default is by the mesh's cell type.
+GHOST_VISCOSITY = {"quadrilateral": 0.3, "triangle": 1.0}
 # the largest share of what a cell holds of a material that may cross its edges in a step
 # (EnrichedClosure2D._crossings: a sliver cannot give more than it has)
 CROSSING_SHARE = 0.5
@@ -91,21 +96,22 @@ class EnrichedClosure2D(SharedClosure):
     bubble | nitsche | none; ``slip``: free | stick; ``nitsche_penalty``: Nitsche's
     dimensionless factor; ``petsc_options``: the interface system's KSP (default MUMPS);
     ``ghost_viscosity``: the weight of the ghost viscosity (scene key
-    ``interface.ghost_viscosity``; ``GHOST_VISCOSITY`` by default); ``system``: what binds
-    the interface system to a band of cells (InterfaceSystem's arguments; None:
-    InterfaceSystem; on several MPI ranks, one shared out over them)."""
+    ``interface.ghost_viscosity``; None: ``GHOST_VISCOSITY`` of the mesh's cell type);
+    ``system``: what binds the interface system to a band of cells (InterfaceSystem's
+    arguments; None: InterfaceSystem; on several MPI ranks, one shared out over them)."""
 
     implicit = True
 
     def __init__(self, mesh, materials, mixed: MixedCells, stabilisation: str = "bubble",
                  slip: str = "free", nitsche_penalty: float = 1.0, petsc_options: dict | None = None,
-                 system=None, normal: str = "youngs", ghost_viscosity: float = GHOST_VISCOSITY):
+                 system=None, normal: str = "youngs", ghost_viscosity: float | None = None):
         if len(materials) != 2:
             raise ValueError("2D enriched mixed cells need exactly two materials")
         self.forms = InterfaceForms(mesh.dolfinx_mesh.comm, stabilisation, slip, mesh.cell_type.name)
         self.nitsche_penalty, self.petsc_options = nitsche_penalty, petsc_options
         self.normal = normal  # PLIC's normals in the cut cells: "youngs" | "lvira" (ale_xfem.model.plic)
-        self.ghost_viscosity = ghost_viscosity  # the ghost viscosity's weight (GHOST_VISCOSITY by default)
+        # the ghost viscosity's weight (GHOST_VISCOSITY of the cell type by default)
+        self.ghost_viscosity = GHOST_VISCOSITY[mesh.cell_type.name] if ghost_viscosity is None else ghost_viscosity
         self.bound_system = InterfaceSystem if system is None else system
         self.system, self._system_cells, self._in_band = None, None, None
         self._last = None
@@ -188,7 +194,7 @@ class EnrichedClosure2D(SharedClosure):
         squeezed a pure cell of a disk 100 times lighter than the fluid around it by 6 % in
         its predicted state (its predicted viscosity 30 times its pressure), whose work on
         the step's velocities took 0.17 of its specific energy a step until the EOS left its
-        domain (100² crossed triangles, GHOST_VISCOSITY 0.1)."""
+        domain (100² crossed triangles, a ghost viscosity of 0.1)."""
         nodes = self.mesh.cell_nodes[self.mixed.cells].ravel()
         u_pred[:, nodes] = u0[:, nodes]
 
@@ -328,8 +334,9 @@ class EnrichedClosure2D(SharedClosure):
         rate the sliding makes (:meth:`_slip_rate`) — which may take compression away, never
         add it: read from each material's velocity beyond its part, which the interface
         system determines only weakly, an added compression fed back on it (on the sheared
-        tube, 32² triangles, a solve shared out over 3 MPI ranks then ended 6 × 10⁻⁶ apart
-        from the serial run, against 10⁻¹¹ when it only takes away).  ``viscosity_law``:
+        tube, 32² triangles, ghost viscosity 0.3, a solve shared out over 3 MPI ranks then
+        ended 6 × 10⁻⁶ apart from the serial run, against 10⁻¹¹ when it only takes away).
+        ``viscosity_law``:
         (c2, c1, on)."""
         q_quadratic, q_linear, artificial = viscosity_law
         if not artificial:

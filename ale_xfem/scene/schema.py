@@ -307,7 +307,7 @@ def validate(data: dict, source: str = "") -> Scene:
     if "interface" in data and len({r.material for r in regions}) < 2:
         raise SceneError("interface", data["interface"], "no table: the regions hold one material, so no cell holds "
                          "two and an interface has nothing to act on (remove [interface])")
-    interface = _validate_interface(data["interface"], dimension) if "interface" in data else None
+    interface = _validate_interface(data["interface"], dimension, mesh.cell_type) if "interface" in data else None
 
     scene = Scene(name, description, dimension, t_end, mesh, materials, regions, boundaries, numerics,
                   interface, resolved=data, source=source)
@@ -587,16 +587,17 @@ ENRICHED_ONLY = ("solver", "predictor", "slip")
 # [interface] keys of the 1D enriched cell's own solver (2D enriched cells are always the
 # assembled system with the predictor/corrector of ale_xfem.mixed.enriched_step_2d)
 ONE_D_ONLY = ("solver", "predictor")
-# [interface] keys of 2D enriched mixed cells, with their defaults
-# (ghost_viscosity: ale_xfem.mixed.enriched_2d.GHOST_VISCOSITY, which the scene may not import)
-TWO_D_DEFAULTS = {"stabilisation": "bubble", "nitsche_penalty": 1.0, "ghost_viscosity": 0.3}
+# [interface] keys of 2D enriched mixed cells, with their defaults (ghost_viscosity's by the
+# mesh's cell type: ale_xfem.mixed.enriched_2d.GHOST_VISCOSITY, which the scene may not import)
+TWO_D_DEFAULTS = {"stabilisation": "bubble", "nitsche_penalty": 1.0,
+                  "ghost_viscosity": {"quadrilateral": 0.3, "triangle": 1.0}}
 # [interface] keys of every 2D scene with an interface, with their defaults: PLIC's normals
 PLIC_DEFAULTS = {"normal": "youngs"}
 
 
-def _validate_interface(table: Any, dimension: int) -> InterfaceSpec:
-    """[interface]; a key that cannot act in the scene is an error naming what would make it
-    act (the resolved scene holds only keys that act)."""
+def _validate_interface(table: Any, dimension: int, cell_type: str) -> InterfaceSpec:
+    """[interface] of a mesh of ``cell_type`` cells; a key that cannot act in the scene is an
+    error naming what would make it act (the resolved scene holds only keys that act)."""
     _keys(table, "interface", (), tuple(INTERFACE_DEFAULTS) + tuple(TWO_D_DEFAULTS) + tuple(PLIC_DEFAULTS)
           + ("petsc_options",))
     model = _choice(table.setdefault("model", INTERFACE_DEFAULTS["model"]), "interface.model",
@@ -630,7 +631,7 @@ def _validate_interface(table: Any, dimension: int) -> InterfaceSpec:
                              "(remove it, or set interface.stabilisation = 'nitsche')")
         if stabilisation == "nitsche":
             table.setdefault("nitsche_penalty", TWO_D_DEFAULTS["nitsche_penalty"])
-        table.setdefault("ghost_viscosity", TWO_D_DEFAULTS["ghost_viscosity"])
+        table.setdefault("ghost_viscosity", TWO_D_DEFAULTS["ghost_viscosity"][cell_type])
     for key, default in INTERFACE_DEFAULTS.items():
         if (key not in ENRICHED_ONLY or model == "enriched") and not (enriched_2d and key in ONE_D_ONLY):
             table.setdefault(key, default)
