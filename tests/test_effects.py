@@ -11,6 +11,7 @@ import pytest
 from ale_xfem.problem import build_problem
 from ale_xfem.run import simulate
 from ale_xfem.scene import SceneError, load_scene, resolve_scene_path
+from ale_xfem.scene.effects import scene_effects
 
 STATE_ARRAYS = ("node_position", "node_velocity", "material_mass", "material_energy", "material_volume",
                 "material_density", "material_pressure", "material_sound_speed")
@@ -187,3 +188,14 @@ def test_explain_prints_the_effects_and_their_keys_and_runs_nothing(tmp_path):
         assert key in line
     assert "transverse_velocity" in off and "mixed_cells_single_velocity" in off
     assert not Path(out).exists()
+
+
+def test_explain_gives_the_ghost_viscosity_that_holds_2d_enriched_cells():
+    """The 2D enriched cells' stabilisation says which weight holds each material's
+    velocity beyond its part: its default by cell type (0.3 on quadrilaterals, 1 on
+    triangles), or the scene's."""
+    for overrides, weight in ((["mesh.cell_type=quadrilateral"], "0.3"), (["mesh.cell_type=triangle"], "1"),
+                              (["interface.ghost_viscosity=2.5"], "2.5")):
+        scene = load_scene(resolve_scene_path("slip-line"), ["mesh.cells=[8,8]", *overrides])
+        line = next(e.why for e in scene_effects(scene, 10, []) if e.name == "interface_stabilisation_bubble")
+        assert line.endswith(f"held by interface.ghost_viscosity = {weight})"), line

@@ -96,7 +96,9 @@ def scene_effects(scene, n_mixed_cells: int, pistons: list[str]) -> list[Effect]
             effects.append(Effect(
                 f"interface_stabilisation_{stabilisation}", enriched_2d and interface.stabilisation == stabilisation,
                 f"interface.stabilisation = \"{interface.stabilisation}\"" + (
-                    " (the implicit interface system: UFL forms compiled once per run, PETSc)"
+                    " (the implicit interface system: UFL forms compiled once per run, PETSc; each "
+                    f"material's velocity over the other's part held by interface.ghost_viscosity = "
+                    f"{interface.ghost_viscosity:g})"
                     if interface.stabilisation == stabilisation else "") if enriched_2d
                 else "needs enriched mixed cells in 2D"))
         for slip in ("free", "stick"):
