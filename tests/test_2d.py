@@ -11,6 +11,7 @@ import pytest
 
 from ale_xfem.geometry import shapes
 from ale_xfem.cli import main
+from ale_xfem.mixed.enriched_2d import GHOST_VISCOSITY
 from ale_xfem.model.mesh import from_dolfinx, rectangle_mesh, saltzman_mesh
 from ale_xfem.problem import build_problem
 from ale_xfem.run import make_stepper, simulate
@@ -1443,6 +1444,16 @@ pressure = 1.0
     assert abs(result.conservation["total_energy"]) < 1e-13 and result.conservation["momentum"] < 1e-13
     with pytest.raises(SceneError, match="mesh.file"):
         build_problem(load_scene(scene, ["mesh.file=missing.xdmf"]))
+    # the cells are the file's: written into the resolved scene (no hourglass control on
+    # triangles); a mesh.cell_type that is not the file's is a one-line error
+    assert problem.scene.mesh.cell_type == "triangle" == problem.scene.resolved["mesh"]["cell_type"]
+    assert "hourglass_control" not in problem.effects
+    with pytest.raises(SceneError) as error:
+        load_scene(scene, ["mesh.cell_type=quadrilateral"])
+    assert error.value.key == "mesh.cell_type" and "'triangle', the cells of mesh.xdmf" in str(error.value)
+    # and 2D enriched cells on it take the triangles' ghost viscosity
+    enriched = load_scene(scene, ["interface.model=enriched"])
+    assert enriched.interface.ghost_viscosity == GHOST_VISCOSITY["triangle"]
 
 
 @pytest.mark.parametrize("scene, overrides", [

@@ -72,9 +72,10 @@ BAND_RINGS = 2
 # TWO_D_DEFAULTS, which a test holds equal to it).  Both materials at 0.1 on the cell's whole
 # mass instead took the water-air case of the stability suite (air drawn to near vacuum
 # where Γ meets the wall) from 108 steps to a breakdown after 1132.  At 0.2 and 0.1 other
-# cases lose accuracy or robustness; at 1.0 the sheared tube's errors converge faster and
-# the spinning disk's rim keeps more, but a sliding block is dragged more and a slip line
-# on a Lagrangian mesh loses (docs/design.md §4, "The extension of each material's velocity").
+# cases lose accuracy or robustness; on quadrilaterals at 1.0 the sheared tube's errors
+# converge faster and the spinning disk's rim keeps more, but a sliding block is dragged
+# more and a slip line on a Lagrangian mesh loses (docs/design.md §4, "The extension of
+# each material's velocity").
 # On crossed triangles the extension's noise along Γ is stronger: at 1.0 there the sheared
 # tube's errors converge faster and the spinning disk hands its fluid less, and a block
 # still slides more freely than with one velocity field, which at 2.0 it does not; so the

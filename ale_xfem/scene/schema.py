@@ -9,10 +9,12 @@ Every problem is reported as one line naming the key, the value and what is allo
 from __future__ import annotations
 
 import copy
+import dataclasses
 import difflib
 import math
 import re
 import tomllib
+import xml.etree.ElementTree as ElementTree
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -297,7 +299,10 @@ def validate(data: dict, source: str = "") -> Scene:
         raise SceneError("dimension", dimension, "1 or 2")
     t_end = _real(data["t_end"], "t_end", lambda v: v > 0, "a real number > 0")
 
+    cell_type_given = isinstance(data["mesh"], dict) and "cell_type" in data["mesh"]
     mesh = _validate_mesh(data["mesh"]) if dimension == 1 else _validate_mesh_2d(data["mesh"])
+    if dimension == 2 and mesh.kind == "file":
+        mesh = _cells_of_the_file(mesh, data["mesh"], source, cell_type_given)
     materials = _validate_materials(data["materials"])
     regions = _validate_regions(data["regions"], materials, mesh, dimension)
     boundaries = _validate_boundaries(data.setdefault("boundaries", {}), dimension)
@@ -593,6 +598,34 @@ TWO_D_DEFAULTS = {"stabilisation": "bubble", "nitsche_penalty": 1.0,
                   "ghost_viscosity": {"quadrilateral": 0.3, "triangle": 1.0}}
 # [interface] keys of every 2D scene with an interface, with their defaults: PLIC's normals
 PLIC_DEFAULTS = {"normal": "youngs"}
+
+
+# XDMF's topology types of the 2D cells a file mesh may hold
+XDMF_CELL_TYPES = {"triangle": "triangle", "quadrilateral": "quadrilateral"}
+
+
+def _cells_of_the_file(mesh: MeshSpec, table: dict, source: str, given: bool) -> MeshSpec:
+    """A file mesh's cell type is its file's (the topology type of the XDMF file, read here
+    so that what depends on it — hourglass control, the 2D enriched cells' ghost viscosity —
+    is resolved at load): written into the resolved scene; a ``mesh.cell_type`` the scene
+    gives that is not the file's is an error.  A file that cannot be read is left to the
+    mesh's reading, which names it."""
+    path = Path(mesh.file)
+    if not path.is_absolute() and source:
+        path = Path(source).parent / path
+    try:
+        root = ElementTree.parse(path).getroot()
+    except (OSError, ElementTree.ParseError):
+        return mesh
+    topology = next((e for e in root.iter() if e.tag.rsplit("}", 1)[-1] == "Topology"), None)
+    found = XDMF_CELL_TYPES.get(str(topology.get("TopologyType", "")).lower()) if topology is not None else None
+    if found is None or found == mesh.cell_type:
+        return mesh
+    if given:
+        raise SceneError("mesh.cell_type", mesh.cell_type, f"'{found}', the cells of {mesh.file} (or leave it out: a "
+                         "file mesh's cells are its file's)")
+    table["cell_type"] = found
+    return dataclasses.replace(mesh, cell_type=found)
 
 
 def _validate_interface(table: Any, dimension: int, cell_type: str) -> InterfaceSpec:
