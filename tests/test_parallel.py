@@ -247,7 +247,7 @@ def _round_off_apart(serial, serial_out, parallel, parallel_out, ranks):
                             "t_end=0.05"], 3),
     ("spinning-disk", ["interface.model=enriched", "interface.stabilisation=nitsche", "t_end=0.2"], 2),
     ("shock-disk", ["mesh.cells=[48,24]", "t_end=0.05", "interface.model=enriched"], 3),
-    ("sod-two-gamma-enriched", ["mesh.cells=200", "interface.predictor=assembled"], 3),
+    ("sod-two-gamma-enriched", ["mesh.cells=200", "interface.predictor=assembled", "t_end=0.05"], 3),
 ], ids=["sliding-block-bubbles-2", "sheared-tube-bubbles-triangles-3", "spinning-disk-nitsche-2",
         "shock-disk-a-rank-without-mixed-cells-3", "1d-assembled-predictor-3"])
 def test_2d_enriched_cells_whose_system_is_shared_out_are_the_serial_ones_to_round_off(tmp_path, name, overrides,
