@@ -9,13 +9,12 @@ Every problem is reported as one line naming the key, the value and what is allo
 from __future__ import annotations
 
 import copy
-import dataclasses
 import difflib
 import math
 import re
 import tomllib
 import xml.etree.ElementTree as ElementTree
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -600,10 +599,6 @@ TWO_D_DEFAULTS = {"stabilisation": "bubble", "nitsche_penalty": 1.0,
 PLIC_DEFAULTS = {"normal": "youngs"}
 
 
-# XDMF's topology types of the 2D cells a file mesh may hold
-XDMF_CELL_TYPES = {"triangle": "triangle", "quadrilateral": "quadrilateral"}
-
-
 def _cells_of_the_file(mesh: MeshSpec, table: dict, source: str, given: bool) -> MeshSpec:
     """A file mesh's cell type is its file's (the topology type of the XDMF file, read here
     so that what depends on it — hourglass control, the 2D enriched cells' ghost viscosity —
@@ -618,14 +613,14 @@ def _cells_of_the_file(mesh: MeshSpec, table: dict, source: str, given: bool) ->
     except (OSError, ElementTree.ParseError):
         return mesh
     topology = next((e for e in root.iter() if e.tag.rsplit("}", 1)[-1] == "Topology"), None)
-    found = XDMF_CELL_TYPES.get(str(topology.get("TopologyType", "")).lower()) if topology is not None else None
-    if found is None or found == mesh.cell_type:
+    found = "" if topology is None else str(topology.get("TopologyType", "")).lower()  # (XDMF: "Triangle", ...)
+    if found not in CELL_TYPES_2D or found == mesh.cell_type:
         return mesh
     if given:
         raise SceneError("mesh.cell_type", mesh.cell_type, f"'{found}', the cells of {mesh.file} (or leave it out: a "
                          "file mesh's cells are its file's)")
     table["cell_type"] = found
-    return dataclasses.replace(mesh, cell_type=found)
+    return replace(mesh, cell_type=found)
 
 
 def _validate_interface(table: Any, dimension: int, cell_type: str) -> InterfaceSpec:
