@@ -9,7 +9,6 @@ the error against the exact solution.
 from __future__ import annotations
 
 import sys
-import time
 from dataclasses import dataclass, field
 from functools import partial
 
@@ -17,7 +16,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from ale_xfem.lagrange.breakdown import Breakdown
-from ale_xfem.lagrange.compile_clock import compile_seconds
+from ale_xfem.lagrange.compile_clock import compile_seconds, own_clock
 from ale_xfem.lagrange.memory import keep_freed_memory
 from ale_xfem.lagrange.wilkins import ExplicitWilkins
 from ale_xfem.mixed.closures import Closures
@@ -197,7 +196,7 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
     compiled_steps = (compiled_chunks and remapper is None and stepper.compiles_steps()
                       and not (observe_each and stepper.closure is None))
     chunk = max(1, min(1000, 2_000_000 // problem.mesh.n_cells))  # about 0.1 s between progress updates
-    clock, compiling = time.perf_counter(), compile_seconds()
+    clock, compiling = own_clock(), compile_seconds()
     if problem.setup_failure:
         status, diagnostic = "failed", f"step 0, t = 0: {problem.setup_failure}"
     if observe is not None:
@@ -248,12 +247,12 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
             halved_steps += int(round(np.log2(dt / taken)))
             dt = taken
             if remapper is not None:
-                remap_clock, remap_compiling = time.perf_counter(), compile_seconds()
+                remap_clock = own_clock()
                 new_state, evaluation, impulse, kinetic_change = _remap(
                     problem, stepper, remapper, new_state, evaluation, impulse, distribution)
                 work += remapper.wall_work
                 remap_energy_change += kinetic_change
-                remap_seconds += time.perf_counter() - remap_clock - (compile_seconds() - remap_compiling)
+                remap_seconds += own_clock() - remap_clock
             state = new_state
         except (Breakdown, RemapFailure) as failure:
             status = "failed"
@@ -269,7 +268,7 @@ def simulate(problem: Problem, progress: Progress | None = None, t_end: float | 
         if progress is not None:
             progress.update(state.time, steps)
     compiled = compile_seconds() - compiling  # (no part of the run's own time: compile_clock)
-    wall = time.perf_counter() - clock - compiled
+    wall = own_clock() - clock
     if distribution is not None:
         state = distribution.gathered(state)
         distribution.gather_problem()  # the layout, masses and mixed cells a remap left
