@@ -4,7 +4,6 @@ conditions, the exact solution when the scene has one, and the list of active ef
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
-from pathlib import Path
 
 import numpy as np
 
@@ -18,7 +17,7 @@ from ale_xfem.model.mesh import MeshArrays, file_mesh, interval_mesh, rectangle_
 from ale_xfem.model.mixed_cells import MixedCells, material_names, with_mixed_state
 from ale_xfem.model.state import Material, MaterialLayout, State, density_of, ranked_materials, thermodynamics
 from ale_xfem.scene.effects import Effect, active, scene_effects
-from ale_xfem.scene.schema import Scene, SceneError
+from ale_xfem.scene.schema import Scene, SceneError, mesh_file_path
 
 
 @dataclass
@@ -234,9 +233,7 @@ def mesh_2d(scene: Scene) -> MeshArrays:
     if spec.kind == "saltzman":
         return saltzman_mesh(spec.extent, spec.cells, spec.cell_type)
     if spec.kind == "file":
-        path = Path(spec.file)
-        if not path.is_absolute() and scene.source:
-            path = Path(scene.source).parent / path
+        path = mesh_file_path(spec.file, scene.source)
         if not path.exists():
             raise SceneError("mesh.file", spec.file, f"an existing XDMF file (looked for {path})")
         try:

@@ -599,17 +599,21 @@ TWO_D_DEFAULTS = {"stabilisation": "bubble", "nitsche_penalty": 1.0,
 PLIC_DEFAULTS = {"normal": "youngs"}
 
 
+def mesh_file_path(file: str, source: str) -> Path:
+    """Where ``mesh.file`` is: as given when absolute, else beside the scene file
+    ``source`` (or in the working folder, for a scene with no file)."""
+    path = Path(file)
+    return Path(source).parent / path if not path.is_absolute() and source else path
+
+
 def _cells_of_the_file(mesh: MeshSpec, table: dict, source: str, given: bool) -> MeshSpec:
     """A file mesh's cell type is its file's (the topology type of the XDMF file, read here
     so that what depends on it — hourglass control, the 2D enriched cells' ghost viscosity —
     is resolved at load): written into the resolved scene; a ``mesh.cell_type`` the scene
     gives that is not the file's is an error.  A file that cannot be read is left to the
     mesh's reading, which names it."""
-    path = Path(mesh.file)
-    if not path.is_absolute() and source:
-        path = Path(source).parent / path
     try:
-        root = ElementTree.parse(path).getroot()
+        root = ElementTree.parse(mesh_file_path(mesh.file, source)).getroot()
     except (OSError, ElementTree.ParseError):
         return mesh
     topology = next((e for e in root.iter() if e.tag.rsplit("}", 1)[-1] == "Topology"), None)
