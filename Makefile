@@ -14,7 +14,7 @@ find_python = $(shell \
 
 .PHONY: demo test bench bench-peers clean
 
-$(STAMP): pyproject.toml
+$(STAMP): pyproject.toml constraints.txt
 	@if [ ! -x $(PY) ]; then \
 	  base="$(find_python)"; \
 	  if [ -z "$$base" ]; then \
@@ -25,7 +25,7 @@ $(STAMP): pyproject.toml
 	  "$$base" -m venv $(VENV) || exit 1; \
 	fi
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e '.[test]'
+	$(PY) -m pip install --quiet -c constraints.txt -e '.[test]'
 	@touch $(STAMP)
 
 demo: $(STAMP)
