@@ -1,5 +1,5 @@
 """Compiled cell geometry: volumes, the shape each cell type's corner forces need, CFL
-lengths and the tangle check.
+lengths and the tangle check; and each slot's density, m / V.
 
 The cell types share one convention (``shape``, (3, 2, n_cells)):
 
@@ -35,6 +35,8 @@ the same to the bit (tests/test_regression.py compares the shipped scenes byte b
 
 from __future__ import annotations
 
+import math
+
 import numba
 import numpy as np
 
@@ -42,6 +44,26 @@ from ale_xfem.eos.kernels import BODY, LOOP
 
 INTERVAL, TRIANGLE, QUADRILATERAL = 0, 1, 2
 CELL_TYPE_CODES = {"interval": INTERVAL, "triangle": TRIANGLE, "quadrilateral": QUADRILATERAL}
+
+
+@numba.njit(**LOOP)
+def slot_densities(mass, volume, density):  # pragma: no cover (compiled)
+    """ρ = m / V of each slot of (S, n_cells) arrays, 0 where V is not positive (an empty
+    slot, or NaN)."""
+    for slot in range(mass.shape[0]):
+        for cell in range(mass.shape[1]):
+            v = volume[slot, cell]
+            density[slot, cell] = mass[slot, cell] / v if v > 0.0 else 0.0
+
+
+@numba.njit(**LOOP)
+def finite_where_occupied(values, mass):  # pragma: no cover (compiled)
+    """Whether every entry of (S, n_cells) ``values`` whose slot holds mass is finite."""
+    finite = True
+    for slot in range(mass.shape[0]):
+        for cell in range(mass.shape[1]):
+            finite &= (mass[slot, cell] <= 0.0) | math.isfinite(values[slot, cell])
+    return finite
 
 
 @numba.njit(**LOOP)

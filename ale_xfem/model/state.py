@@ -28,6 +28,7 @@ import numpy as np
 
 from ale_xfem.eos import kernel_tables
 from ale_xfem.eos.kernels import fill_pressure_sound_speed
+from ale_xfem.model.cell_kernels import slot_densities
 
 
 @dataclass(frozen=True)
@@ -185,13 +186,7 @@ class TwoSlotArrays:
 def density_of(mass, volume):
     """ρ = m / V per slot, 0 in empty slots (V = 0)."""
     density = np.empty_like(mass)
-    for m, v, rho in zip(mass, volume, density):  # slot by slot
-        if v.min() > 0.0:  # every cell holds this slot: one division
-            np.divide(m, v, out=rho)
-        else:  # a sparse slot (the mixed cells' second materials)
-            rho.fill(0.0)
-            filled = np.flatnonzero(v > 0.0)
-            rho[filled] = m[filled] / v[filled]
+    slot_densities(mass, volume, density)
     return density
 
 

@@ -101,24 +101,9 @@ def deposit_kinetic_loss(loss, corner_mass, node_mass, left_node, right_node, ce
             material_energy[occupied] *= made_kinetic_energy_factor(total, internal)
             return material_energy
         loss = losses_only(loss) if total > 0.0 else np.zeros_like(loss)
-    if node_mass.min() > 0:  # every node keeps mass (always in the swept form)
-        per_mass = loss / node_mass
-    else:
-        per_mass = np.zeros_like(loss)
-        np.divide(loss, node_mass, out=per_mass, where=node_mass > 0)
-    if in_order:
-        left, right = per_mass[:-1] * corner_mass[0], per_mass[1:] * corner_mass[1]
-    else:
-        left, right = per_mass[left_node] * corner_mass[0], per_mass[right_node] * corner_mass[1]
-    heat = left
-    heat += right  # slot 0 of every cell; moved to slot 1 below where a mixed cell holds it
-    if mixed_cells.size:
-        c = mixed_cells
-        to_second = right[c] if condensed else heat[c] * material_mass[1, c] / (material_mass[0, c] + material_mass[1, c])
-        heat[c] -= to_second
-        material_energy[1, c] += to_second / material_mass[1, c]
-    heat /= material_mass[0]
-    material_energy[0] += heat
+    swept_kernels.deposit_losses(np.ascontiguousarray(loss, dtype=float), corner_mass, node_mass, left_node,
+                                 right_node, in_order, np.asarray(mixed_cells, dtype=np.int64), condensed,
+                                 material_mass, material_energy)
     return material_energy
 
 

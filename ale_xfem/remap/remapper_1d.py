@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ale_xfem.model.cell_kernels import finite_where_occupied
 from ale_xfem.model.mixed_cells import MixedCells
 from ale_xfem.model.state import density_of, thermodynamics
 from ale_xfem.remap.intersection_1d import remap_1d
@@ -228,7 +229,7 @@ class Remapper:
         condensed = mixed is None or mixed.model == "enriched"
         result = self._remap_1d(arguments, condensed, self.heat)
         new_layout, density, pressure, sound_speed = self._thermodynamics(layout, result)
-        if self.heat and not np.all(np.isfinite(sound_speed[result.material_mass > 0])):
+        if self.heat and not finite_where_occupied(sound_speed, result.material_mass):
             # The kinetic energy a node gained, taken from the cells around it, left a
             # material outside its equation of state's domain (cold air beside water at
             # 1e9 Pa): the remap is done again with only the losses deposited.

@@ -143,15 +143,10 @@ def remap_1d_swept(order_of_cells, cell_left_node, cell_right_node, node_positio
         new_volume = (X[1:] - X[:-1])[None, :]
     if np.any(node_mass <= 0):
         return _too_far("a node lost all its mass")
-    left_corner = corner_new[0]
-    left_corner[...] = node_mass[:-1]
-    left_corner[1:] -= right_corner[:-1]
     specific = new_energy / new_mass[:1] if slots == 1 else _specific(new_energy, new_mass, taken_cells)
-    velocity = momentum / node_mass
-    kinetic_new = component_dot(momentum, velocity)
-    kinetic_new *= 0.5
+    velocity, kinetic_new, loss = swept_kernels.node_velocities_and_losses(
+        node_mass, momentum, right_corner, corner_new[0], kinetic if heat else node_mass, bool(heat))
     kinetic_change = float(np.sum(kinetic_new)) - kinetic_before
-    loss = kinetic - kinetic_new if heat else None
 
     # -- back to cell (node) order ------------------------------------------------------
     if in_order:

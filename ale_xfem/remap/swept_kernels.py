@@ -285,3 +285,64 @@ def pure_cells(x, X, mass, specific_energy, corner, u, order, slots, heat):  # p
         corner_new[1, j] = right - (scale_left[j + 1] if d[j] > 0.0 else scale_right[j]) * flux_mass[j]
     corner_new[1, n - 1] = corner[1, n - 1] + swept[n - 1]
     return new_mass, new_energy, corner_new, node_mass, momentum, kinetic_start, kinetic, far[:far_count]
+
+
+@numba.njit(**KERNEL)
+def node_velocities_and_losses(node_mass, momentum, right_corner, left_corner, kinetic, heat):  # pragma: no cover (compiled)
+    """The end of the swept remap over the sorted nodes: each cell's left corner mass (its
+    left node's new mass less what the cell before lumps on it), each node's velocity
+    p / M, ½ p·u, and (``heat``) its kinetic-energy loss, what it held less ½ p·u.  Returns
+    (velocity, ½ p·u, loss or an empty array)."""
+    components, nodes = momentum.shape
+    left_corner[0] = node_mass[0]
+    for j in range(1, nodes - 1):
+        left_corner[j] = node_mass[j] - right_corner[j - 1]
+    velocity = np.empty((components, nodes))
+    for c in range(components):
+        for k in range(nodes):
+            velocity[c, k] = momentum[c, k] / node_mass[k]
+    kinetic_new = np.empty(nodes)
+    for k in range(nodes):
+        kinetic_new[k] = momentum[0, k] * velocity[0, k]
+    for c in range(1, components):
+        for k in range(nodes):
+            kinetic_new[k] += momentum[c, k] * velocity[c, k]
+    for k in range(nodes):
+        kinetic_new[k] *= 0.5
+    loss = np.empty(nodes if heat else 0)
+    if heat:
+        for k in range(nodes):
+            loss[k] = kinetic[k] - kinetic_new[k]
+    return velocity, kinetic_new, loss
+
+
+@numba.njit(**KERNEL)
+def deposit_losses(loss, corner_mass, node_mass, left_node, right_node, in_order, mixed_cells, condensed,
+                   material_mass, material_energy):  # pragma: no cover (compiled)
+    """pieces_1d.deposit_kinetic_loss with every loss deposited (its docstring gives the
+    rule), in place on ``material_energy`` (specific): each node's loss per unit of its
+    mass, times each corner mass lumped on it, heats that corner's cell; in a mixed cell the
+    right corner's share goes to slot 1 (``condensed``) or the cell's heat is shared by
+    mass."""
+    nodes, cells = loss.size, corner_mass.shape[1]
+    per_mass = np.empty(nodes)
+    for k in range(nodes):  # nodes without mass take nothing
+        per_mass[k] = loss[k] / node_mass[k] if node_mass[k] > 0.0 else 0.0
+    heat, right = np.empty(cells), np.empty(cells)
+    if in_order:
+        for j in range(cells):
+            right[j] = per_mass[j + 1] * corner_mass[1, j]
+            heat[j] = per_mass[j] * corner_mass[0, j] + right[j]
+    else:
+        for j in range(cells):
+            right[j] = per_mass[right_node[j]] * corner_mass[1, j]
+            heat[j] = per_mass[left_node[j]] * corner_mass[0, j] + right[j]
+    for c in mixed_cells:
+        if condensed:
+            to_second = right[c]
+        else:
+            to_second = heat[c] * material_mass[1, c] / (material_mass[0, c] + material_mass[1, c])
+        heat[c] -= to_second
+        material_energy[1, c] += to_second / material_mass[1, c]
+    for j in range(cells):
+        material_energy[0, j] += heat[j] / material_mass[0, j]
