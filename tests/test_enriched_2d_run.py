@@ -408,8 +408,8 @@ def test_the_sheared_tube_keeps_its_slip_line_sharper_than_one_velocity_field():
 
 # The sheared tube's convergence: three resolutions per cell type (fitted over triangles 20²
 # to 160² the enriched cells' rates are the same within 0.04; on quadrilaterals u_n and u_t
-# slow down at 320², local rates 160² → 320² 0.65 and 0.61, one velocity field's u_n 0.76:
-# docs/design.md §4, "Convergence on the sheared tube").
+# slow down at 320²: docs/design.md §4, "Convergence on the sheared tube", gives the local
+# rates).
 RATE_SIDES = {"quadrilateral": (40, 80, 160), "triangle": (30, 60, 120)}
 
 
