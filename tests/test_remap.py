@@ -434,6 +434,67 @@ def test_the_compiled_swept_kernel_finds_the_numpy_kernels_far_nodes_at_the_edge
         pure_cells(np.zeros(1), np.zeros(1), np.zeros(0), np.zeros(0), np.zeros((2, 0)), np.zeros((1, 1)), 2, 1, True)
 
 
+def _window_inputs(rng, n, components, case):
+    """A window of n sorted cells for the nodal momentum of the swept remap: interfaces
+    inside every third cell or so (two at most, the materials alternating), slivers of 10⁻⁶
+    of a cell (``sliver``), nodes moving by up to 0.3 cell, up to 1.1 cells (``far``: faces
+    and corners beyond the parts around them), or not at all (``still``)."""
+    width = rng.uniform(0.5, 1.5, n)
+    x = np.concatenate([[0.0], np.cumsum(width)])
+    xl, xr = x[:-1], x[1:]
+    candidates = np.arange(1, n - 1, 3)
+    mixed_j = np.sort(rng.choice(candidates, size=min(2, candidates.size), replace=False)).astype(np.int64)
+    fraction = np.full(mixed_j.size, 1e-6) if case == "sliver" else rng.uniform(0.05, 0.95, mixed_j.size)
+    gamma = xl[mixed_j] + fraction * width[mixed_j]
+    reach = {"small": 0.3, "far": 1.1, "sliver": 0.3, "still": 0.0}[case]
+    beside = np.minimum(np.append(width, width[-1]), np.insert(width, 0, width[0]))
+    X = np.sort(x + rng.uniform(-reach, reach, n + 1) * beside)
+    new_gamma = X[:-1] + rng.uniform(0.05, 0.95, n) * (X[1:] - X[:-1])
+    m0, m1 = np.zeros(n, dtype=np.int64), np.empty(mixed_j.size, dtype=np.int64)
+    for k, j in enumerate(mixed_j):  # material k % 2 up to Γ_k, then the other
+        m0[j + 1:], m1[k] = (k + 1) % 2, (k + 1) % 2
+    hi0 = xr.copy()
+    hi0[mixed_j] = gamma
+    slot0 = rng.uniform(0.5, 2.0, n), rng.normal(0.0, 0.3, n), 0.5 * (xl + hi0)
+    slot1 = rng.uniform(0.5, 2.0, mixed_j.size), rng.normal(0.0, 0.3, mixed_j.size), 0.5 * (gamma + xr[mixed_j])
+    return (n, x, X, xl, xr, mixed_j, gamma, mixed_j.copy(), new_gamma, *slot0, *slot1,
+            rng.uniform(0.2, 0.8, (2, n)), rng.normal(0.0, 1.0, (components, n + 1))), m0, m1
+
+
+def test_the_compiled_window_momentum_gives_the_numpy_bits():
+    """The nodal momentum of the swept remap's windows (compiled:
+    swept_kernels.window_momentum) against the numpy code it replaced (tests/oracles.py):
+    the same bits (signs of zeros included) in every output, or out of the swept form's
+    reach both, on windows of 4 to 20 cells with interfaces and slivers, nodes moving up to
+    1.1 cells, both orders, one and two velocity components, each end of the window inside
+    the mesh or not."""
+    from oracles import window_momentum as numpy_window_momentum
+
+    from ale_xfem.remap.swept_1d import _momentum
+
+    rng = np.random.default_rng(5)
+    outcomes = {}
+    for trial in range(120):
+        case = ("small", "far", "sliver", "still")[trial % 4]
+        arguments, m0, m1 = _window_inputs(rng, int(rng.choice([4, 7, 12, 20])), 1 + trial % 2, case)
+        n, x, X, xl, xr, mixed_j, gamma, new_mixed_j, new_gamma = arguments[:9]
+        far = np.any(np.abs(X - x)[1:-1] > 0.5 * np.minimum(xr - xl, np.roll(xr - xl, -1))[:-1])  # beyond half a cell
+        velocity = rng.normal(0.0, 1.0, mixed_j.size)
+        for order in (1, 2):
+            for cut in ((False, False), (True, True), (True, False), (False, True)):
+                every = (*arguments, order, velocity, m0, m1, cut)
+                with np.errstate(all="ignore"):
+                    expected, got = numpy_window_momentum(*every), _momentum(*every)
+                label = f"trial {trial}, {case}, order {order}, cut {cut}"
+                assert (got is None) == (expected is None), label
+                outcomes[case, expected is None, bool(far)] = outcomes.get((case, expected is None, bool(far)), 0) + 1
+                for name, a, b in zip(("node mass", "momentum", "corners", "kinetic"), expected or (), got or ()):
+                    np.testing.assert_array_equal(np.ascontiguousarray(b).view(np.uint64),
+                                                  np.ascontiguousarray(a).view(np.uint64), err_msg=f"{name}, {label}")
+    # both ways out of the swept form's reach were met, and windows with far nodes it covers
+    assert outcomes.get(("far", True, True), 0) > 0 and outcomes.get(("far", False, True), 0) > 0, outcomes
+
+
 @pytest.mark.parametrize("order", [1, 2])
 def test_the_compiled_piece_slopes_give_the_numpy_slopes_bits(order):
     """The limited slopes both 1D remaps use (compiled) against their numpy original

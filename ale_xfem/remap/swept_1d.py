@@ -32,8 +32,7 @@ import numpy as np
 
 from ale_xfem.remap import swept_kernels
 from ale_xfem.remap.failure import RemapFailure
-from ale_xfem.remap.pieces_1d import (RemapResult, component_dot, deposit_kinetic_loss,
-                                      integrate_linear, lump_kinetic, minmod, piece_slopes)
+from ale_xfem.remap.pieces_1d import RemapResult, deposit_kinetic_loss, integrate_linear, piece_slopes
 
 
 def _clipped_integral(value, slope, centre, lo, hi, a, b):
@@ -409,203 +408,24 @@ def _material_at(position, x, m0, mixed_j, m1, gamma, side):
     return material
 
 
-class _Parts:
-    """The node parts of the old cells, one array per quantity: L_j = [x_j, f_j] (owner:
-    sorted node j) and R_j = [f_j, x_{j+1}] (owner j + 1), f_j the cell's middle or, in an
-    enriched mixed cell, Γ.  Each carries its density piece (value, slope, centre), the
-    factor taking its reconstructed mass to the lumped corner mass, the centroid of that
-    mass, and its owner's velocity and slope.  The L arrays have one more entry, an empty
-    part at the right end of the domain, so that L_{j+1} is a slice for j = 0..n−1."""
-
-    def __init__(self, lo, hi, rho, srho, cen, share, u, tau, pad_at=None):
-        if pad_at is not None:  # the empty part [pad_at, pad_at]
-            lo, hi = np.append(lo, pad_at), np.append(hi, pad_at)
-            rho, srho, cen, share = (np.append(v, 0.0) for v in (rho, srho, cen, share))
-            u, tau = (np.concatenate([v, np.zeros((v.shape[0], 1))], axis=1) for v in (u, tau))
-        self.lo, self.hi, self.rho, self.srho, self.cen, self.u, self.tau = lo, hi, rho, srho, cen, u, tau
-        length = hi - lo
-        mass = length * (rho + srho * (0.5 * (lo + hi) - cen))
-        empty = mass <= 0.0
-        safe = np.where(empty, 1.0, mass)
-        self.scale = np.where(empty, 0.0, share / safe)
-        # centroid of the part's mass: (M·mid + σ L³/12) / M
-        self.centroid = 0.5 * (lo + hi) + srho * length**3 / (12.0 * safe)
-
-    def take(self, index):
-        """The parts at an index array (a few, for the cells where Γ moves far)."""
-        part = object.__new__(_Parts)
-        for name in ("lo", "hi", "rho", "srho", "cen", "scale", "centroid"):
-            setattr(part, name, getattr(self, name)[index])
-        part.u, part.tau = self.u[:, index], self.tau[:, index]
-        return part
-
-    def window(self, first, count):
-        """Parts first .. first + count − 1 as views."""
-        part = object.__new__(_Parts)
-        for name in ("lo", "hi", "rho", "srho", "cen", "scale", "centroid"):
-            setattr(part, name, getattr(self, name)[first:first + count])
-        part.u, part.tau = self.u[:, first:first + count], self.tau[:, first:first + count]
-        return part
-
-
-def _overlap(part, a, b):
-    """Length and middle of [a, b] ∩ part (length 0 where they do not meet)."""
-    start = np.maximum(a, part.lo)
-    length = np.minimum(b, part.hi)
-    length -= start
-    np.maximum(length, 0.0, out=length)
-    mid = 0.5 * length
-    mid += start
-    return length, mid
-
-
-def _overlap_mass(part, a, b):
-    """Lumped mass of the parts over [a, b] ∩ part (zero where they do not meet)."""
-    length, mass = _overlap(part, a, b)
-    mass -= part.cen
-    mass *= part.srho
-    mass += part.rho
-    mass *= length
-    mass *= part.scale
-    return mass
-
-
-def _overlap_mass_momentum(part, a, b):
-    """Lumped mass and momentum of the parts over [a, b] ∩ part.  The velocity is linear
-    on a part, u + τ (x − x̄), so ∫ρu = M (u + τ (x_M − x̄)) with x_M the centre of mass of
-    the overlap: M x_M = M·mid + σ L³/12 (exactly the general intersection's integral)."""
-    length, mid = _overlap(part, a, b)
-    mass = mid - part.cen
-    mass *= part.srho
-    mass += part.rho
-    mass *= length  # M (unscaled)
-    offset = length * length
-    offset *= length
-    offset *= part.srho
-    offset *= 1.0 / 12.0  # σ L³/12 = M (x_M − mid)
-    offset += (mid - part.centroid) * mass  # M (x_M − x̄)
-    mass *= part.scale
-    offset *= part.scale
-    momentum = part.tau * offset
-    momentum += part.u * mass
-    return mass, momentum
-
-
 def _momentum(n, x, X, xl, xr, mixed_j, gamma, new_mixed_j, new_gamma, rho0, srho0, centre0,
               rho1, srho1, centre1, corner_sorted, u, order, mixed_velocity, m0, m1_of_mixed, cut):
-    """Nodal momentum and lumped masses through the dual faces (enriched: a mixed cell's
-    face is Γ; a pure cell's its middle).  A face's swept interval lies in its own cell
-    (the parts L_j, R_j) except where Γ moves into a neighbouring cell; those few faces
-    also take the neighbours' parts R_{j−1}, L_{j+1}."""
+    """Nodal momentum and lumped masses through the dual faces (compiled:
+    :func:`ale_xfem.remap.swept_kernels.window_momentum`): (new node masses, momenta, corner
+    masses, kinetic energies), or None when a face or a corner moves beyond the parts the
+    swept form reads."""
     face = 0.5 * (xl + xr)
     face[mixed_j] = gamma
-    new_face = 0.5 * (X[:-1] + X[1:])
-    new_face[new_mixed_j] = new_gamma[new_mixed_j]
-    if order == 2:
-        node_slope = _node_velocity_slopes(u, x, mixed_j, gamma, mixed_velocity, m0, m1_of_mixed)
-    else:
-        node_slope = np.zeros_like(u)
-    left = _Parts(xl, face, rho0, srho0, centre0, corner_sorted[0], u[:, :-1], node_slope[:, :-1],
-                  pad_at=x[-1])
-    r_rho, r_srho, r_cen = rho0.copy(), srho0.copy(), centre0.copy()
-    r_rho[mixed_j], r_srho[mixed_j], r_cen[mixed_j] = rho1, srho1, centre1
-    right = _Parts(face, xr, r_rho, r_srho, r_cen, corner_sorted[1], u[:, 1:], node_slope[:, 1:])
-
-    # Face j: the swept interval between f_j and F_j moves to node j + 1 what lies in node
-    # j's parts (R_{j−1}, L_j) and to node j what lies in node j + 1's (R_j, L_{j+1}).
-    a, b = np.minimum(new_face, face), np.maximum(new_face, face)
-    to_right_mass, to_right_momentum = _overlap_mass_momentum(left.window(0, n), a, b)
-    to_left_mass, to_left_momentum = _overlap_mass_momentum(right, a, b)
-    # kinetic energy handed to the next node (rightward) less that handed back, one lump
-    # per old part (the general intersection's grouping)
-    kinetic_flux = lump_kinetic(to_right_mass, to_right_momentum) - lump_kinetic(to_left_mass, to_left_momentum)
-    far = _inside_cut(np.flatnonzero((a < xl) | (b > xr)), n, cut)
-    if far.size:
-        width = xr[far] - xl[far]
-        before, after = np.maximum(far - 1, 0), far + 1
-        if np.any((far == 0) & (a[far] < xl[far])) or np.any(
-                (a[far] < right.lo[before] - 1e-12 * width) | (b[far] > left.hi[after] + 1e-12 * width)):
-            return _too_far("a dual face moved beyond the parts of its donor node")
-        m, mom = _overlap_mass_momentum(right.take(before), a[far], b[far])
-        m[far == 0], mom[:, far == 0] = 0.0, 0.0
-        to_right_mass[far] += m
-        to_right_momentum[:, far] += mom
-        kinetic_flux[far] += lump_kinetic(m, mom)
-        m, mom = _overlap_mass_momentum(left.take(after), a[far], b[far])
-        to_left_mass[far] += m
-        to_left_momentum[:, far] += mom
-        kinetic_flux[far] -= lump_kinetic(m, mom)
-    moved_mass = to_right_mass - to_left_mass
-    moved_momentum = to_right_momentum - to_left_momentum
-    old_mass = np.zeros(n + 1)
-    old_mass[:-1] += corner_sorted[0]
-    old_mass[1:] += corner_sorted[1]
-    old_momentum = u * old_mass
-    new_mass = old_mass.copy()
-    new_mass[:-1] -= moved_mass
-    new_mass[1:] += moved_mass
-    new_momentum = old_momentum.copy()
-    new_momentum[:, :-1] -= moved_momentum
-    new_momentum[:, 1:] += moved_momentum
-    inner = new_mass[1 if cut[0] else 0:new_mass.size - 1 if cut[1] else new_mass.size]
-    if np.any(inner <= 0):
-        return _too_far("a node lost all its mass")
-    # New corners: the right corner of new cell j is [F_j, X_{j+1}]; F_j lies in old cell j
-    # (parts L_j, R_j) and X_{j+1} in R_j or L_{j+1}, except where Γ moved into a
-    # neighbouring cell: there the parts R_{j−1} and R_{j+1} are added too.
-    a, b = new_face, X[1:]
-    right_corner = _overlap_mass(left.window(0, n), a, b)
-    right_corner += _overlap_mass(right, a, b)
-    right_corner += _overlap_mass(left.window(1, n), a, b)
-    far = _inside_cut(np.flatnonzero((a < xl) | (b > left.hi[1:])), n, cut)
-    if far.size:
-        before, after = np.maximum(far - 1, 0), np.minimum(far + 1, n - 1)
-        if np.any((a[far] < right.lo[before]) | (b[far] > right.hi[after])):
-            return _too_far("a new corner reaches beyond the parts around its node")
-        extra = _overlap_mass(right.take(before), a[far], b[far])
-        extra[far == 0] = 0.0
-        beyond = _overlap_mass(right.take(after), a[far], b[far])
-        beyond[far == n - 1] = 0.0
-        right_corner[far] += extra + beyond
-    left_corner = new_mass[:-1] - np.concatenate([[0.0], right_corner[:-1]])
-    # ½M u² of each node, less the kinetic energy it handed over, plus what it received
-    kinetic = 0.5 * old_mass * component_dot(u, u)
-    kinetic[:-1] -= kinetic_flux
-    kinetic[1:] += kinetic_flux
-    return new_mass, new_momentum, np.stack([left_corner, right_corner]), kinetic
-
-
-def _inside_cut(index, n, cut):
-    """Drop the first / last cell of a window cut out of a larger mesh: its end node moves
-    and what lies beyond it is not in the window (the caller discards those cells)."""
-    keep = np.ones(index.size, dtype=bool)
-    if cut[0]:
-        keep &= index > 0
-    if cut[1]:
-        keep &= index < n - 1
-    return index[keep]
-
-
-def _node_velocity_slopes(u, x, mixed_j, gamma, mixed_velocity, m0, m1_of_mixed):
-    """Minmod slope of each node's velocity from the cells on either side, within one
-    material (the same slopes as :func:`ale_xfem.remap.intersection_1d._velocity_slopes`).  A mixed cell
-    gives each of its internal nodes the gradient of that material's full field: the line
-    through the node and (x_Γ, u_Γ) for the normal component, none for a transverse one."""
-    gradient_left_part = (u[:, 1:] - u[:, :-1]) / (x[1:] - x[:-1])  # seen from cell j's left node
-    gradient_right_part = gradient_left_part.copy()  # seen from its right node
-    if mixed_j.size:
-        xa, xb = x[mixed_j], x[mixed_j + 1]
-        gradient_left_part[:, mixed_j] = 0.0
-        gradient_right_part[:, mixed_j] = 0.0
-        gradient_left_part[0, mixed_j] = (mixed_velocity - u[0, mixed_j]) / (gamma - xa)
-        gradient_right_part[0, mixed_j] = (mixed_velocity - u[0, mixed_j + 1]) / (gamma - xb)
-    # node k (1..n−1): right part of cell k−1 and left part of cell k
-    material_right_part = m0.copy()
-    material_right_part[mixed_j] = m1_of_mixed
-    same = material_right_part[:-1] == m0[1:]
-    slope = np.zeros((u.shape[0], u.shape[1]))
-    slope[:, 1:-1] = np.where(same, minmod(gradient_right_part[:, :-1], gradient_left_part[:, 1:]), 0.0)
-    return slope
+    # the parts' L³ as numpy's power gives them (the C library's pow differs in the last bit)
+    left_cube = (np.append(face, x[-1]) - np.append(xl, x[-1])) ** 3
+    right_cube = (xr - face) ** 3
+    status, node_mass, momentum, corners, kinetic = swept_kernels.window_momentum(
+        x, X, mixed_j, gamma, new_mixed_j, new_gamma, rho0, srho0, centre0, rho1, srho1, centre1,
+        np.ascontiguousarray(corner_sorted), np.ascontiguousarray(u), order, mixed_velocity, m0,
+        m1_of_mixed, bool(cut[0]), bool(cut[1]), left_cube, right_cube)
+    if status:
+        return _too_far(swept_kernels.WINDOW_FAILURES[status - 1])
+    return node_mass, momentum, corners, kinetic
 
 
 def _too_far(reason: str):

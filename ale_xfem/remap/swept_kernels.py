@@ -346,3 +346,255 @@ def deposit_losses(loss, corner_mass, node_mass, left_node, right_node, in_order
         material_energy[1, c] += to_second / material_mass[1, c]
     for j in range(cells):
         material_energy[0, j] += heat[j] / material_mass[0, j]
+
+
+# -- the nodal momentum of a window (swept_1d._swept_sorted) ------------------------------
+# A window's node parts (swept_1d's module docstring): L_j = [x_j, f_j], owned by node j,
+# and R_j = [f_j, x_{j+1}], owned by node j + 1, f_j the cell's middle or Γ.  Rows of a
+# (PARTS, count) array, and each owner's velocity and slope (components, count).
+LO, HI, RHO, SLOPE, CENTRE, SCALE, CENTROID, PARTS = 0, 1, 2, 3, 4, 5, 6, 7
+# why a window's nodal momentum is out of the swept form's reach (the caller then takes the
+# general intersection): WINDOW_FAILURES[status − 1]
+WINDOW_FAILURES = ("a dual face moved beyond the parts of its donor node", "a node lost all its mass",
+                   "a new corner reaches beyond the parts around its node")
+
+
+@numba.njit(**KERNEL)
+def node_parts(parts, lo, hi, rho, srho, centre, share, cube):  # pragma: no cover (compiled)
+    """Fill the rows of ``parts`` (PARTS, count): each part's interval, density piece,
+    the factor taking its reconstructed mass to its lumped share and the centroid of that
+    mass, (M·mid + σ L³/12) / M; an empty part takes nothing.  ``cube``: L³ (numpy's power,
+    whose bits the C library's pow does not always give)."""
+    for k in range(lo.size):
+        length = hi[k] - lo[k]
+        middle = 0.5 * (lo[k] + hi[k])
+        mass = length * (rho[k] + srho[k] * (middle - centre[k]))
+        safe = 1.0 if mass <= 0.0 else mass
+        parts[LO, k], parts[HI, k], parts[RHO, k], parts[SLOPE, k], parts[CENTRE, k] = \
+            lo[k], hi[k], rho[k], srho[k], centre[k]
+        parts[SCALE, k] = 0.0 if mass <= 0.0 else share[k] / safe
+        parts[CENTROID, k] = middle + srho[k] * cube[k] / (12.0 * safe)
+
+
+@numba.njit(**KERNEL)
+def overlap(parts, k, a, b):  # pragma: no cover (compiled)
+    """Length and middle of [a, b] ∩ part k (length 0 where they do not meet)."""
+    start = maximum(a, parts[LO, k])
+    length = minimum(b, parts[HI, k])
+    length -= start
+    length = maximum(length, 0.0)
+    middle = 0.5 * length
+    middle += start
+    return length, middle
+
+
+@numba.njit(**KERNEL)
+def overlap_mass(parts, k, a, b):  # pragma: no cover (compiled)
+    """Lumped mass of part k over [a, b] ∩ part."""
+    length, mass = overlap(parts, k, a, b)
+    mass -= parts[CENTRE, k]
+    mass *= parts[SLOPE, k]
+    mass += parts[RHO, k]
+    mass *= length
+    mass *= parts[SCALE, k]
+    return mass
+
+
+@numba.njit(**KERNEL)
+def overlap_mass_momentum(parts, velocity, slope, k, a, b, momentum):  # pragma: no cover (compiled)
+    """Lumped mass of part k over [a, b] ∩ part, its momentum into ``momentum``
+    (components,).  The velocity is linear on a part, u + τ (x − x̄), so ∫ρu = M (u + τ (x_M
+    − x̄)) with x_M the centre of mass of the overlap: M x_M = M·mid + σ L³/12."""
+    length, middle = overlap(parts, k, a, b)
+    mass = middle - parts[CENTRE, k]
+    mass *= parts[SLOPE, k]
+    mass += parts[RHO, k]
+    mass *= length  # M (unscaled)
+    offset = length * length
+    offset *= length
+    offset *= parts[SLOPE, k]
+    offset *= 1.0 / 12.0  # σ L³/12 = M (x_M − mid)
+    offset += (middle - parts[CENTROID, k]) * mass  # M (x_M − x̄)
+    mass *= parts[SCALE, k]
+    offset *= parts[SCALE, k]
+    for c in range(momentum.size):
+        value = slope[c, k] * offset
+        value += velocity[c, k] * mass
+        momentum[c] = value
+    return mass
+
+
+@numba.njit(**KERNEL)
+def lump_kinetic(mass, momentum):  # pragma: no cover (compiled)
+    """½ |p|²/m of a lump (0 for an empty one)."""
+    kinetic = momentum[0] * momentum[0]
+    for c in range(1, momentum.size):
+        kinetic += momentum[c] * momentum[c]
+    kinetic *= 0.5
+    return kinetic / mass if mass != 0.0 else 0.0
+
+
+@numba.njit(**KERNEL)
+def node_velocity_slopes(u, x, mixed_j, gamma, mixed_velocity, m0, m1_of_mixed):  # pragma: no cover (compiled)
+    """Minmod slope of each node's velocity from the cells on either side, within one
+    material (the general intersection's slopes).  A mixed cell gives each of its internal
+    nodes the gradient of that material's full field: the line through the node and (x_Γ,
+    u_Γ) for the normal component, none for a transverse one."""
+    components, nodes = u.shape
+    n = nodes - 1
+    left_part, right_part = np.empty((components, n)), np.empty((components, n))  # of cell j: seen from j, j + 1
+    for c in range(components):
+        for j in range(n):
+            left_part[c, j] = (u[c, j + 1] - u[c, j]) / (x[j + 1] - x[j])
+            right_part[c, j] = left_part[c, j]
+    material_right_part = m0.copy()
+    for k in range(mixed_j.size):
+        j = mixed_j[k]
+        for c in range(components):
+            left_part[c, j], right_part[c, j] = 0.0, 0.0
+        left_part[0, j] = (mixed_velocity[k] - u[0, j]) / (gamma[k] - x[j])
+        right_part[0, j] = (mixed_velocity[k] - u[0, j + 1]) / (gamma[k] - x[j + 1])
+        material_right_part[j] = m1_of_mixed[k]
+    slope = np.zeros((components, nodes))
+    for c in range(components):
+        for k in range(1, n):  # node k: the right part of cell k − 1, the left part of cell k
+            limited = minmod(right_part[c, k - 1], left_part[c, k])
+            slope[c, k] = limited if material_right_part[k - 1] == m0[k] else 0.0
+    return slope
+
+
+@numba.njit(**KERNEL)
+def window_momentum(x, X, mixed_j, gamma, new_mixed_j, new_gamma, rho0, srho0, centre0, rho1, srho1, centre1,
+                    corner, u, order, mixed_velocity, m0, m1_of_mixed, cut_left, cut_right, left_cube,
+                    right_cube):  # pragma: no cover (compiled)
+    """Nodal momentum and lumped masses of a window through the dual faces (enriched: a
+    mixed cell's face is Γ; a pure cell's its middle).  A face's swept interval lies in its
+    own cell (the parts L_j, R_j) except where Γ moves into a neighbouring cell; those few
+    faces also take the neighbours' parts R_{j−1}, L_{j+1}.  ``cut_left``, ``cut_right``:
+    the window's ends are inside the mesh (their end nodes move; the caller discards what
+    depends on what lies beyond).  ``left_cube``, ``right_cube``: the parts' L³.  Returns
+    (status, new node masses, momenta, corner masses (2, n), each node's ½ M u² less what it
+    handed over plus what it received); status 0, or 1 + the index of WINDOW_FAILURES."""
+    components, nodes = u.shape
+    n = nodes - 1
+    face = np.empty(n)
+    for j in range(n):
+        face[j] = 0.5 * (x[j] + x[j + 1])
+    for k in range(mixed_j.size):
+        face[mixed_j[k]] = gamma[k]
+    new_face = np.empty(n)
+    for j in range(n):
+        new_face[j] = 0.5 * (X[j] + X[j + 1])
+    for k in range(new_mixed_j.size):
+        new_face[new_mixed_j[k]] = new_gamma[new_mixed_j[k]]
+    if order == 2:
+        node_slope = node_velocity_slopes(u, x, mixed_j, gamma, mixed_velocity, m0, m1_of_mixed)
+    else:
+        node_slope = np.zeros((components, nodes))
+    # L_0 … L_{n−1} and an empty L_n at the right end; R_0 … R_{n−1}
+    left, right = np.empty((PARTS, nodes)), np.empty((PARTS, n))
+    zeros = np.zeros(nodes)
+    lo, hi = np.empty(nodes), np.empty(nodes)
+    lo[:n], hi[:n] = x[:n], face
+    lo[n], hi[n] = x[n], x[n]
+    node_parts(left, lo, hi, np.append(rho0, 0.0), np.append(srho0, 0.0), np.append(centre0, 0.0),
+               np.append(corner[0], 0.0), left_cube)
+    left_u, left_tau = np.zeros((components, nodes)), np.zeros((components, nodes))
+    left_u[:, :n], left_tau[:, :n] = u[:, :n], node_slope[:, :n]
+    r_rho, r_srho, r_cen = rho0.copy(), srho0.copy(), centre0.copy()
+    for k in range(mixed_j.size):
+        r_rho[mixed_j[k]], r_srho[mixed_j[k]], r_cen[mixed_j[k]] = rho1[k], srho1[k], centre1[k]
+    node_parts(right, face, x[1:], r_rho, r_srho, r_cen, corner[1], right_cube)
+    right_u, right_tau = u[:, 1:], node_slope[:, 1:]
+
+    # Face j: the swept interval between f_j and F_j moves to node j + 1 what lies in node
+    # j's parts (R_{j−1}, L_j) and to node j what lies in node j + 1's (R_j, L_{j+1}).
+    moved_mass, moved_momentum, kinetic_flux = np.empty(n), np.empty((components, n)), np.empty(n)
+    to_right, to_left, extra = np.empty(components), np.empty(components), np.empty(components)
+    for j in range(n):
+        a, b = minimum(new_face[j], face[j]), maximum(new_face[j], face[j])
+        right_mass = overlap_mass_momentum(left, left_u, left_tau, j, a, b, to_right)
+        left_mass = overlap_mass_momentum(right, right_u, right_tau, j, a, b, to_left)
+        flux = lump_kinetic(right_mass, to_right) - lump_kinetic(left_mass, to_left)
+        far = ((a < x[j]) | (b > x[j + 1])) & ((j > 0) | (not cut_left)) & ((j < n - 1) | (not cut_right))
+        if far:
+            width = x[j + 1] - x[j]
+            before = max(j - 1, 0)
+            if ((j == 0) & (a < x[j])) | (a < right[LO, before] - 1e-12 * width) | \
+                    (b > left[HI, j + 1] + 1e-12 * width):
+                return 1, zeros, node_slope, corner, zeros
+            m = overlap_mass_momentum(right, right_u, right_tau, before, a, b, extra)
+            if j == 0:
+                m = 0.0
+                extra[:] = 0.0
+            right_mass += m
+            for c in range(components):
+                to_right[c] += extra[c]
+            flux += lump_kinetic(m, extra)
+            m = overlap_mass_momentum(left, left_u, left_tau, j + 1, a, b, extra)
+            left_mass += m
+            for c in range(components):
+                to_left[c] += extra[c]
+            flux -= lump_kinetic(m, extra)
+        moved_mass[j] = right_mass - left_mass
+        for c in range(components):
+            moved_momentum[c, j] = to_right[c] - to_left[c]
+        kinetic_flux[j] = flux
+    old_mass = np.zeros(nodes)
+    for j in range(n):
+        old_mass[j] += corner[0, j]
+    for j in range(n):
+        old_mass[j + 1] += corner[1, j]
+    new_mass = old_mass.copy()
+    for j in range(n):
+        new_mass[j] -= moved_mass[j]
+    for j in range(n):
+        new_mass[j + 1] += moved_mass[j]
+    new_momentum = np.empty((components, nodes))
+    for c in range(components):
+        for k in range(nodes):
+            new_momentum[c, k] = u[c, k] * old_mass[k]
+        for j in range(n):
+            new_momentum[c, j] -= moved_momentum[c, j]
+        for j in range(n):
+            new_momentum[c, j + 1] += moved_momentum[c, j]
+    for k in range(1 if cut_left else 0, n if cut_right else nodes):
+        if new_mass[k] <= 0:
+            return 2, zeros, node_slope, corner, zeros
+    # New corners: the right corner of new cell j is [F_j, X_{j+1}]; F_j lies in old cell j
+    # (parts L_j, R_j) and X_{j+1} in R_j or L_{j+1}, except where Γ moved into a
+    # neighbouring cell: there the parts R_{j−1} and R_{j+1} are added too.
+    corners = np.empty((2, n))
+    for j in range(n):
+        a, b = new_face[j], X[j + 1]
+        right_corner = overlap_mass(left, j, a, b)
+        right_corner += overlap_mass(right, j, a, b)
+        right_corner += overlap_mass(left, j + 1, a, b)
+        far = ((a < x[j]) | (b > left[HI, j + 1])) & ((j > 0) | (not cut_left)) & ((j < n - 1) | (not cut_right))
+        if far:
+            before, after = max(j - 1, 0), min(j + 1, n - 1)
+            if (a < right[LO, before]) | (b > right[HI, after]):
+                return 3, zeros, node_slope, corner, zeros
+            beside = overlap_mass(right, before, a, b)
+            if j == 0:
+                beside = 0.0
+            beyond = overlap_mass(right, after, a, b)
+            if j == n - 1:
+                beyond = 0.0
+            right_corner += beside + beyond
+        corners[1, j] = right_corner
+    corners[0, 0] = new_mass[0] - 0.0
+    for j in range(1, n):
+        corners[0, j] = new_mass[j] - corners[1, j - 1]
+    # ½M u² of each node, less the kinetic energy it handed over, plus what it received
+    kinetic = np.empty(nodes)
+    for k in range(nodes):
+        square = u[0, k] * u[0, k]
+        for c in range(1, components):
+            square += u[c, k] * u[c, k]
+        kinetic[k] = (0.5 * old_mass[k]) * square
+    for j in range(n):
+        kinetic[j] -= kinetic_flux[j]
+    for j in range(n):
+        kinetic[j + 1] += kinetic_flux[j]
+    return 0, new_mass, new_momentum, corners, kinetic
