@@ -434,15 +434,15 @@ def test_the_compiled_swept_kernel_finds_the_numpy_kernels_far_nodes_at_the_edge
         pure_cells(np.zeros(1), np.zeros(1), np.zeros(0), np.zeros(0), np.zeros((2, 0)), np.zeros((1, 1)), 2, 1, True)
 
 
-def _window_inputs(rng, n, components, case):
+def _window_inputs(rng, n, components, case, spacing=3):
     """A window of n sorted cells for the nodal momentum of the swept remap: interfaces
-    inside every third cell or so (two at most, the materials alternating), slivers of 10⁻⁶
+    inside every ``spacing``-th cell or so (two at most, the materials alternating), slivers of 10⁻⁶
     of a cell (``sliver``), nodes moving by up to 0.3 cell, up to 1.1 cells (``far``: faces
     and corners beyond the parts around them), or not at all (``still``)."""
     width = rng.uniform(0.5, 1.5, n)
     x = np.concatenate([[0.0], np.cumsum(width)])
     xl, xr = x[:-1], x[1:]
-    candidates = np.arange(1, n - 1, 3)
+    candidates = np.arange(1, n - 1, spacing)
     mixed_j = np.sort(rng.choice(candidates, size=min(2, candidates.size), replace=False)).astype(np.int64)
     fraction = np.full(mixed_j.size, 1e-6) if case == "sliver" else rng.uniform(0.05, 0.95, mixed_j.size)
     gamma = xl[mixed_j] + fraction * width[mixed_j]
@@ -493,6 +493,74 @@ def test_the_compiled_window_momentum_gives_the_numpy_bits():
                                                   np.ascontiguousarray(a).view(np.uint64), err_msg=f"{name}, {label}")
     # both ways out of the swept form's reach were met, and windows with far nodes it covers
     assert outcomes.get(("far", True, True), 0) > 0 and outcomes.get(("far", False, True), 0) > 0, outcomes
+
+
+def test_the_compiled_window_contents_give_the_numpy_bits():
+    """A window's whole swept remap (compiled: swept_kernels.window_contents and
+    window_momentum) against the numpy code it replaced (tests/oracles.py): the same bits in
+    every output, both out of reach together, or both refusing three materials in one cell
+    with the same message — on the windows of the test above with masses and energies of
+    their own, two materials, and three (interfaces in every other cell)."""
+    from oracles import swept_sorted as numpy_swept_sorted
+
+    from ale_xfem.remap.failure import RemapFailure
+    from ale_xfem.remap.swept_1d import _swept_sorted
+
+    rng = np.random.default_rng(7)
+    outcomes = {}
+    for trial in range(160):
+        case = ("small", "far", "sliver", "still")[trial % 4]
+        n_materials = 2 + (trial // 4) % 2
+        arguments, m0, m1 = _window_inputs(rng, int(rng.choice([4, 7, 12, 20])), 1 + trial % 2, case,
+                                           spacing=5 - n_materials)
+        n, x, X, xl, xr, mixed_j, gamma = arguments[:7]
+        corner, u = arguments[-2:]
+        if n_materials == 3:  # each interface to the next material: layers of one to three cells
+            m1 = (np.arange(mixed_j.size) + 1) % 3
+            m0 = np.searchsorted(mixed_j, np.arange(n), side="left") % 3
+        mass0, specific0 = rng.uniform(0.1, 2.0, n), rng.normal(1.0, 0.5, n)
+        mass1, specific1 = rng.uniform(0.1, 2.0, mixed_j.size), rng.normal(1.0, 0.5, mixed_j.size)
+        velocity = rng.normal(0.0, 1.0, mixed_j.size)
+        for order in (1, 2):
+            for cut in ((False, False), (True, True), (True, False)):
+                every = (x, X, m0, mass0, specific0, corner, u, mixed_j, gamma - xl[mixed_j], m1, mass1, specific1,
+                         velocity, n_materials, order, cut)
+                label = f"trial {trial}, {case}, {n_materials} materials, order {order}, cut {cut}"
+                results = []
+                for remap in (numpy_swept_sorted, _swept_sorted):
+                    try:
+                        with np.errstate(all="ignore"):
+                            results.append(remap(*every))
+                    except RemapFailure as failure:
+                        results.append(str(failure))
+                expected, got = results
+                outcome = "refused" if isinstance(expected, str) else "out of reach" if expected is None else "done"
+                outcomes[outcome] = outcomes.get(outcome, 0) + 1
+                if outcome != "done":
+                    assert got == expected, label
+                    continue
+                assert got is not None and not isinstance(got, str), label
+                for name in expected:
+                    a, b = np.asarray(expected[name]), np.asarray(got[name])
+                    if a.dtype.kind == "f":
+                        a, b = np.ascontiguousarray(a).view(np.uint64), np.ascontiguousarray(b).view(np.uint64)
+                    np.testing.assert_array_equal(b, a, err_msg=f"{name}, {label}")
+    # a thin layer: B between Γ at 0.95 of cell 2 and Γ in the middle of cell 3; node 3
+    # moving 0.2 cell to the left takes A, B into cell 3 beside its C
+    x = np.arange(7.0)
+    X = x.copy()
+    X[3] -= 0.2
+    mixed_j, m0, m1 = np.array([2, 3]), np.array([0, 0, 0, 1, 2, 2]), np.array([1, 2])
+    every = (x, X, m0, np.ones(6), np.ones(6), np.full((2, 6), 0.5), np.zeros((1, 7)), mixed_j, np.array([0.95, 0.5]),
+             m1, np.ones(2), np.ones(2), np.zeros(2), 3, 2, (False, False))
+    messages = []
+    for remap in (numpy_swept_sorted, _swept_sorted):
+        with pytest.raises(RemapFailure, match="two interfaces meet in one cell") as failure:
+            remap(*every)
+        messages.append(str(failure.value))
+    assert messages[0] == messages[1] == "sorted cell 3: two interfaces meet in one cell (a layer thinner than a " \
+        "cell); refine the mesh"
+    assert all(outcomes.get(k, 0) > 0 for k in ("done", "out of reach")), outcomes
 
 
 @pytest.mark.parametrize("order", [1, 2])

@@ -32,16 +32,7 @@ import numpy as np
 
 from ale_xfem.remap import swept_kernels
 from ale_xfem.remap.failure import RemapFailure
-from ale_xfem.remap.pieces_1d import RemapResult, deposit_kinetic_loss, integrate_linear, piece_slopes
-
-
-def _clipped_integral(value, slope, centre, lo, hi, a, b):
-    """∫ over [a, b] ∩ [lo, hi] of value + slope (x − centre); and the overlap length."""
-    start = np.maximum(a, lo)
-    end = np.minimum(b, hi)
-    length = np.maximum(end - start, 0.0)
-    end = start + length
-    return integrate_linear(value, slope, centre, start, end), length, start, end
+from ale_xfem.remap.pieces_1d import RemapResult, deposit_kinetic_loss
 
 
 def remap_1d_swept(order_of_cells, cell_left_node, cell_right_node, node_position, target_position,
@@ -82,8 +73,7 @@ def remap_1d_swept(order_of_cells, cell_left_node, cell_right_node, node_positio
     right_corner = corner_new[1]
 
     # -- windows around the interfaces ---------------------------------------------------
-    special = np.union1d(mixed_j, boundaries)
-    special = np.union1d(np.union1d(special, special + 1), np.union1d(far_nodes - 1, far_nodes))
+    special = np.unique(np.concatenate([mixed_j, mixed_j + 1, boundaries, boundaries + 1, far_nodes - 1, far_nodes]))
     special = special[special < n]
     slots = 1
     taken_cells = []
@@ -228,184 +218,26 @@ def _swept_sorted(x, X, m0, mass0, specific0, corner_sorted, u, mixed_j, volume0
     """The swept remap of a run of sorted cells (all of them, or a window of them: ``cut``
     says which ends are inside the mesh, whose end nodes move and whose results near that
     end the caller discards).  Mixed cells hold two materials; returns the new contents
-    in sorted order, or None when a step is beyond the swept form's reach."""
-    n = m0.size
-    if (X[0] != x[0] and not cut[0]) or (X[-1] != x[-1] and not cut[1]):
-        return _too_far("the ends of the domain move")
-    mixed_sorted_mask = np.zeros(n, dtype=bool)
-    mixed_sorted_mask[mixed_j] = True
-
-    # -- pieces: slot 0 over every cell, slot 1 over the mixed cells ---------------------------
-    xl, xr = x[:-1], x[1:]
-    energy0 = mass0 * specific0
-    hi0 = xr.copy()
-    gamma = xl[mixed_j] + volume0_mixed
-    hi0[mixed_j] = gamma
-    width0 = hi0 - xl
-    rho0 = mass0 / width0
-    eps0 = energy0 / width0
-    centre0 = 0.5 * (xl + hi0)
-    energy1 = mass1 * specific1
-    lo1, hi1 = gamma, xr[mixed_j]
-    width1 = hi1 - lo1
-    rho1, eps1, centre1 = mass1 / width1, energy1 / width1, 0.5 * (lo1 + hi1)
-    # slopes over the piece sequence (slot 1 pieces interleaved after their slot 0)
-    if order == 2:
-        count = np.where(mixed_sorted_mask, 2, 1)
-        start = np.concatenate([[0], np.cumsum(count)[:-1]])
-        total = int(count.sum())
-        seq_centre, seq_rho, seq_eps, seq_mat = (np.empty(total), np.empty(total), np.empty(total),
-                                                 np.empty(total, dtype=np.int64))
-        for arr, v0, v1 in ((seq_centre, centre0, centre1), (seq_rho, rho0, rho1), (seq_eps, eps0, eps1),
-                            (seq_mat, m0, m1)):
-            arr[start] = v0
-            arr[start[mixed_j] + 1] = v1
-        w_seq = np.empty(total)
-        w_seq[start] = width0
-        w_seq[start[mixed_j] + 1] = width1
-        srho, seps = piece_slopes(seq_centre, w_seq, seq_rho, seq_eps, seq_mat, order)
-        srho0, seps0 = srho[start], seps[start]
-        srho1, seps1 = srho[start[mixed_j] + 1], seps[start[mixed_j] + 1]
-    else:
-        srho0 = seps0 = np.zeros(n)
-        srho1 = seps1 = np.zeros(mixed_j.size)
-
-    # -- node fluxes --------------------------------------------------------------------------
-    # Interior node k (1..n−1) between cells k−1 and k.  d < 0: [X_k, x_k] leaves cell k−1
-    # for cell k; d > 0: [x_k, X_k] leaves cell k for cell k−1.
-    d = X[1:-1] - x[1:-1]
-    to_right = d < 0
-    donor = np.where(to_right, np.arange(n - 1), np.arange(1, n))
-    if np.any(to_right & (X[1:-1] < xl[donor])) or np.any(~to_right & (X[1:-1] > xr[donor])):
-        return _too_far("a node moved beyond its neighbouring cell")
-    a = np.minimum(X[1:-1], x[1:-1])
-    b = np.maximum(X[1:-1], x[1:-1])
-    flux_mass0, flux_volume0, *_ = _clipped_integral(rho0[donor], srho0[donor], centre0[donor],
-                                                     xl[donor], hi0[donor], a, b)
-    flux_energy0, *_ = _clipped_integral(eps0[donor], seps0[donor], centre0[donor],
-                                         xl[donor], hi0[donor], a, b)
-    flux_material0 = m0[donor]
-    # slot-1 parts of mixed donors (sparse)
-    slot1_of = np.full(n, -1)
-    slot1_of[mixed_j] = np.arange(mixed_j.size)
-    s1 = slot1_of[donor]
-    sparse = np.flatnonzero(s1 >= 0)
-    k1 = s1[sparse]
-    flux_mass1, flux_volume1, *_ = _clipped_integral(rho1[k1], srho1[k1], centre1[k1], lo1[k1], hi1[k1],
-                                                     a[sparse], b[sparse])
-    flux_energy1, *_ = _clipped_integral(eps1[k1], seps1[k1], centre1[k1], lo1[k1], hi1[k1],
-                                         a[sparse], b[sparse])
-    flux_material1 = m1[k1]
-
-    # -- new cell contents: the common case, one material around -------------------------
-    # Signed inflow to cell j through its left node (k = j) and right node (k = j + 1).
-    new_mass = mass0.copy()
-    new_energy = energy0.copy()
-    into = np.where(to_right, 1.0, -1.0)
-    # node k: +flux into cell k when to_right, −flux out of cell k otherwise; the opposite
-    # for cell k−1.
-    new_mass[1:] += into * flux_mass0
-    new_mass[:-1] -= into * flux_mass0
-    new_energy[1:] += into * flux_energy0
-    new_energy[:-1] -= into * flux_energy0
-    # Cells touched by another material, a mixed cell, or a mixed donor, are redone below.
-    special = mixed_sorted_mask.copy()
-    differ = flux_material0 != np.where(to_right, m0[1:], m0[:-1])  # material entering a cell
-    receiving = np.where(to_right, np.arange(1, n), np.arange(n - 1))
-    special[receiving[differ & (flux_volume0 > 0)]] = True
-    touched = np.zeros(n, dtype=bool)
-    touched[donor[sparse]] = True
-    special |= touched
-    special[np.clip(np.flatnonzero(touched) - 1, 0, n - 1)] = True
-    special[np.clip(np.flatnonzero(touched) + 1, 0, n - 1)] = True
-    special[np.clip(mixed_j - 1, 0, n - 1)] = True
-    special[np.clip(mixed_j + 1, 0, n - 1)] = True
-
-    target_width = X[1:] - X[:-1]
-    new_slot_material = np.full((2, n), -1, dtype=np.int64)
-    new_slot_material[0] = m0
-    new = {"mass": np.zeros((2, n)), "energy": np.zeros((2, n)), "volume": np.zeros((2, n))}
-    new["mass"][0], new["energy"][0], new["volume"][0] = new_mass, new_energy, target_width
-    special_j = np.flatnonzero(special)
-    if special_j.size:
-        _finish_special_cells(special_j, n, n_materials, new, new_slot_material, to_right, donor, X, x,
-                              m0, mass0, energy0, width0, mixed_j, m1, mass1, energy1, width1, gamma,
-                              flux_mass0, flux_energy0, flux_volume0, flux_material0,
-                              sparse, flux_mass1, flux_energy1, flux_volume1, flux_material1)
-    new_mixed_j = np.flatnonzero(new_slot_material[1] >= 0)
-
-    # -- momentum through the dual faces ---------------------------------------------------
-    result = _momentum(n, x, X, xl, xr, mixed_j, gamma, new_mixed_j, X[:-1] + new["volume"][0],
+    in sorted order, or None when a step is beyond the swept form's reach.  Compiled:
+    :func:`ale_xfem.remap.swept_kernels.window_contents` (the cells) and
+    :func:`ale_xfem.remap.swept_kernels.window_momentum` (the nodes)."""
+    status, bad, slot_material, mass, energy, volume, gamma, rho0, srho0, centre0, rho1, srho1, centre1 = \
+        swept_kernels.window_contents(x, X, m0, mass0, specific0, mixed_j, volume0_mixed, m1, mass1, specific1,
+                                      n_materials, order, bool(cut[0]), bool(cut[1]))
+    if status == 3:
+        raise RemapFailure(f"sorted cell {bad}: {swept_kernels.CONTENT_FAILURES[2]}")
+    if status:
+        return _too_far(swept_kernels.CONTENT_FAILURES[status - 1])
+    new_mixed_j = np.flatnonzero(slot_material[1] >= 0)
+    result = _momentum(m0.size, x, X, x[:-1], x[1:], mixed_j, gamma, new_mixed_j, X[:-1] + volume[0],
                        rho0, srho0, centre0, rho1, srho1, centre1, corner_sorted, u, order,
                        mixed_velocity, m0, m1, cut)
     if result is None:
         return None
     node_mass, momentum, corner_new, kinetic = result
-    return {"slot_material": new_slot_material, "mass": new["mass"], "energy": new["energy"],
-            "volume": new["volume"], "corner": corner_new, "node_mass": node_mass,
-            "node_momentum": momentum, "new_mixed_j": new_mixed_j, "kinetic": kinetic}
-
-
-def _finish_special_cells(special_j, n, n_materials, new, new_slot_material, to_right, donor, X, x,
-                          m0, mass0, energy0, width0, mixed_j, m1, mass1, energy1, width1, gamma,
-                          flux_mass0, flux_energy0, flux_volume0, flux_material0,
-                          sparse, flux_mass1, flux_energy1, flux_volume1, flux_material1):
-    """Per-material content of the few cells where materials meet: own pieces, minus what
-    leaves through their nodes, plus what enters, gathered in a (cells, materials) table."""
-    index = np.full(n, -1)
-    index[special_j] = np.arange(special_j.size)
-    table = {k: np.zeros((special_j.size, n_materials)) for k in ("mass", "energy", "volume")}
-
-    def add(cells_, materials, mass, energy, volume, sign):
-        keep = index[cells_] >= 0
-        rows, mats = index[cells_[keep]], materials[keep]
-        np.add.at(table["mass"], (rows, mats), sign * mass[keep])
-        np.add.at(table["energy"], (rows, mats), sign * energy[keep])
-        np.add.at(table["volume"], (rows, mats), sign * volume[keep])
-
-    add(np.arange(n), m0, mass0, energy0, width0, 1.0)
-    add(mixed_j, m1, mass1, energy1, width1, 1.0)
-    receiving = np.where(to_right, np.arange(1, n), np.arange(n - 1))
-    add(receiving, flux_material0, flux_mass0, flux_energy0, flux_volume0, 1.0)
-    add(donor, flux_material0, flux_mass0, flux_energy0, flux_volume0, -1.0)
-    add(receiving[sparse], flux_material1, flux_mass1, flux_energy1, flux_volume1, 1.0)
-    add(donor[sparse], flux_material1, flux_mass1, flux_energy1, flux_volume1, -1.0)
-
-    width = X[special_j + 1] - X[special_j]
-    present = table["volume"] > 1e-12 * width[:, None]
-    count = present.sum(axis=1)
-    if np.any(count > 2):
-        bad = int(special_j[np.flatnonzero(count > 2)[0]])
-        raise RemapFailure(f"sorted cell {bad}: two interfaces meet in one cell (a layer thinner "
-                           "than a cell); refine the mesh")
-    # left material: the material at X_j (of the donor there); right: at X_{j+1}
-    left = _material_at(X[special_j], x, m0, mixed_j, m1, gamma, side=+1)
-    right = _material_at(X[special_j + 1], x, m0, mixed_j, m1, gamma, side=-1)
-    rows = np.arange(special_j.size)
-    for slot, mats in ((0, left), (1, right)):
-        use = np.ones(special_j.size, dtype=bool) if slot == 0 else (count == 2)
-        j, r, m = special_j[use], rows[use], mats[use]
-        new_slot_material[slot, j] = m
-        new["mass"][slot, j] = table["mass"][r, m]
-        new["energy"][slot, j] = table["energy"][r, m]
-        new["volume"][slot, j] = table["volume"][r, m]
-    pure = count == 1
-    new["volume"][0, special_j[pure]] = width[pure]
-    both = count == 2
-    new["volume"][1, special_j[both]] = width[both] - new["volume"][0, special_j[both]]
-
-
-def _material_at(position, x, m0, mixed_j, m1, gamma, side):
-    """Material just right (side +1) or left (side −1) of each position in the old layout."""
-    cell = np.clip(np.searchsorted(x, position, side="right" if side > 0 else "left") - 1, 0, m0.size - 1)
-    material = m0[cell].copy()
-    slot1_of = np.full(m0.size, -1)
-    slot1_of[mixed_j] = np.arange(mixed_j.size)
-    k = slot1_of[cell]
-    g = gamma[np.maximum(k, 0)] if gamma.size else np.zeros_like(position)
-    beyond = (k >= 0) & ((position >= g) if side > 0 else (position > g))
-    material[beyond] = m1[k[beyond]]
-    return material
+    return {"slot_material": slot_material, "mass": mass, "energy": energy, "volume": volume,
+            "corner": corner_new, "node_mass": node_mass, "node_momentum": momentum, "new_mixed_j": new_mixed_j,
+            "kinetic": kinetic}
 
 
 def _momentum(n, x, X, xl, xr, mixed_j, gamma, new_mixed_j, new_gamma, rho0, srho0, centre0,

@@ -598,3 +598,227 @@ def window_momentum(x, X, mixed_j, gamma, new_mixed_j, new_gamma, rho0, srho0, c
     for j in range(n):
         kinetic[j + 1] += kinetic_flux[j]
     return 0, new_mass, new_momentum, corners, kinetic
+
+
+# -- the new contents of a window's cells (swept_1d._swept_sorted) ------------------------
+# why a window's contents are out of the swept form's reach (status 1, 2), or the remap
+# fails (status 3: the caller raises, naming the window's sorted cell)
+CONTENT_FAILURES = ("the ends of the domain move", "a node moved beyond its neighbouring cell",
+                    "two interfaces meet in one cell (a layer thinner than a cell); refine the mesh")
+
+
+@numba.njit(**KERNEL)
+def clipped_integral(value, slope, centre, lo, hi, a, b):  # pragma: no cover (compiled)
+    """∫ over [a, b] ∩ [lo, hi] of value + slope (x − centre), and the overlap's length."""
+    start = maximum(a, lo)
+    end = minimum(b, hi)
+    length = maximum(end - start, 0.0)
+    end = start + length
+    return value * (end - start) + 0.5 * slope * ((end - centre) ** 2 - (start - centre) ** 2), length
+
+
+@numba.njit(**KERNEL)
+def material_at(position, x, m0, slot1_of, m1, gamma, right_of):  # pragma: no cover (compiled)
+    """The material just right (``right_of``) or just left of a position in the old layout
+    of sorted cells (``slot1_of``: each cell's index among the mixed cells, or −1)."""
+    n = m0.size
+    cell = np.searchsorted(x, position, side="right") if right_of else np.searchsorted(x, position, side="left")
+    cell = min(max(cell - 1, 0), n - 1)
+    k = slot1_of[cell]
+    if k < 0:
+        return m0[cell]
+    beyond = position >= gamma[k] if right_of else position > gamma[k]
+    return m1[k] if beyond else m0[cell]
+
+
+@numba.njit(**KERNEL)
+def window_contents(x, X, m0, mass0, specific0, mixed_j, volume0_mixed, m1, mass1, specific1, n_materials, order,
+                    cut_left, cut_right):  # pragma: no cover (compiled)
+    """The new contents of a run of sorted cells (swept_1d._swept_sorted; ``cut_left``,
+    ``cut_right``: that end is inside the mesh, and its end node moves): each cell's own
+    pieces (slot 0 over every cell, slot 1 over the mixed cells, whose Γ lies
+    ``volume0_mixed`` from their left node), their limited slopes over the piece sequence,
+    the fluxes through the nodes from each node's donor, and the cells where materials meet
+    redone material by material.  Returns (status, the sorted cell it names, slot
+    materials, masses, total energies, volumes (2, n) each, Γ of the old mixed cells, and
+    the pieces' densities, slopes and centres of slot 0 (n) and slot 1 (mixed));
+    status 0, or 1 + the index of CONTENT_FAILURES."""
+    n = m0.size
+    n_mixed = mixed_j.size
+    slot1_of = np.full(n, -1, dtype=np.int64)
+    for k in range(n_mixed):
+        slot1_of[mixed_j[k]] = k
+    # -- pieces: slot 0 over every cell, slot 1 over the mixed cells ----------------------
+    energy0, hi0 = np.empty(n), x[1:].copy()
+    gamma = np.empty(n_mixed)
+    for k in range(n_mixed):
+        gamma[k] = x[mixed_j[k]] + volume0_mixed[k]
+        hi0[mixed_j[k]] = gamma[k]
+    width0, rho0, eps0, centre0 = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
+    for j in range(n):
+        energy0[j] = mass0[j] * specific0[j]
+        width0[j] = hi0[j] - x[j]
+        rho0[j] = mass0[j] / width0[j]
+        eps0[j] = energy0[j] / width0[j]
+        centre0[j] = 0.5 * (x[j] + hi0[j])
+    energy1, width1, rho1, eps1, centre1 = (np.empty(n_mixed), np.empty(n_mixed), np.empty(n_mixed),
+                                            np.empty(n_mixed), np.empty(n_mixed))
+    for k in range(n_mixed):
+        energy1[k] = mass1[k] * specific1[k]
+        width1[k] = x[mixed_j[k] + 1] - gamma[k]
+        rho1[k], eps1[k] = mass1[k] / width1[k], energy1[k] / width1[k]
+        centre1[k] = 0.5 * (gamma[k] + x[mixed_j[k] + 1])
+    empty = (np.zeros((2, n), dtype=np.int64), np.zeros((2, n)), np.zeros((2, n)), np.zeros((2, n)))
+    if ((X[0] != x[0]) & (not cut_left)) | ((X[n] != x[n]) & (not cut_right)):
+        return (1, -1, *empty, gamma, rho0, rho0, rho0, rho1, rho1, rho1)
+    # slopes over the piece sequence (slot 1's piece right after its slot 0's)
+    srho0, seps0, srho1, seps1 = np.zeros(n), np.zeros(n), np.zeros(n_mixed), np.zeros(n_mixed)
+    if order == 2:
+        start = np.empty(n, dtype=np.int64)
+        total = 0
+        for j in range(n):
+            start[j] = total
+            total += 2 if slot1_of[j] >= 0 else 1
+        centre, width, rho, eps = np.empty(total), np.empty(total), np.empty(total), np.empty(total)
+        material = np.empty(total, dtype=np.int64)
+        for j in range(n):
+            i = start[j]
+            centre[i], width[i], rho[i], eps[i], material[i] = centre0[j], width0[j], rho0[j], eps0[j], m0[j]
+        for k in range(n_mixed):
+            i = start[mixed_j[k]] + 1
+            centre[i], width[i], rho[i], eps[i], material[i] = centre1[k], width1[k], rho1[k], eps1[k], m1[k]
+        same = np.empty(max(total - 1, 0), dtype=np.bool_)
+        for i in range(total - 1):
+            same[i] = material[i + 1] == material[i]
+        srho, seps = piece_slopes(centre, width, rho, eps, order, same)
+        for j in range(n):
+            srho0[j], seps0[j] = srho[start[j]], seps[start[j]]
+        for k in range(n_mixed):
+            srho1[k], seps1[k] = srho[start[mixed_j[k]] + 1], seps[start[mixed_j[k]] + 1]
+    # -- node fluxes: interior node k + 1 (k = 0 … n − 2) between cells k and k + 1 ---------
+    # d < 0: [X, x] leaves cell k for cell k + 1; d > 0: [x, X] leaves cell k + 1 for cell k
+    inner = max(n - 1, 0)
+    to_right, donor = np.empty(inner, dtype=np.bool_), np.empty(inner, dtype=np.int64)
+    for k in range(inner):
+        to_right[k] = X[k + 1] - x[k + 1] < 0
+        donor[k] = k if to_right[k] else k + 1
+    for k in range(inner):
+        if to_right[k] & (X[k + 1] < x[donor[k]]):
+            return (2, -1, *empty, gamma, rho0, srho0, centre0, rho1, srho1, centre1)
+    for k in range(inner):
+        if (not to_right[k]) & (X[k + 1] > x[donor[k] + 1]):
+            return (2, -1, *empty, gamma, rho0, srho0, centre0, rho1, srho1, centre1)
+    flux0 = np.empty((3, inner))  # mass, energy, volume
+    flux1 = np.zeros((3, inner))  # of the slot-1 parts of mixed donors
+    from_mixed = np.zeros(inner, dtype=np.bool_)
+    for k in range(inner):
+        d = donor[k]
+        a, b = minimum(X[k + 1], x[k + 1]), maximum(X[k + 1], x[k + 1])
+        flux0[0, k], flux0[2, k] = clipped_integral(rho0[d], srho0[d], centre0[d], x[d], hi0[d], a, b)
+        flux0[1, k], _ = clipped_integral(eps0[d], seps0[d], centre0[d], x[d], hi0[d], a, b)
+        s = slot1_of[d]
+        if s >= 0:
+            from_mixed[k] = True
+            flux1[0, k], flux1[2, k] = clipped_integral(rho1[s], srho1[s], centre1[s], gamma[s], x[d + 1], a, b)
+            flux1[1, k], _ = clipped_integral(eps1[s], seps1[s], centre1[s], gamma[s], x[d + 1], a, b)
+    # -- new cell contents: the common case, one material around -----------------------
+    new_mass, new_energy = mass0.copy(), energy0.copy()
+    for k in range(inner):  # signed inflow: into cell k + 1 when to_right, out of it otherwise
+        into = 1.0 if to_right[k] else -1.0
+        new_mass[k + 1] += into * flux0[0, k]
+    for k in range(inner):
+        into = 1.0 if to_right[k] else -1.0
+        new_mass[k] -= into * flux0[0, k]
+    for k in range(inner):
+        into = 1.0 if to_right[k] else -1.0
+        new_energy[k + 1] += into * flux0[1, k]
+    for k in range(inner):
+        into = 1.0 if to_right[k] else -1.0
+        new_energy[k] -= into * flux0[1, k]
+    # cells touched by another material, a mixed cell, or a mixed donor are redone below
+    special = slot1_of >= 0
+    receiving = np.empty(inner, dtype=np.int64)
+    for k in range(inner):
+        receiving[k] = k + 1 if to_right[k] else k
+        entering = m0[donor[k]] != (m0[k + 1] if to_right[k] else m0[k])
+        if entering & (flux0[2, k] > 0):
+            special[receiving[k]] = True
+    touched = np.zeros(n, dtype=np.bool_)
+    for k in range(inner):
+        if from_mixed[k]:
+            touched[donor[k]] = True
+    for j in range(n):
+        if touched[j]:
+            special[j] = True
+            special[max(j - 1, 0)] = True
+            special[min(j + 1, n - 1)] = True
+    for k in range(n_mixed):
+        special[max(mixed_j[k] - 1, 0)] = True
+        special[min(mixed_j[k] + 1, n - 1)] = True
+    slot_material = np.full((2, n), -1, dtype=np.int64)
+    mass, energy, volume = np.zeros((2, n)), np.zeros((2, n)), np.zeros((2, n))
+    for j in range(n):
+        slot_material[0, j] = m0[j]
+        mass[0, j], energy[0, j], volume[0, j] = new_mass[j], new_energy[j], X[j + 1] - X[j]
+    # -- where materials meet: each material's own pieces, less what leaves, plus what enters
+    row = np.full(n, -1, dtype=np.int64)
+    count = 0
+    for j in range(n):
+        if special[j]:
+            row[j] = count
+            count += 1
+    table = np.zeros((3, count, n_materials))  # mass, energy, volume
+    for j in range(n):
+        if row[j] >= 0:
+            table[0, row[j], m0[j]] += 1.0 * mass0[j]
+            table[1, row[j], m0[j]] += 1.0 * energy0[j]
+            table[2, row[j], m0[j]] += 1.0 * width0[j]
+    for k in range(n_mixed):
+        r = row[mixed_j[k]]
+        if r >= 0:
+            table[0, r, m1[k]] += 1.0 * mass1[k]
+            table[1, r, m1[k]] += 1.0 * energy1[k]
+            table[2, r, m1[k]] += 1.0 * width1[k]
+    for slot in range(2):  # the pure parts' fluxes, then the mixed donors' slot-1 parts
+        for sign in (1.0, -1.0):  # into the receiving cells, then out of the donors
+            for k in range(inner):
+                if (slot == 1) & (not from_mixed[k]):
+                    continue
+                r = row[receiving[k]] if sign > 0 else row[donor[k]]
+                if r < 0:
+                    continue
+                m = m0[donor[k]] if slot == 0 else m1[slot1_of[donor[k]]]
+                flux = flux0 if slot == 0 else flux1
+                for q in range(3):
+                    table[q, r, m] += sign * flux[q, k]
+    for j in range(n):
+        r = row[j]
+        if r < 0:
+            continue
+        width = X[j + 1] - X[j]
+        present = 0
+        for m in range(n_materials):
+            present += table[2, r, m] > 1e-12 * width
+        if present > 2:
+            return (3, j, *empty, gamma, rho0, srho0, centre0, rho1, srho1, centre1)
+    for j in range(n):
+        r = row[j]
+        if r < 0:
+            continue
+        width = X[j + 1] - X[j]
+        present = 0
+        for m in range(n_materials):
+            present += table[2, r, m] > 1e-12 * width
+        # left material: the one at X_j (of the donor there); right: at X_{j+1}
+        left = material_at(X[j], x, m0, slot1_of, m1, gamma, True)
+        slot_material[0, j] = left
+        mass[0, j], energy[0, j], volume[0, j] = table[0, r, left], table[1, r, left], table[2, r, left]
+        if present == 2:
+            right = material_at(X[j + 1], x, m0, slot1_of, m1, gamma, False)
+            slot_material[1, j] = right
+            mass[1, j], energy[1, j], volume[1, j] = table[0, r, right], table[1, r, right], table[2, r, right]
+        if present == 1:
+            volume[0, j] = width
+        elif present == 2:
+            volume[1, j] = width - volume[0, j]
+    return (0, -1, slot_material, mass, energy, volume, gamma, rho0, srho0, centre0, rho1, srho1, centre1)
