@@ -35,7 +35,8 @@ def _parser() -> argparse.ArgumentParser:
     run.add_argument("--xt", action="store_true",
                      help="also write <name>-xt.png, the x–t diagram of density (1D)")
     run.add_argument("--frames", type=int, default=None, metavar="N",
-                     help="2D: the initial state and N more, evenly spaced in time, written to the VTK "
+                     help="2D: the initial state and the first state at or after each of N times evenly "
+                          "spaced to the end (fewer in a run of fewer steps), written to the VTK "
                           "series <name>.pvd (ParaView, pyvista) and the VTX files <name>-cells.bp, "
                           "<name>-velocity.bp (ParaView, adios2) (default 20; 0: none)")
     run.add_argument("--interface-solve", default="replicated", metavar="HOW",
@@ -50,7 +51,8 @@ def _parser() -> argparse.ArgumentParser:
 
     commands.add_parser("list", help="list the shipped scenes and studies with their descriptions")
 
-    study = commands.add_parser("study", help="accuracy against cost; stability of hard cases")
+    study = commands.add_parser("study", help="accuracy against cost; stability of hard cases; the 2D interface "
+                                                 "system on its own")
     kinds = study.add_subparsers(dest="kind", required=True)
     accuracy = kinds.add_parser(
         "accuracy", help="run variants at several resolutions: CSV, Markdown table, work-precision chart")
@@ -86,7 +88,8 @@ def _parser() -> argparse.ArgumentParser:
     interface.add_argument("--out", type=Path, default=Path("out") / "study-interface",
                            help="output folder (default: out/study-interface)")
 
-    bench = commands.add_parser("bench", help="zone-cycles per second of the explicit loop")
+    bench = commands.add_parser("bench", help="zone-cycles per second of the explicit loop; with an option, time by "
+                                                 "phase, the 2D enriched cells, PLIC, PyClaw, several ranks")
     bench.add_argument("--cells", default="1000,10000,100000,1000000",
                        help="comma-separated mesh sizes (default: 1000,...,1000000)")
     bench.add_argument("--dimension", type=int, choices=(1, 2), default=1,

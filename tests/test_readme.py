@@ -78,3 +78,21 @@ def test_cheap_readme_commands_run_from_the_root_as_written(command):
     done = subprocess.run(argv, cwd=ROOT, capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr
     assert command in README
+
+
+def test_the_readmes_scene_examples_load_as_written(tmp_path):
+    """The scenes of the README's ```toml blocks (a 1D one with every key and its default,
+    a 2D one) pass the scene's checks as they are written: a user copies them."""
+    from ale_xfem.scene import load_scene
+
+    blocks = re.findall(r"^```toml\n(.*?)^```", README, flags=re.S | re.M)
+    assert len(blocks) >= 2
+    for k, block in enumerate(blocks):
+        path = tmp_path / f"example{k}.toml"
+        path.write_text(block)
+        load_scene(path)
+
+
+def test_the_readmes_inline_commands_name_the_venvs_python():
+    """Nothing needs activating (README): an inline `python …` would take the system's."""
+    assert not re.findall(r"`python3? [^`]*`", README)

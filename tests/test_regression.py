@@ -197,7 +197,12 @@ def _main(argv: list[str]) -> int:
     """--capture: (re)write the captures; --compare-bytes: run the cases and report which
     files differ from their capture in any byte (timings aside).  Every case, or the cases
     named after the option."""
-    names = [a for a in argv if not a.startswith("--")] or sorted(CASES)
+    options = [a for a in argv if a.startswith("-")]
+    if options != ["--capture"] and options != ["--compare-bytes"]:
+        print("usage: python tests/test_regression.py --capture | --compare-bytes [CASE ...]\n"
+              f"{_main.__doc__}\n\n{__doc__.strip()}")
+        return 0 if options in (["-h"], ["--help"]) else 2
+    names = [a for a in argv if not a.startswith("-")] or sorted(CASES)
     unknown = [name for name in names if name not in CASES]
     if unknown:
         print(f"error: no regression case {unknown[0]!r}; the cases are {', '.join(sorted(CASES))}")
