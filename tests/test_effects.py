@@ -199,3 +199,13 @@ def test_explain_gives_the_ghost_viscosity_that_holds_2d_enriched_cells():
         scene = load_scene(resolve_scene_path("slip-line"), ["mesh.cells=[8,8]", *overrides])
         line = next(e.why for e in scene_effects(scene, 10, []) if e.name == "interface_stabilisation_bubble")
         assert line.endswith(f"held by interface.ghost_viscosity = {weight})"), line
+
+
+def test_explain_names_no_interface_key_in_a_scene_without_an_interface_table():
+    """A scene without [interface] has no interface.normal to name: PLIC's normals are off
+    because it has no mixed cells (a scene with the table says which normal it would take)."""
+    why = {scene: next(e.why for e in scene_effects(load_scene(resolve_scene_path(scene), ["mesh.cells=[8,8]"]),
+                                                    10, []) if e.name == "interface_normal_lvira")
+           for scene in ("sod-2d", "slip-line")}
+    assert why["sod-2d"] == "needs mixed cells"
+    assert why["slip-line"] == 'interface.normal = "youngs"'

@@ -108,6 +108,7 @@ def scene_effects(scene, n_mixed_cells: int, pistons: list[str]) -> list[Effect]
         normal = "youngs" if interface is None else interface.normal
         refined = ": PLIC's normals refined by LVIRA, exact for a straight interface on any mesh"
         effects.append(Effect("interface_normal_lvira", mixed and normal == "lvira",
+                              "needs mixed cells" if interface is None else
                               f"interface.normal = \"{normal}\"" + ((refined if normal == "lvira" else "") if mixed
                                                                     else " (needs mixed cells)")))
     effects.append(Effect("pressure_relaxation", mixed and interface.relaxation,

@@ -247,7 +247,8 @@ def _keys(table: Any, where: str, required: tuple[str, ...], optional: tuple[str
     for key in table:
         if key not in required and key not in optional:
             allowed = ", ".join(sorted(required + optional))
-            raise SceneError(f"{prefix}{key}", table[key], f"unknown key; allowed here: {allowed}")
+            # (known keys: whether one can act in this scene is checked after, with its own error)
+            raise SceneError(f"{prefix}{key}", table[key], f"unknown key; the known ones here: {allowed}")
     for key in required:
         if key not in table:
             raise SceneError(f"{prefix}{key}", _MISSING, "required")
