@@ -791,34 +791,30 @@ def window_contents(x, X, m0, mass0, specific0, mixed_j, volume0_mixed, m1, mass
                 flux = flux0 if slot == 0 else flux1
                 for q in range(3):
                     table[q, r, m] += sign * flux[q, k]
+    present = np.zeros(count, dtype=np.int64)  # the materials each special cell holds
     for j in range(n):
         r = row[j]
         if r < 0:
             continue
-        width = X[j + 1] - X[j]
-        present = 0
         for m in range(n_materials):
-            present += table[2, r, m] > 1e-12 * width
-        if present > 2:
+            present[r] += table[2, r, m] > 1e-12 * (X[j + 1] - X[j])
+        if present[r] > 2:
             return (3, j, *empty, gamma, rho0, srho0, centre0, rho1, srho1, centre1)
     for j in range(n):
         r = row[j]
         if r < 0:
             continue
         width = X[j + 1] - X[j]
-        present = 0
-        for m in range(n_materials):
-            present += table[2, r, m] > 1e-12 * width
         # left material: the one at X_j (of the donor there); right: at X_{j+1}
         left = material_at(X[j], x, m0, slot1_of, m1, gamma, True)
         slot_material[0, j] = left
         mass[0, j], energy[0, j], volume[0, j] = table[0, r, left], table[1, r, left], table[2, r, left]
-        if present == 2:
+        if present[r] == 2:
             right = material_at(X[j + 1], x, m0, slot1_of, m1, gamma, False)
             slot_material[1, j] = right
             mass[1, j], energy[1, j], volume[1, j] = table[0, r, right], table[1, r, right], table[2, r, right]
-        if present == 1:
+        if present[r] == 1:
             volume[0, j] = width
-        elif present == 2:
+        elif present[r] == 2:
             volume[1, j] = width - volume[0, j]
     return (0, -1, slot_material, mass, energy, volume, gamma, rho0, srho0, centre0, rho1, srho1, centre1)
