@@ -1269,3 +1269,57 @@ def interface_solve(mixed, state0, pressure0, volume_affine, work_affine):
     if (converged | (change <= stalled * np.maximum(np.abs(pi_new), stiffer))).all():
         return pi, va, vb, details, mixed.max_iterations
     return "not converged", int(np.argmax(np.abs(balanced - pi_new) / scale))
+
+
+def deposit_losses(loss, corner_mass, node_mass, left_node, right_node, in_order, mixed_cells, condensed,
+                   material_mass, material_energy):
+    """pieces_1d.deposit_kinetic_loss's deposit of every loss (before it was compiled into
+    swept_kernels.deposit_losses), in place on ``material_energy``."""
+    if node_mass.min() > 0:  # every node keeps mass (always in the swept form)
+        per_mass = loss / node_mass
+    else:
+        per_mass = np.zeros_like(loss)
+        np.divide(loss, node_mass, out=per_mass, where=node_mass > 0)
+    if in_order:
+        left, right = per_mass[:-1] * corner_mass[0], per_mass[1:] * corner_mass[1]
+    else:
+        left, right = per_mass[left_node] * corner_mass[0], per_mass[right_node] * corner_mass[1]
+    heat = left
+    heat += right
+    if mixed_cells.size:
+        c = mixed_cells
+        to_second = right[c] if condensed else heat[c] * material_mass[1, c] / (material_mass[0, c] + material_mass[1, c])
+        heat[c] -= to_second
+        material_energy[1, c] += to_second / material_mass[1, c]
+    heat /= material_mass[0]
+    material_energy[0] += heat
+
+
+def node_velocities_and_losses(node_mass, momentum, right_corner, left_corner, kinetic, heat):
+    """The end of swept_1d.remap_1d_swept (before it was compiled into
+    swept_kernels.node_velocities_and_losses): left corners in place, (velocity, ½ p·u,
+    loss or None)."""
+    left_corner[...] = node_mass[:-1]
+    left_corner[1:] -= right_corner[:-1]
+    velocity = momentum / node_mass
+    kinetic_new = component_dot(momentum, velocity)
+    kinetic_new *= 0.5
+    return velocity, kinetic_new, (kinetic - kinetic_new if heat else None)
+
+
+def density_of(mass, volume):
+    """model.state.density_of before it was compiled (cell_kernels.slot_densities)."""
+    density = np.empty_like(mass)
+    for m, v, rho in zip(mass, volume, density):
+        if v.min() > 0.0:
+            np.divide(m, v, out=rho)
+        else:
+            rho.fill(0.0)
+            filled = np.flatnonzero(v > 0.0)
+            rho[filled] = m[filled] / v[filled]
+    return density
+
+
+def finite_where_occupied(values, mass):
+    """The remapper's check before it was compiled (cell_kernels.finite_where_occupied)."""
+    return bool(np.all(np.isfinite(values[mass > 0])))

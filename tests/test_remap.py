@@ -435,24 +435,33 @@ def test_the_compiled_swept_kernel_finds_the_numpy_kernels_far_nodes_at_the_edge
 
 
 def _window_inputs(rng, n, components, case, spacing=3):
-    """A window of n sorted cells for the nodal momentum of the swept remap: interfaces
-    inside every ``spacing``-th cell or so (two at most, the materials alternating), slivers of 10⁻⁶
-    of a cell (``sliver``), nodes moving by up to 0.3 cell, up to 1.1 cells (``far``: faces
-    and corners beyond the parts around them), or not at all (``still``)."""
+    """A window of n sorted cells for the swept remap: interfaces inside every
+    ``spacing``-th cell or so from a random first one (two at most, the materials
+    alternating; an end cell too), or (``pure``) none, two materials meeting at a node;
+    slivers of 10⁻⁶ of a cell (``sliver``); nodes moving by up to 0.3 cell, up to 1.1 cells
+    (``far``: faces and corners beyond the parts around them), or not at all (``still``);
+    the window's end nodes fixed (an end of the mesh) or moving, at random."""
     width = rng.uniform(0.5, 1.5, n)
     x = np.concatenate([[0.0], np.cumsum(width)])
     xl, xr = x[:-1], x[1:]
-    candidates = np.arange(1, n - 1, spacing)
-    mixed_j = np.sort(rng.choice(candidates, size=min(2, candidates.size), replace=False)).astype(np.int64)
+    candidates = np.arange(int(rng.integers(0, spacing)), n, spacing)
+    if case == "pure" or candidates.size == 0:
+        mixed_j = np.zeros(0, dtype=np.int64)
+    else:
+        mixed_j = np.sort(rng.choice(candidates, size=min(2, candidates.size), replace=False)).astype(np.int64)
     fraction = np.full(mixed_j.size, 1e-6) if case == "sliver" else rng.uniform(0.05, 0.95, mixed_j.size)
     gamma = xl[mixed_j] + fraction * width[mixed_j]
-    reach = {"small": 0.3, "far": 1.1, "sliver": 0.3, "still": 0.0}[case]
+    reach = {"small": 0.3, "far": 1.1, "sliver": 0.3, "still": 0.0, "pure": 0.3}[case]
     beside = np.minimum(np.append(width, width[-1]), np.insert(width, 0, width[0]))
     X = np.sort(x + rng.uniform(-reach, reach, n + 1) * beside)
+    if rng.random() < 0.5:
+        X[0], X[-1] = x[0], x[-1]
     new_gamma = X[:-1] + rng.uniform(0.05, 0.95, n) * (X[1:] - X[:-1])
     m0, m1 = np.zeros(n, dtype=np.int64), np.empty(mixed_j.size, dtype=np.int64)
     for k, j in enumerate(mixed_j):  # material k % 2 up to Γ_k, then the other
         m0[j + 1:], m1[k] = (k + 1) % 2, (k + 1) % 2
+    if case == "pure":
+        m0[n // 2:] = 1
     hi0 = xr.copy()
     hi0[mixed_j] = gamma
     slot0 = rng.uniform(0.5, 2.0, n), rng.normal(0.0, 0.3, n), 0.5 * (xl + hi0)
@@ -461,22 +470,27 @@ def _window_inputs(rng, n, components, case, spacing=3):
             rng.uniform(0.2, 0.8, (2, n)), rng.normal(0.0, 1.0, (components, n + 1))), m0, m1
 
 
+SIZES_AND_CASES = ((1, 2, 3, 4, 7, 12, 20), ("small", "far", "sliver", "still", "pure"))
+
+
 def test_the_compiled_window_momentum_gives_the_numpy_bits():
     """The nodal momentum of the swept remap's windows (compiled:
     swept_kernels.window_momentum) against the numpy code it replaced (tests/oracles.py):
     the same bits (signs of zeros included) in every output, or out of the swept form's
-    reach both, on windows of 4 to 20 cells with interfaces and slivers, nodes moving up to
-    1.1 cells, both orders, one and two velocity components, each end of the window inside
-    the mesh or not."""
+    reach both, on windows of 1 to 20 cells with interfaces (an end cell's too), slivers, or
+    two materials meeting at a node, nodes moving up to 1.1 cells, ends fixed or moving,
+    both orders, one and two velocity components, each end of the window inside the mesh or
+    not."""
     from oracles import window_momentum as numpy_window_momentum
 
     from ale_xfem.remap.swept_1d import _momentum
 
     rng = np.random.default_rng(5)
     outcomes = {}
-    for trial in range(120):
-        case = ("small", "far", "sliver", "still")[trial % 4]
-        arguments, m0, m1 = _window_inputs(rng, int(rng.choice([4, 7, 12, 20])), 1 + trial % 2, case)
+    sizes, cases = SIZES_AND_CASES
+    for trial in range(150):
+        case = cases[trial % len(cases)]
+        arguments, m0, m1 = _window_inputs(rng, int(rng.choice(sizes)), 1 + trial % 2, case)
         n, x, X, xl, xr, mixed_j, gamma, new_mixed_j, new_gamma = arguments[:9]
         far = np.any(np.abs(X - x)[1:-1] > 0.5 * np.minimum(xr - xl, np.roll(xr - xl, -1))[:-1])  # beyond half a cell
         velocity = rng.normal(0.0, 1.0, mixed_j.size)
@@ -484,7 +498,7 @@ def test_the_compiled_window_momentum_gives_the_numpy_bits():
             for cut in ((False, False), (True, True), (True, False), (False, True)):
                 every = (*arguments, order, velocity, m0, m1, cut)
                 with np.errstate(all="ignore"):
-                    expected, got = numpy_window_momentum(*every), _momentum(*every)
+                    expected, got = numpy_window_momentum(*every), _momentum(*every[1:])
                 label = f"trial {trial}, {case}, order {order}, cut {cut}"
                 assert (got is None) == (expected is None), label
                 outcomes[case, expected is None, bool(far)] = outcomes.get((case, expected is None, bool(far)), 0) + 1
@@ -508,21 +522,24 @@ def test_the_compiled_window_contents_give_the_numpy_bits():
 
     rng = np.random.default_rng(7)
     outcomes = {}
-    for trial in range(160):
-        case = ("small", "far", "sliver", "still")[trial % 4]
-        n_materials = 2 + (trial // 4) % 2
-        arguments, m0, m1 = _window_inputs(rng, int(rng.choice([4, 7, 12, 20])), 1 + trial % 2, case,
+    sizes, cases = SIZES_AND_CASES
+    for trial in range(200):
+        case = cases[trial % len(cases)]
+        n_materials = 2 + (trial // len(cases)) % 2
+        arguments, m0, m1 = _window_inputs(rng, int(rng.choice(sizes)), 1 + trial % 2, case,
                                            spacing=5 - n_materials)
         n, x, X, xl, xr, mixed_j, gamma = arguments[:7]
         corner, u = arguments[-2:]
         if n_materials == 3:  # each interface to the next material: layers of one to three cells
             m1 = (np.arange(mixed_j.size) + 1) % 3
             m0 = np.searchsorted(mixed_j, np.arange(n), side="left") % 3
+            if case == "pure":
+                m0[n // 2:] = 2
         mass0, specific0 = rng.uniform(0.1, 2.0, n), rng.normal(1.0, 0.5, n)
         mass1, specific1 = rng.uniform(0.1, 2.0, mixed_j.size), rng.normal(1.0, 0.5, mixed_j.size)
         velocity = rng.normal(0.0, 1.0, mixed_j.size)
         for order in (1, 2):
-            for cut in ((False, False), (True, True), (True, False)):
+            for cut in ((False, False), (True, True), (True, False), (False, True)):
                 every = (x, X, m0, mass0, specific0, corner, u, mixed_j, gamma - xl[mixed_j], m1, mass1, specific1,
                          velocity, n_materials, order, cut)
                 label = f"trial {trial}, {case}, {n_materials} materials, order {order}, cut {cut}"
@@ -535,8 +552,12 @@ def test_the_compiled_window_contents_give_the_numpy_bits():
                         results.append(str(failure))
                 expected, got = results
                 outcome = "refused" if isinstance(expected, str) else "out of reach" if expected is None else "done"
+                if outcome == "done" and mixed_j.size == 0 and expected["new_mixed_j"].size:
+                    outcome = "done, a new mixed cell"  # two materials met at a node, now in a cell
+                if outcome == "done" and not cut[0] and not cut[1] and X[0] == x[0] and np.any(X != x):
+                    outcome = "done, the whole mesh"
                 outcomes[outcome] = outcomes.get(outcome, 0) + 1
-                if outcome != "done":
+                if not outcome.startswith("done"):
                     assert got == expected, label
                     continue
                 assert got is not None and not isinstance(got, str), label
@@ -560,7 +581,8 @@ def test_the_compiled_window_contents_give_the_numpy_bits():
         messages.append(str(failure.value))
     assert messages[0] == messages[1] == "sorted cell 3: two interfaces meet in one cell (a layer thinner than a " \
         "cell); refine the mesh"
-    assert all(outcomes.get(k, 0) > 0 for k in ("done", "out of reach")), outcomes
+    assert all(outcomes.get(k, 0) > 0 for k in ("done", "out of reach", "done, a new mixed cell",
+                                                "done, the whole mesh")), outcomes
 
 
 @pytest.mark.parametrize("order", [1, 2])
@@ -621,3 +643,60 @@ def test_a_run_continues_from_its_result_and_an_unknown_state_is_refused():
     problem.state = first.state.evolved(time=0.0)
     with pytest.raises(ValueError, match="result.state"):
         simulate(problem, stop_after_steps=1)
+
+
+def test_the_compiled_deposit_velocities_and_densities_give_the_numpy_bits():
+    """The kinetic-energy deposit, the nodes' velocities and losses at the end of the swept
+    remap, the slots' densities and the finite-sound-speed check (compiled) against their
+    numpy originals (tests/oracles.py), bit for bit: meshes in order and shuffled, enriched
+    and single-velocity mixed cells, nodes and slots without mass, negative and NaN
+    values."""
+    import oracles
+
+    from ale_xfem.model.cell_kernels import finite_where_occupied, slot_densities
+    from ale_xfem.remap import swept_kernels
+
+    def bits(a):
+        return np.ascontiguousarray(a, dtype=float).view(np.uint64)
+
+    rng = np.random.default_rng(13)
+    for n in (1, 2, 5, 40):
+        for case in ("plain", "empty nodes", "nan"):
+            loss, node_mass = rng.normal(0.0, 1.0, n + 1), rng.uniform(0.5, 2.0, n + 1)
+            corner, mass = rng.uniform(0.1, 1.0, (2, n)), rng.uniform(0.1, 1.0, (2, n))
+            energy, volume = rng.normal(1.0, 1.0, (2, n)), rng.uniform(-0.2, 1.0, (2, n))
+            if case == "empty nodes":
+                node_mass[rng.integers(0, n + 1, 2)] = 0.0
+                mass[1, rng.integers(0, n, 2)] = 0.0
+            if case == "nan":
+                node_mass[0], loss[-1], volume[0, 0], mass[1, -1], energy[0, -1] = np.nan, np.nan, np.nan, np.nan, np.nan
+            mixed = np.unique(rng.integers(0, n, 2))
+            order = rng.permutation(n)  # cells in any order: left and right nodes gathered
+            left_node, right_node = np.arange(n), np.arange(1, n + 1)
+            for in_order, (left, right) in ((True, (left_node, right_node)), (False, (left_node[order], right_node[order]))):
+                for condensed in (True, False):
+                    expected, got = energy.copy(), energy.copy()
+                    label = f"n = {n}, {case}, in order {in_order}, condensed {condensed}"
+                    with np.errstate(all="ignore"):
+                        oracles.deposit_losses(loss, corner, node_mass, left, right, in_order, mixed, condensed, mass,
+                                               expected)
+                        swept_kernels.deposit_losses(loss, corner, node_mass, left, right, in_order, mixed, condensed,
+                                                     mass, got)
+                    np.testing.assert_array_equal(bits(got), bits(expected), err_msg=label)
+            momentum, kinetic = rng.normal(0.0, 1.0, (2, n + 1)), rng.normal(0.0, 1.0, n + 1)
+            for heat in (True, False):
+                left_expected, left_got = np.empty(n), np.empty(n)
+                with np.errstate(all="ignore"):
+                    expected = oracles.node_velocities_and_losses(node_mass, momentum, corner[1], left_expected,
+                                                                  kinetic, heat)
+                    got = swept_kernels.node_velocities_and_losses(node_mass, momentum, corner[1], left_got,
+                                                                   kinetic, heat)
+                np.testing.assert_array_equal(bits(left_got), bits(left_expected), err_msg=case)
+                for a, b in zip(expected[:2] + ((expected[2],) if heat else ()), got):
+                    np.testing.assert_array_equal(bits(b), bits(a), err_msg=case)
+            densities = np.empty_like(mass)
+            with np.errstate(all="ignore"):
+                slot_densities(mass, volume, densities)
+                np.testing.assert_array_equal(bits(densities), bits(oracles.density_of(mass, volume)), err_msg=case)
+            for values in (energy, np.where(mass > 0, 1.0, np.nan), np.where(np.isnan(mass), np.inf, 1.0)):
+                assert finite_where_occupied(values, mass) == oracles.finite_where_occupied(values, mass), case

@@ -58,11 +58,12 @@ def slot_densities(mass, volume, density):  # pragma: no cover (compiled)
 
 @numba.njit(**LOOP)
 def finite_where_occupied(values, mass):  # pragma: no cover (compiled)
-    """Whether every entry of (S, n_cells) ``values`` whose slot holds mass is finite."""
+    """Whether every entry of (S, n_cells) ``values`` whose slot holds mass (m > 0; not a
+    NaN mass) is finite."""
     finite = True
     for slot in range(mass.shape[0]):
         for cell in range(mass.shape[1]):
-            finite &= (mass[slot, cell] <= 0.0) | math.isfinite(values[slot, cell])
+            finite &= (not mass[slot, cell] > 0.0) | math.isfinite(values[slot, cell])
     return finite
 
 

@@ -229,7 +229,7 @@ def _swept_sorted(x, X, m0, mass0, specific0, corner_sorted, u, mixed_j, volume0
     if status:
         return _too_far(swept_kernels.CONTENT_FAILURES[status - 1])
     new_mixed_j = np.flatnonzero(slot_material[1] >= 0)
-    result = _momentum(m0.size, x, X, x[:-1], x[1:], mixed_j, gamma, new_mixed_j, X[:-1] + volume[0],
+    result = _momentum(x, X, x[:-1], x[1:], mixed_j, gamma, new_mixed_j, X[:-1] + volume[0],
                        rho0, srho0, centre0, rho1, srho1, centre1, corner_sorted, u, order,
                        mixed_velocity, m0, m1, cut)
     if result is None:
@@ -240,7 +240,7 @@ def _swept_sorted(x, X, m0, mass0, specific0, corner_sorted, u, mixed_j, volume0
             "kinetic": kinetic}
 
 
-def _momentum(n, x, X, xl, xr, mixed_j, gamma, new_mixed_j, new_gamma, rho0, srho0, centre0,
+def _momentum(x, X, xl, xr, mixed_j, gamma, new_mixed_j, new_gamma, rho0, srho0, centre0,
               rho1, srho1, centre1, corner_sorted, u, order, mixed_velocity, m0, m1_of_mixed, cut):
     """Nodal momentum and lumped masses through the dual faces (compiled:
     :func:`ale_xfem.remap.swept_kernels.window_momentum`): (new node masses, momenta, corner

@@ -1,11 +1,13 @@
-"""Compiled kernels of the 1D remap: the limited slopes of the pieces, which both remaps use
-(ale_xfem.remap.pieces_1d), and the swept-region remap's whole-mesh pass over pure cells
-(ale_xfem.remap.swept_1d).
+"""Compiled kernels of the 1D remap: the limited slopes of the pieces and the deposit of the
+kinetic energy the remap loses, which both remaps use (ale_xfem.remap.pieces_1d); and the
+swept-region remap's (ale_xfem.remap.swept_1d) whole-mesh pass over pure cells
+(:func:`pure_cells`), the nodes' velocities and losses after it, and its windows around the
+interfaces, material by material (:func:`window_contents`, :func:`window_momentum`).
 
-:func:`pure_cells` is the whole-mesh pass of the swept remap: each formula of the numpy code
-it replaced, written per cell and per node in the same order of operations, so the results
-are the same to the bit (tests/test_remap.py compares it with that code, kept there as the
-oracle, and tests/test_regression.py compares the shipped scenes byte by byte).  Comparisons
+Each is the numpy code it replaced, written per cell and per node in the same order of
+operations, so the results are the same to the bit (tests/test_remap.py compares each with
+that code, kept as the oracle in tests/oracles.py, and tests/test_regression.py compares the
+shipped scenes byte by byte).  Comparisons
 follow numpy's: ``np.maximum(a, b)`` gives b unless a > b (or a is NaN), and np.clip with
 array bounds clips the same way, which fixes the sign of a zero when a = ±0 = b.  The two tests are combined with
 ``|``, not ``or``: ``or`` branches, and a minmod written with it took three times as long
@@ -349,9 +351,11 @@ def deposit_losses(loss, corner_mass, node_mass, left_node, right_node, in_order
 
 
 # -- the nodal momentum of a window (swept_1d._swept_sorted) ------------------------------
-# A window's node parts (swept_1d's module docstring): L_j = [x_j, f_j], owned by node j,
-# and R_j = [f_j, x_{j+1}], owned by node j + 1, f_j the cell's middle or Γ.  Rows of a
-# (PARTS, count) array, and each owner's velocity and slope (components, count).
+# A window's node parts: cell j's L_j = [x_j, f_j], owned by node j, and R_j = [f_j,
+# x_{j+1}], owned by node j + 1, f_j the cell's middle or, in an enriched mixed cell, Γ (the
+# mass condensation).  Each carries its density piece (value, slope, centre), the factor
+# taking its reconstructed mass to its lumped corner mass, and the centroid of that mass:
+# rows of a (PARTS, count) array; its owner's velocity and slope in (components, count).
 LO, HI, RHO, SLOPE, CENTRE, SCALE, CENTROID, PARTS = 0, 1, 2, 3, 4, 5, 6, 7
 # why a window's nodal momentum is out of the swept form's reach (the caller then takes the
 # general intersection): WINDOW_FAILURES[status − 1]
