@@ -151,6 +151,16 @@ def test_overrides_reach_any_key():
         load_scene(resolve_scene_path("sod"), ["regions.7.density=1"])
 
 
+def test_an_override_takes_a_key_as_an_error_names_it():
+    """An error names a list's entry as the scene file reads (`regions[1].density`); pasted
+    into --set it sets the same key as `regions.1.density`."""
+    with pytest.raises(SceneError) as error:
+        load_scene(resolve_scene_path("sod"), ["regions.1.density=-1"])
+    assert error.value.key == "regions[1].density"
+    scene = load_scene(resolve_scene_path("sod"), [f"{error.value.key}=0.25"])
+    assert scene.regions[1].density == 0.25 and scene.regions[0].density == 1.0
+
+
 def test_every_shipped_scene_is_valid_and_described():
     paths = shipped_scenes()
     assert len(paths) >= 5

@@ -202,12 +202,13 @@ def load_scene(path: str | Path, overrides: list[str] | tuple[str, ...] = ()) ->
 
 
 def apply_override(data: dict, item: str) -> None:
-    """Apply one `key=value` (dotted key, list positions as integers: `regions.1.density=2`).
-    The value is read as a TOML value when it parses as one, else as a string."""
+    """Apply one `key=value` (dotted key, list positions as integers: `regions.1.density=2`,
+    or as the errors name them: `regions[1].density=2`).  The value is read as a TOML value
+    when it parses as one, else as a string."""
     if "=" not in item:
         raise SceneError("--set", item, "key=value, e.g. mesh.cells=400")
     key, text = item.split("=", 1)
-    key = key.strip()
+    key = re.sub(r"\[([0-9]+)\]", r".\1", key.strip())  # regions[1].density: regions.1.density
     try:
         value = tomllib.loads(f"v = {text.strip()}")["v"]
     except tomllib.TOMLDecodeError:
