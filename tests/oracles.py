@@ -8,7 +8,26 @@ import math
 import numpy as np
 
 from ale_xfem.remap.failure import RemapFailure
-from ale_xfem.remap.pieces_1d import component_dot, integrate_linear, lump_kinetic, minmod
+from ale_xfem.remap.pieces_1d import component_dot, minmod
+
+
+def integrate_linear(value, slope, centre, lo, hi):
+    """∫_lo^hi value + slope (x − centre) dx (pieces_1d's numpy code before it was compiled
+    into swept_kernels.integrate_linear)."""
+    return value * (hi - lo) + 0.5 * slope * ((hi - centre) ** 2 - (lo - centre) ** 2)
+
+
+def lump_kinetic(mass, momentum):
+    """½ |p|²/m of lumps, 0 for empty ones (pieces_1d's numpy code before it was compiled
+    into swept_kernels.lump_kinetic)."""
+    kinetic = component_dot(momentum, momentum)
+    kinetic *= 0.5
+    if mass.all():
+        kinetic /= mass
+        return kinetic
+    np.divide(kinetic, mass, out=kinetic, where=mass != 0.0)
+    kinetic[mass == 0.0] = 0.0
+    return kinetic
 
 
 def libm_power(x, exponent: float):

@@ -53,19 +53,19 @@ def piece_slopes(centre, width, density, energy_density, material, order):
 
 
 def integrate_linear(value, slope, centre, lo, hi):
-    """∫_lo^hi value + slope (x − centre) dx."""
-    return value * (hi - lo) + 0.5 * slope * ((hi - centre) ** 2 - (lo - centre) ** 2)
+    """∫_lo^hi value + slope (x − centre) dx of arrays (compiled, one formula with the swept
+    remap's: :func:`ale_xfem.remap.swept_kernels.integrate_linear`)."""
+    arrays = [np.ascontiguousarray(a, dtype=float) for a in np.broadcast_arrays(value, slope, centre, lo, hi)]
+    integral = np.empty(arrays[0].shape)
+    swept_kernels.linear_integrals(*(a.ravel() for a in arrays), integral.ravel())
+    return integral
 
 
 def lump_kinetic(mass, momentum):
-    """½ |p|²/m of lumps (0 for empty ones)."""
-    kinetic = component_dot(momentum, momentum)
-    kinetic *= 0.5
-    if mass.all():
-        kinetic /= mass
-        return kinetic
-    np.divide(kinetic, mass, out=kinetic, where=mass != 0.0)
-    kinetic[mass == 0.0] = 0.0
+    """½ |p|²/m of lumps (n,), their momenta (components, n); 0 for empty ones (compiled:
+    :func:`ale_xfem.remap.swept_kernels.lump_kinetic`)."""
+    kinetic = np.empty(np.shape(mass))
+    swept_kernels.lump_kinetics(np.ascontiguousarray(mass, dtype=float), np.asarray(momentum, dtype=float), kinetic)
     return kinetic
 
 

@@ -1,5 +1,6 @@
-"""Compiled kernels of the 1D remap: the limited slopes of the pieces and the deposit of the
-kinetic energy the remap loses, which both remaps use (ale_xfem.remap.pieces_1d); and the
+"""Compiled kernels of the 1D remap: the limited slopes of the pieces, the integral of a
+linear piece, a lump's kinetic energy and the deposit of the kinetic energy the remap
+loses, which both remaps use (ale_xfem.remap.pieces_1d); and the
 swept-region remap's (ale_xfem.remap.swept_1d) whole-mesh pass over pure cells
 (:func:`pure_cells`), the nodes' velocities and losses after it, and its windows around the
 interfaces, material by material (:func:`window_contents`, :func:`window_momentum`).
@@ -439,6 +440,26 @@ def lump_kinetic(mass, momentum):  # pragma: no cover (compiled)
 
 
 @numba.njit(**KERNEL)
+def lump_kinetics(mass, momentum, kinetic):  # pragma: no cover (compiled)
+    """:func:`lump_kinetic` of lumps (n,), their momenta (components, n), into ``kinetic``."""
+    for i in range(mass.size):
+        kinetic[i] = lump_kinetic(mass[i], momentum[:, i])
+
+
+@numba.njit(**KERNEL)
+def integrate_linear(value, slope, centre, lo, hi):  # pragma: no cover (compiled)
+    """∫_lo^hi value + slope (x − centre) dx."""
+    return value * (hi - lo) + 0.5 * slope * ((hi - centre) ** 2 - (lo - centre) ** 2)
+
+
+@numba.njit(**KERNEL)
+def linear_integrals(value, slope, centre, lo, hi, integral):  # pragma: no cover (compiled)
+    """:func:`integrate_linear` of flat arrays, into ``integral``."""
+    for i in range(value.size):
+        integral[i] = integrate_linear(value[i], slope[i], centre[i], lo[i], hi[i])
+
+
+@numba.njit(**KERNEL)
 def node_velocity_slopes(u, x, mixed_j, gamma, mixed_velocity, m0, m1_of_mixed):  # pragma: no cover (compiled)
     """Minmod slope of each node's velocity from the cells on either side, within one
     material (the general intersection's slopes).  A mixed cell gives each of its internal
@@ -618,7 +639,7 @@ def clipped_integral(value, slope, centre, lo, hi, a, b):  # pragma: no cover (c
     end = minimum(b, hi)
     length = maximum(end - start, 0.0)
     end = start + length
-    return value * (end - start) + 0.5 * slope * ((end - centre) ** 2 - (start - centre) ** 2), length
+    return integrate_linear(value, slope, centre, start, end), length
 
 
 @numba.njit(**KERNEL)
