@@ -1,5 +1,7 @@
 """The material-by-material remap in 1D: conservation, rest, no diffusion across Γ."""
 
+import itertools
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -346,7 +348,8 @@ def test_a_remap_onto_the_unmoved_mesh_is_the_identity(scene, overrides, order):
 def _swept_kernel_inputs(rng, n, components, case):
     """A tube of n cells for the swept remap's whole-mesh pass: ``case`` "smooth" (random
     fields), "steps" (piecewise-constant fields: exact zero gradients), "negative" (some
-    negative energies: bounded slopes), "far" (nodes moving by more than half a cell),
+    negative energies: bounded slopes), "first negative" (the first cell's energy alone
+    negative: bounded slopes everywhere), "far" (nodes moving by more than half a cell),
     "still" (no node moves: every displacement a signed zero)."""
     widths = 1.0 + 0.3 * rng.random(n)
     x = np.concatenate([[0.0], np.cumsum(widths)]) / widths.sum()
@@ -363,6 +366,8 @@ def _swept_kernel_inputs(rng, n, components, case):
     else:
         rho = 1.0 + rng.random(n)
         e = 2.0 + rng.random(n) - (3.0 * (np.arange(n) % 3 == 0) if case == "negative" else 0.0)
+        if case == "first negative":
+            e[0] = -1.0
         u = rng.normal(size=(components, n + 1))
     mass = rho * width
     share = np.where(rng.random(n) < 0.5, 0.5, 0.3 + 0.4 * rng.random(n))
@@ -375,24 +380,25 @@ def _swept_kernel_inputs(rng, n, components, case):
 def test_the_compiled_swept_kernel_gives_the_numpy_kernels_bits(order, components):
     """The swept remap's whole-mesh pass, compiled, against the numpy code it replaced
     (tests/oracles.py): the same bits (signs of zeros included) in every output, for tubes
-    of 1 to 40 cells, smooth and piecewise-constant fields, negative energies, nodes moving
-    by more than half a cell and nodes not moving at all, with and without the kinetic
-    energy balance."""
+    of 1 to 40 cells, smooth and piecewise-constant fields, negative energies (every third
+    cell, or the first cell's alone), nodes moving by more than half a cell and nodes not
+    moving at all, with and without the kinetic energy balance; done in one block, and in
+    blocks of 1 to 7 cells (each reading its margin of cells on both sides)."""
     from oracles import pure_kernel
 
-    from ale_xfem.remap.swept_kernels import pure_cells
+    from ale_xfem.remap.swept_kernels import PURE_CELLS_BLOCK, pure_cells
 
     def bits(a):
         return np.ascontiguousarray(a, dtype=float).view(np.uint64)
 
     rng = np.random.default_rng(11)
     for n in (1, 2, 3, 40):
-        for case in ("smooth", "steps", "negative", "far", "still"):
+        for case in ("smooth", "steps", "negative", "first negative", "far", "still"):
             x, X, mass, e, corner, u = _swept_kernel_inputs(rng, n, components, case)
-            for slots, heat in ((1, True), (2, False)):
+            for (slots, heat), block in itertools.product(((1, True), (2, False)), (PURE_CELLS_BLOCK, 1, 3, 7)):
                 expected = pure_kernel(x, X, mass, e, corner, u, order, slots, heat)
-                got = pure_cells(x, X, mass, e, corner, u, order, slots, heat)
-                label = f"n = {n}, {case}, slots {slots}, heat {heat}"
+                got = pure_cells(x, X, mass, e, corner, u, order, slots, heat, block)
+                label = f"n = {n}, {case}, slots {slots}, heat {heat}, blocks of {block}"
                 for name, a, b in zip(("mass", "energy", "corner", "node mass", "momentum"), expected[:5], got[:5]):
                     if name == "corner":  # row 0 is the caller's
                         a, b = a[1], b[1]
