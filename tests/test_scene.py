@@ -195,3 +195,16 @@ def test_a_scene_name_that_is_not_shipped_points_to_the_list():
     with pytest.raises(SceneError) as error:
         load_scene(resolve_scene_path("no-scene-of-that-name"))
     assert "did you mean" not in str(error.value)
+
+
+@pytest.mark.parametrize("base", ["rotated-tube-shear", "shock-disk", "spinning-disk"])
+def test_the_shipped_enriched_2d_scenes_are_their_single_velocity_scenes_with_enriched_cells(base):
+    """``<base>-enriched`` ships the paper's 2D method on a scene shipped with one velocity
+    field: the same scene to the last resolved key, but its interface's model (enriched,
+    with bubbles and free slip written out), its name and its description."""
+    enriched = load_scene(resolve_scene_path(f"{base}-enriched"))
+    switched = load_scene(resolve_scene_path(base), ["interface.model=enriched", 'interface.stabilisation="bubble"',
+                                                     'interface.slip="free"'])
+    assert enriched.interface.model == "enriched" and enriched.name == f"{base}-enriched"
+    differing = {key for key in enriched.resolved if enriched.resolved[key] != switched.resolved[key]}
+    assert differing == {"name", "description"}, differing
