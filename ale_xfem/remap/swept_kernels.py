@@ -182,7 +182,7 @@ def whole_mesh_decisions(x, X, mass, specific_energy):  # pragma: no cover (comp
         negative_density |= not mass[j] / w >= 0.0
         negative_energy |= not (mass[j] * specific_energy[j]) / w >= 0.0
     any_far = False
-    for k in range(n - 1):  # (without a branch: it vectorises)
+    for k in range(n - 1):  # (an or-reduction, without a branch)
         d = X[k + 1] - x[k + 1]
         any_far |= abs(d) > 0.5 * minimum(x[k + 1] - x[k], x[k + 2] - x[k + 1])
     far = np.empty(max(n - 1, 0), dtype=np.int64)
