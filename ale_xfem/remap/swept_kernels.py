@@ -62,6 +62,20 @@ def limited_slopes(value, inverse_spacing, bounded, width, same_material):  # pr
 
 
 @numba.njit(**KERNEL)
+def below_zero_or_nan(value):  # pragma: no cover (compiled)
+    """Whether ``value`` is below 0 or NaN: not (min(0, values) >= 0) over values, as an
+    or-reduction of this (a slope's bound is formed then)."""
+    return not value >= 0.0
+
+
+@numba.njit(**KERNEL)
+def moved_far(displacement, left_width, right_width):  # pragma: no cover (compiled)
+    """Whether a node moved by more than half of the narrower of its two cells (the swept
+    whole-mesh pass leaves it to a window)."""
+    return abs(displacement) > 0.5 * minimum(left_width, right_width)
+
+
+@numba.njit(**KERNEL)
 def piece_slopes(centre, width, density, energy_density, order, same_material):  # pragma: no cover (compiled)
     """The limited slopes of a material's density and energy density over the pieces
     (sorted left to right; ``same_material``: see :func:`limited_slopes`): minmod within
@@ -75,9 +89,9 @@ def piece_slopes(centre, width, density, energy_density, order, same_material): 
     if order != 2:
         return np.zeros(n), np.zeros(n)
     negative_density, negative_energy = False, False
-    for j in range(n):  # not (min(0, values) >= 0): a value below 0, or a NaN
-        negative_density |= not density[j] >= 0.0
-        negative_energy |= not energy_density[j] >= 0.0
+    for j in range(n):
+        negative_density |= below_zero_or_nan(density[j])
+        negative_energy |= below_zero_or_nan(energy_density[j])
     return bounded_piece_slopes(centre, width, density, energy_density, order, same_material, negative_density,
                                 negative_energy)
 
@@ -177,14 +191,13 @@ def whole_mesh_decisions(x, X, mass, specific_energy):  # pragma: no cover (comp
     quarter of the narrowest cell, never with a NaN anywhere, as the numpy code did)."""
     n = mass.size
     negative_density, negative_energy = False, False
-    for j in range(n):  # not (min(0, values) >= 0): a value below 0, or a NaN
+    for j in range(n):  # (the densities pure_cells_window forms, formed the same way)
         w = x[j + 1] - x[j]
-        negative_density |= not mass[j] / w >= 0.0
-        negative_energy |= not (mass[j] * specific_energy[j]) / w >= 0.0
+        negative_density |= below_zero_or_nan(mass[j] / w)
+        negative_energy |= below_zero_or_nan((mass[j] * specific_energy[j]) / w)
     any_far = False
     for k in range(n - 1):  # (an or-reduction, without a branch)
-        d = X[k + 1] - x[k + 1]
-        any_far |= abs(d) > 0.5 * minimum(x[k + 1] - x[k], x[k + 2] - x[k + 1])
+        any_far |= moved_far(X[k + 1] - x[k + 1], x[k + 1] - x[k], x[k + 2] - x[k + 1])
     far = np.empty(max(n - 1, 0), dtype=np.int64)
     far_count = 0
     if any_far:  # (rare: the arrays of the test made only here)
@@ -195,7 +208,7 @@ def whole_mesh_decisions(x, X, mass, specific_energy):  # pragma: no cover (comp
             half_d[k] = 0.5 * (X[k + 1] - x[k + 1])
         if far_nodes_looked_for(half_d, width):
             for k in range(n - 1):
-                if abs(X[k + 1] - x[k + 1]) > 0.5 * minimum(width[k], width[k + 1]):
+                if moved_far(X[k + 1] - x[k + 1], width[k], width[k + 1]):
                     far[far_count] = k + 1
                     far_count += 1
     return negative_density, negative_energy, far[:far_count]
