@@ -243,7 +243,9 @@ pressure_axis = axes[2]
 for (title, (problem, result)), marker in zip(runs.items(), ("o", "s")):
     state, exact = result.state, problem.exact.solution
     plic = reconstruct_state(problem, state, normal=problem.scene.interface.normal)
-    slot = np.searchsorted(problem.mixed.cells, plic.cells)  # (the mixed cells are sorted)
+    by_cell = np.argsort(problem.mixed.cells)  # each PLIC cell's place among the mixed cells
+    slot = by_cell[np.searchsorted(problem.mixed.cells, plic.cells, sorter=by_cell)]
+    assert np.array_equal(problem.mixed.cells[slot], plic.cells)
     tangent = np.array([-exact.normal[1], exact.normal[0]])
     along = (plic.centroid - np.array(exact.point)) @ tangent
     order = np.argsort(along)
@@ -253,7 +255,7 @@ for (title, (problem, result)), marker in zip(runs.items(), ("o", "s")):
     pressure_axis.plot(along[order], pressure[order], marker + "-", ms=3, lw=0.6, label=f"{title}: spread {spread:.2g}")
     print(f"sheared tube, {title:18s}: p_Γ over the cut cells away from the walls {np.mean(pressure[inside]):.4g} "
           f"± {np.std(pressure[inside]):.2g}")
-contact = exact.sample(plic.centroid, state.time)["pressure"]
+    contact = exact.sample(plic.centroid, state.time)["pressure"]  # (the same for both runs)
 pressure_axis.axhline(float(np.median(contact)), color="k", lw=1, label="exact contact pressure")
 pressure_axis.set(xlabel="position along Γ", ylabel="p_Γ", title="interface pressure of each cut cell")
 pressure_axis.legend(fontsize=8)
