@@ -186,7 +186,7 @@ def test_each_remap_of_enriched_cells_keeps_total_energy(cell, monkeypatch):
 
 
 @pytest.mark.parametrize("cell, stabilisation", [("quadrilateral", "bubble"), ("triangle", "bubble"),
-                                                  ("quadrilateral", "nitsche")])
+                                                  ("quadrilateral", "nitsche"), ("triangle", "nitsche")])
 def test_the_lagrange_steps_of_enriched_cells_keep_total_energy(cell, stabilisation, monkeypatch):
     """A pure cell's forces enter its own material's momentum rows, so they work on that
     material's velocities — also at a node the other material owns, where the mesh moved
