@@ -70,3 +70,32 @@ def interface_affine(dt, inverse_node_mass, free_nodes, cells, node_a, node_b, v
         offset[j] = volume[cells[j]] + dt * centred - slope[j] * interface_pressure[j]
         work_offset[j] = 0.5 * (interface_pressure[j] + viscosity_start[j] + viscosity_predicted[j])
         mobility[0, j], mobility[1, j] = mobility_a, mobility_b
+
+
+@numba.njit(**KERNEL)
+def pure_cell_forces(nodes, first, cell, corner, cell_material, force_n, force_predicted,
+                     out):  # pragma: no cover (compiled)
+    """Each material's time-centred force F̄ = ½(F^n + F*) of its pure cells at ``nodes``
+    (EnrichedClosure2D._pure_forces), into ``out`` (2 materials, 2 components, n_nodes):
+    ``force_n``, ``force_predicted`` (2, k, n_cells) every cell's corner forces,
+    ``cell_material`` (n_cells,) each cell's material (−1: mixed), (first, cell, corner) the
+    cells around each node (ale_xfem.model.mesh.node_corners: by corner, then by cell).  A
+    node's corners are summed as the mesh's corner sums add them (Corners.scatter_scaled):
+    the cells of one corner index first, in increasing order, then corner by corner; cells of
+    the other material and mixed cells add nothing."""
+    for j in range(nodes.size):
+        node = nodes[j]
+        for m in range(2):
+            for d in range(2):
+                total = 0.0
+                p = first[node]
+                while p < first[node + 1]:
+                    here = corner[p]
+                    partial = 0.0
+                    while p < first[node + 1] and corner[p] == here:
+                        c = cell[p]
+                        if cell_material[c] == m:
+                            partial += (force_n[d, here, c] + force_predicted[d, here, c]) * 0.5
+                        p += 1
+                    total += partial
+                out[m, d, node] = total

@@ -510,6 +510,20 @@ def _node_sums(cell_nodes, corner_mass, n_nodes):
 edges_of = PerMesh(mesh_edges)  # mesh_edges of a mesh's cell_nodes, made once per mesh
 
 
+def _node_edge_table(cell_nodes):
+    """(first (n_nodes + 1,), edge): the edges (numbered as :data:`edges_of` numbers them) at
+    each node, node i's in ``edge[first[i]:first[i + 1]]``."""
+    a, b, _, _ = edges_of(cell_nodes)
+    ends = np.concatenate([a, b])
+    order = np.argsort(ends, kind="stable")
+    first = np.zeros(int(cell_nodes.max()) + 2, dtype=np.int64)
+    np.cumsum(np.bincount(ends, minlength=first.size - 1), out=first[1:])
+    return first, np.tile(np.arange(a.size), 2)[order]
+
+
+node_edges = PerMesh(_node_edge_table)  # the edges at each node of a mesh, made once per mesh
+
+
 def by_material(values, cell_material) -> np.ndarray:
     """(2, n_cells): a per-slot array (S, n_cells) rearranged by material (0, 1), the
     materials of ``cell_material`` (S, n_cells); zero where a cell does not hold the

@@ -52,12 +52,13 @@ import numpy as np
 
 import dolfinx_solver  # noqa: F401  (before dolfinx: it loads MPI and PETSc)
 from ale_xfem.lagrange.breakdown import Breakdown
-from ale_xfem.mixed.closure_kernels import add_viscosity
+from ale_xfem.mixed.closure_kernels import add_viscosity, pure_cell_forces
 from ale_xfem.mixed.common import SharedClosure
-from ale_xfem.mixed.cut_cells_2d import by_material, crossed_volume, edge_weights, edges_of, enriched_geometry
+from ale_xfem.mixed.cut_cells_2d import (by_material, crossed_volume, edge_weights, edges_of, enriched_geometry,
+                                         node_edges)
 from ale_xfem.mixed.enriched_step_2d import EnrichedStep2D, MaterialStart
 from ale_xfem.mixed.equilibrium import MixedCellFailure
-from ale_xfem.model.mesh import cells_around
+from ale_xfem.model.mesh import cells_around, cells_at_nodes, csr_rows
 from ale_xfem.model.mixed_cells import MixedCells
 from forms.enriched_interface import InterfaceForms, InterfaceSystem
 
@@ -114,7 +115,7 @@ class EnrichedClosure2D(SharedClosure):
         # the ghost viscosity's weight (GHOST_VISCOSITY of the cell type by default)
         self.ghost_viscosity = GHOST_VISCOSITY[mesh.cell_type.name] if ghost_viscosity is None else ghost_viscosity
         self.bound_system = InterfaceSystem if system is None else system
-        self.system, self._system_cells, self._in_band = None, None, None
+        self.system, self._system_cells, self._in_band, self._band_nodes = None, None, None, None
         self._last = None
         # the interface system speaks DOLFINx's numbering of nodes and cells (a structured
         # rectangle of quadrilaterals numbers its own row by row)
@@ -152,6 +153,7 @@ class EnrichedClosure2D(SharedClosure):
             dolfinx_cell = (lambda c: c) if mesh.dolfinx_cell is None else (lambda c: mesh.dolfinx_cell[c])
             if self.system is None or not np.all(self._in_band[mixed.cells]):
                 self._in_band = self._band(mixed.cells)
+                self._band_nodes = np.unique(mesh.cell_nodes[self._in_band])
                 band = np.flatnonzero(self._in_band)
                 if self.system is not None:  # (its PETSc objects freed now, not parked: InterfaceSystem.destroy)
                     self.system.destroy()
@@ -171,21 +173,13 @@ class EnrichedClosure2D(SharedClosure):
 
     # -- the implicit solve ---------------------------------------------------------------
 
-    def _pure_forces(self, step, first, predicted, cell_material):
-        """(2, 2, n_nodes): each material's time-centred force F̄ of its pure cells; and every
-        cell's time-centred corner forces (2, k, n_cells)."""
-        mesh, corners = self.mesh, step.corners
-        k = mesh.cell_type.nodes_per_cell
-        out = np.zeros((2, 2, mesh.n_nodes))
-        rows = np.zeros((2, k, mesh.n_cells))
-        for evaluation in (first, predicted):
-            rows += evaluation.corner_force
-        rows *= 0.5
-        for m in range(2):
-            pure = cell_material == m
-            for d in range(2):
-                out[m, d] = corners.scatter([np.where(pure, r, 0.0) for r in rows[d]])
-        return out, rows
+    def _pure_forces(self, first, predicted, cell_material):
+        """(2, 2, n_nodes): each material's time-centred force F̄ of its pure cells at the
+        band's nodes, the only ones the interface system reads (zero elsewhere)."""
+        out = np.zeros((2, 2, self.mesh.n_nodes))
+        pure_cell_forces(self._band_nodes, *self.mesh.node_corners, cell_material, first.corner_force,
+                         predicted.corner_force, out)
+        return out
 
     def hold_predictor(self, u0, u_pred) -> None:
         """The mixed cells' nodes keep their start velocities in the explicit predictor
@@ -225,7 +219,7 @@ class EnrichedClosure2D(SharedClosure):
                             reconstruction.end, cut.edge_flux, cut.normal)
         cell_material = np.where(mass[1] > 0.0, 1, 0)
         cell_material[cells] = -1
-        pure, corner_force = self._pure_forces(step, first, predicted, cell_material)
+        pure = self._pure_forces(first, predicted, cell_material)
         nodes = mesh.cell_nodes[cells]
         velocity = state.material_node_velocity
         inertia, right, internal_force, transfers = [], [], np.zeros(2), []
@@ -291,9 +285,12 @@ class EnrichedClosure2D(SharedClosure):
         # up until the time step collapsed (the spinning disk on 20² triangles: 483 steps to
         # t = 1 instead of 171).
         heat = 0.5 * dt * system.dissipated_work(out["velocity"]).sum(axis=0)
-        mean_velocity = np.empty_like(velocity)  # ū_m in the mesh's numbering
+        # ū_m in the mesh's numbering on the mixed cells' nodes (``sub``), zero elsewhere as the
+        # solve leaves it
+        sub = self.node_of_dolfinx[system.nodes]
+        mean_velocity = np.zeros_like(velocity)
         for m in range(2):
-            mean_velocity[m] = out["velocity"][m][:, self.dolfinx_node]
+            mean_velocity[m][:, sub] = out["velocity"][m][:, system.nodes]
             heat -= 0.5 * dt * self._moved_work(transfers[m], nodes, mean_velocity[m])
         cell_mass = mass[:, cells].sum(axis=0)
         heat = np.stack([heat * mass[m, cells] / cell_mass for m in range(2)])
@@ -304,11 +301,13 @@ class EnrichedClosure2D(SharedClosure):
         stats["max_iterations"] = max(stats["max_iterations"], out["iterations"])
         # each material's velocity at n+1 on the mixed cells' nodes; the mesh follows the
         # material each node lies in
-        sub = self.node_of_dolfinx[system.nodes]
         new_velocity = velocity.copy()
         self._keep_momentum(step, mean_velocity, velocity, node_mass, sub, internal_force, dt)
         for m in range(2):
             new_velocity[m][:, sub] = 2.0 * mean_velocity[m][:, sub] - velocity[m][:, sub]
+        # the time-centred corner forces of the cells around those nodes (_pure_cells_work)
+        around = cells_at_nodes(mesh, sub)
+        corner_force = (around, (first.corner_force[:, :, around] + predicted.corner_force[:, :, around]) * 0.5)
         target = new_velocity[geometry.owner[sub], :, sub].T  # (2, n_sub)
         u0 = state.node_velocity
         mean_force[:2, sub] = (target - u0[:2, sub]) / dt_over_node_mass[sub]
@@ -498,7 +497,7 @@ class EnrichedClosure2D(SharedClosure):
         cut, nodes, dt, cells = last["cut"], last["nodes"], last["dt"], self.mixed.cells
         mean = last["mean_velocity"]
         owner = last["owner"]
-        mesh_velocity = mean[owner, :, np.arange(owner.size)].T  # (2, n_nodes): each node's own material's
+        mesh_velocity = np.where(owner == 0, mean[0], mean[1])  # (2, n_nodes): each node's own material's
         crossing = cut.crossing_volumes(mesh_velocity, mean, nodes, dt)  # (2, n, k) into each cell
         neighbour = cut.edge_neighbour
         where = np.full(mesh.n_cells, -1, dtype=np.int64)
@@ -563,14 +562,15 @@ class EnrichedClosure2D(SharedClosure):
         holds (its area), its density and specific energy (its new state's), and the
         edge's two nodes (``ends``)."""
         last, mesh = self._last, self.mesh
-        a, b, plus, minus = edges_of(mesh.cell_nodes)
         material = last["cell_material"]  # −1 on the mixed cells
         relative = np.zeros((2, mesh.n_nodes))  # ū_mesh − ū_m, zero off the mixed cells' nodes
         sub = last["sub"]
         relative[:, sub] = mesh_velocity[:, sub] - last["mean_velocity"][m][:, sub]
-        slides = np.any(relative != 0.0, axis=0)  # (an edge where m moves with the mesh at both ends crosses nothing)
-        edge = np.flatnonzero((minus >= 0) & (material[plus] == m) & (material[np.maximum(minus, 0)] == m)
-                              & (slides[a] | slides[b]))
+        # the edges with an end where m slides past the mesh (an edge where m moves with the
+        # mesh at both ends crosses nothing), in increasing order
+        edge = csr_rows(*node_edges(mesh.cell_nodes), sub[np.any(relative[:, sub] != 0.0, axis=0)])
+        a, b, plus, minus = (ends[edge] for ends in edges_of(mesh.cell_nodes))
+        edge = np.flatnonzero((minus >= 0) & (material[plus] == m) & (material[np.maximum(minus, 0)] == m))
         a, b, plus, minus = a[edge], b[edge], plus[edge], minus[edge]
         x0 = last["x0"]
         outward = np.stack([x0[1, b] - x0[1, a], x0[0, a] - x0[0, b]], axis=-1)  # |e| n_e, out of ``plus``
@@ -611,17 +611,16 @@ class EnrichedClosure2D(SharedClosure):
         last = self._last
         sub, dt = last["sub"], last["dt"]
         mesh = self.mesh
-        moved = np.zeros(mesh.n_nodes, dtype=bool)
-        moved[sub] = True
         nodes = mesh.cell_nodes.T  # (k, n_cells)
-        next_to_mixed = moved[nodes].any(axis=0)
+        next_to_mixed, corner_force = last["corner_force"]  # (the mixed cells among them, of material −1)
         for m in range(2):
-            cells = np.flatnonzero((last["cell_material"] == m) & next_to_mixed)
+            which = last["cell_material"][next_to_mixed] == m
+            cells = next_to_mixed[which]
             if cells.size == 0:
                 continue
             slide = np.zeros((2, mesh.n_nodes))  # (ū_m − ū) dt, on the mixed cells' nodes
             slide[:, sub] = last["x0"][:2, sub] + dt * last["mean_velocity"][m][:, sub] - x_new[:2, sub]
-            work = np.sum(last["corner_force"][:, :, cells] * slide[:, nodes[:, cells]], axis=(0, 1))
+            work = np.sum(corner_force[:, :, which] * slide[:, nodes[:, cells]], axis=(0, 1))
             e_new[0, cells] -= work / state.material_mass[0, cells]
 
     def finish(self, step, state, solution, x_new, u_new, e_new, dt):

@@ -172,6 +172,23 @@ def cells_around(mesh, cells) -> np.ndarray:
     return np.flatnonzero(np.logical_or.reduce(corner))
 
 
+def csr_rows(first, entries, rows) -> np.ndarray:
+    """The entries of ``rows`` of a compressed-row table (row i: ``entries[first[i]:first[i + 1]]``),
+    each once, in increasing order."""
+    rows = np.asarray(rows, dtype=np.int64)
+    start, length = first[rows], first[rows + 1] - first[rows]
+    # each wanted row's run of positions, one after the other
+    position = np.arange(int(length.sum())) + np.repeat(start - np.cumsum(length) + length, length)
+    return np.unique(entries[position])
+
+
+def cells_at_nodes(mesh, nodes) -> np.ndarray:
+    """The cells one of whose nodes is one of ``nodes``, in increasing order (read from
+    :func:`node_corners`: only the rows of ``nodes``, not the whole mesh)."""
+    first, cell, _ = mesh.node_corners
+    return csr_rows(first, cell, nodes)
+
+
 def node_neighbour_cells(cell_nodes: np.ndarray, n_nodes: int) -> np.ndarray:
     """The cells sharing at least one node with each cell, itself excluded: (n_cells, w)
     rows in increasing order, padded with −1 (w: the most any cell has)."""
