@@ -166,10 +166,7 @@ def _scaled(coefficient, values, out):
 
 def cells_around(mesh, cells) -> np.ndarray:
     """The cells sharing a node with ``cells`` (theirs included), in increasing order."""
-    touched = np.zeros(mesh.n_nodes, dtype=bool)
-    touched[mesh.cell_nodes[cells]] = True
-    corner = [c[0] for c in mesh.corners.gather(touched[None])]
-    return np.flatnonzero(np.logical_or.reduce(corner))
+    return cells_at_nodes(mesh, mesh.cell_nodes[cells].ravel())
 
 
 def csr_rows(first, entries, rows) -> np.ndarray:
