@@ -78,24 +78,32 @@ def pure_cell_forces(nodes, first, cell, corner, cell_material, force_n, force_p
     """Each material's time-centred force F̄ = ½(F^n + F*) of its pure cells at ``nodes``
     (EnrichedClosure2D._pure_forces), into ``out`` (2 materials, 2 components, n_nodes):
     ``force_n``, ``force_predicted`` (2, k, n_cells) every cell's corner forces,
-    ``cell_material`` (n_cells,) each cell's material (−1: mixed), (first, cell, corner) the
-    cells around each node (ale_xfem.model.mesh.node_corners: by corner, then by cell).  A
-    node's corners are summed as the mesh's corner sums add them (Corners.scatter_scaled):
-    the cells of one corner index first, in increasing order, then corner by corner; cells of
-    the other material and mixed cells add nothing."""
-    for j in range(nodes.size):
-        node = nodes[j]
-        for m in range(2):
-            for d in range(2):
-                total = 0.0
-                p = first[node]
-                while p < first[node + 1]:
-                    here = corner[p]
-                    partial = 0.0
-                    while p < first[node + 1] and corner[p] == here:
-                        c = cell[p]
-                        if cell_material[c] == m:
-                            partial += (force_n[d, here, c] + force_predicted[d, here, c]) * 0.5
-                        p += 1
-                    total += partial
-                out[m, d, node] = total
+    ``cell_material`` (n_cells,) each cell's material (−1: mixed; the other material's cells
+    and the mixed cells add nothing).  The gather of ale_xfem.model.cell_kernels.node_area_sums,
+    in its order (ale_xfem.model.mesh.Corners.scatter's bits), written for these four sums as
+    remap.swept_kernels_2d.corner_shares_at is for its five: corner by corner, each corner's
+    cells in order, each corner's sum (from +0) then added (``first``, ``cell``, ``corner``:
+    ale_xfem.model.mesh.node_corners, by corner then by cell)."""
+    for n in range(nodes.size):
+        node = nodes[n]
+        t00, t01, t10, t11 = 0.0, 0.0, 0.0, 0.0  # (material, component)
+        j, end = first[node], first[node + 1]
+        while j < end:
+            i = corner[j]
+            p00, p01, p10, p11 = 0.0, 0.0, 0.0, 0.0
+            while j < end and corner[j] == i:
+                c = cell[j]
+                fx = (force_n[0, i, c] + force_predicted[0, i, c]) * 0.5
+                fy = (force_n[1, i, c] + force_predicted[1, i, c]) * 0.5
+                if cell_material[c] == 0:
+                    p00 += fx
+                    p01 += fy
+                elif cell_material[c] == 1:
+                    p10 += fx
+                    p11 += fy
+                j += 1
+            t00 += p00
+            t01 += p01
+            t10 += p10
+            t11 += p11
+        out[0, 0, node], out[0, 1, node], out[1, 0, node], out[1, 1, node] = t00, t01, t10, t11
