@@ -708,6 +708,70 @@ def test_the_compiled_deposit_velocities_and_densities_give_the_numpy_bits():
                 assert finite_where_occupied(values, mass) == oracles.finite_where_occupied(values, mass), case
 
 
+def test_the_fused_end_of_the_swept_remap_gives_the_bits_of_its_passes():
+    """The end of the swept remap in one compiled call (``end_of_swept_remap``: the nodes'
+    velocities and losses, the specific energies, the deposit of the losses, the densities)
+    against the passes it fuses, their numpy originals (tests/oracles.py) one after the
+    other as ``swept_1d`` ran them, bit for bit; and the two slots it starts from
+    (``two_slots``) and the layout comparison (``same_slots``) against numpy.  One and two
+    slots, mixed cells at the ends, a slot-1 cell without mass, nodes without mass, NaN."""
+    import oracles
+
+    from ale_xfem.model.cell_kernels import same_slots
+    from ale_xfem.remap import swept_kernels
+
+    def bits(a):
+        return np.ascontiguousarray(a, dtype=float).view(np.uint64)
+
+    rng = np.random.default_rng(29)
+    for n in (1, 2, 7, 60):
+        for slots in (1, 2):
+            for case in ("plain", "empty nodes", "nan"):
+                label = f"n = {n}, {slots} slots, {case}"
+                node_mass = rng.uniform(0.5, 2.0, n + 1)
+                momentum, kinetic = rng.normal(0.0, 1.0, (rng.integers(1, 3), n + 1)), rng.normal(0.0, 1.0, n + 1)
+                corner = np.vstack([np.full(n, np.nan), rng.uniform(0.1, 1.0, n)])  # left ones filled by the end
+                mass, energy = rng.uniform(0.1, 1.0, (slots, n)), rng.normal(1.0, 1.0, (slots, n))
+                volume = rng.uniform(0.1, 1.0, (slots, n))
+                slot1 = np.unique(np.concatenate([[0, n - 1], rng.integers(0, n, 3)])) if slots == 2 else \
+                    np.zeros(0, dtype=np.int64)
+                mixed = slot1[::2]
+                if slots == 2:
+                    outside = np.setdiff1d(np.arange(n), slot1)
+                    mass[1, outside], energy[1, outside], volume[1, outside] = 0.0, 0.0, 0.0
+                    if slot1.size > 1:
+                        mass[1, slot1[1]] = 0.0  # a slot-1 cell of the windows left empty
+                if case == "empty nodes":
+                    node_mass[rng.integers(0, n + 1, 2)] = 0.0
+                if case == "nan":
+                    node_mass[0], kinetic[-1], mass[0, -1], volume[0, 0] = np.nan, np.nan, np.nan, np.nan
+                corner_expected = corner.copy()
+                with np.errstate(all="ignore"):
+                    velocity, kinetic_new, loss = oracles.node_velocities_and_losses(
+                        node_mass, momentum, corner_expected[1], corner_expected[0], kinetic, True)
+                    specific = np.zeros((slots, n))
+                    specific[0] = energy[0] / mass[0]
+                    present = slot1[mass[1, slot1] > 0] if slots == 2 else slot1
+                    if slots == 2:
+                        specific[1, present] = energy[1, present] / mass[1, present]
+                    oracles.deposit_losses(loss, corner_expected, node_mass, None, None, True, mixed, True, mass,
+                                           specific)
+                    density = oracles.density_of(mass, volume)
+                    got = swept_kernels.end_of_swept_remap(node_mass, momentum, corner, kinetic, mass, energy, volume,
+                                                           slot1, mixed)
+                for a, b in zip((velocity, kinetic_new, specific, density, corner_expected), (*got, corner)):
+                    np.testing.assert_array_equal(bits(b), bits(a), err_msg=label)
+        material = rng.integers(0, 3, n)
+        X = np.cumsum(rng.uniform(0.1, 1.0, n + 1))
+        slot_material, volume = swept_kernels.two_slots(material, X)
+        np.testing.assert_array_equal(slot_material, np.vstack([material, np.full(n, -1)]))
+        np.testing.assert_array_equal(bits(volume), bits(np.vstack([X[1:] - X[:-1], np.zeros(n)])))
+        other = slot_material.copy()
+        assert same_slots(slot_material, other)
+        other[1, rng.integers(0, n)] = 5
+        assert not same_slots(slot_material, other)
+
+
 def test_the_compiled_lump_energies_and_linear_integrals_give_the_numpy_bits():
     """pieces_1d's ½|p|²/m of lumps and ∫ of a linear piece, which both 1D remaps take from
     the compiled functions the swept windows use, against their numpy originals

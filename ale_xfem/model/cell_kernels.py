@@ -46,14 +46,19 @@ INTERVAL, TRIANGLE, QUADRILATERAL = 0, 1, 2
 CELL_TYPE_CODES = {"interval": INTERVAL, "triangle": TRIANGLE, "quadrilateral": QUADRILATERAL}
 
 
+@numba.njit(**BODY)
+def slot_density(mass, volume):  # pragma: no cover (compiled)
+    """ρ = m / V of a slot, 0 where V is not positive (an empty slot, or NaN)."""
+    return mass / volume if volume > 0.0 else 0.0
+
+
 @numba.njit(**LOOP)
 def slot_densities(mass, volume, density):  # pragma: no cover (compiled)
     """ρ = m / V of each slot of (S, n_cells) arrays, 0 where V is not positive (an empty
     slot, or NaN)."""
     for slot in range(mass.shape[0]):
         for cell in range(mass.shape[1]):
-            v = volume[slot, cell]
-            density[slot, cell] = mass[slot, cell] / v if v > 0.0 else 0.0
+            density[slot, cell] = slot_density(mass[slot, cell], volume[slot, cell])
 
 
 @numba.njit(**LOOP)
@@ -65,6 +70,17 @@ def finite_where_occupied(values, mass):  # pragma: no cover (compiled)
         for cell in range(mass.shape[1]):
             finite &= (not mass[slot, cell] > 0.0) | math.isfinite(values[slot, cell])
     return finite
+
+
+@numba.njit(**LOOP)
+def same_slots(a, b):  # pragma: no cover (compiled)
+    """Whether two (S, n_cells) integer arrays of one shape hold the same entries (an
+    and-reduction in one pass, without the array of comparisons np.array_equal makes)."""
+    same = True
+    for slot in range(a.shape[0]):
+        for cell in range(a.shape[1]):
+            same &= a[slot, cell] == b[slot, cell]
+    return same
 
 
 @numba.njit(**LOOP)

@@ -28,7 +28,7 @@ import numpy as np
 
 from ale_xfem.eos import kernel_tables
 from ale_xfem.eos.kernels import fill_pressure_sound_speed
-from ale_xfem.model.cell_kernels import slot_densities
+from ale_xfem.model.cell_kernels import same_slots, slot_densities
 
 
 @dataclass(frozen=True)
@@ -53,7 +53,8 @@ class MaterialLayout:
     def updated(self, cell_material: np.ndarray) -> "MaterialLayout":
         """The layout of ``cell_material``: this one when no material entered or left a
         cell (a remap of pure regions), else a new one."""
-        if np.array_equal(cell_material, self.cell_material):
+        cell_material = np.ascontiguousarray(cell_material)
+        if cell_material.shape == self.cell_material.shape and same_slots(cell_material, self.cell_material):
             return self
         return MaterialLayout(cell_material, self.n_materials)
 

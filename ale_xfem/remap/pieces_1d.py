@@ -25,6 +25,7 @@ class RemapResult:
     mixed_cells: np.ndarray  # (n_mixed,) cells holding an interface
     kinetic_energy_change: float
     node_momentum: np.ndarray | None = None  # (components, n_nodes): Σ of the nodes' parts
+    material_density: np.ndarray | None = None  # (S, n_cells), when the remap formed it (else mass / volume)
 
 
 def minmod(a, b, out=None):

@@ -210,7 +210,8 @@ class Remapper:
     def _thermodynamics(self, layout, result):
         """(layout, density, pressure, sound speed) of a remap's result."""
         new_layout = layout.updated(result.cell_material)
-        density = density_of(result.material_mass, result.material_volume)
+        density = (result.material_density if result.material_density is not None
+                   else density_of(result.material_mass, result.material_volume))
         return (new_layout, density,
                 *thermodynamics(self.materials, new_layout, density, result.material_energy))
 

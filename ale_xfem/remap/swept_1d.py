@@ -60,8 +60,7 @@ def remap_1d_swept(order_of_cells, cell_left_node, cell_right_node, node_positio
     mass0, energy0 = by_cell(material_mass[0]), by_cell(material_energy[0])
     corner = by_cell(corner_mass)
     u = node_velocity[:, nodes]
-    rank = np.arange(n) if in_order else _rank(cells, cell_left_node.size)
-    mixed_j = rank[mixed_cells]
+    mixed_j = mixed_cells if in_order else _rank(cells, cell_left_node.size)[mixed_cells]
     boundaries = np.flatnonzero(m0[:-1] != m0[1:])
     # two slots when a window may put a second material in a cell
     contiguous = [np.ascontiguousarray(a, dtype=float) for a in (x, X, mass0, energy0, corner, u)]
@@ -83,15 +82,11 @@ def remap_1d_swept(order_of_cells, cell_left_node, cell_right_node, node_positio
                           material_mass[1, mixed_cells], material_energy[1, mixed_cells], interface_velocity)
         else:  # one slot: no mixed cell yet
             mixed_data = (np.zeros(0), np.zeros(0, dtype=np.int64), np.zeros(0), np.zeros(0), np.zeros(0))
-        slot_material = np.empty((2, n), dtype=np.int64)
-        slot_material[0] = m0
-        slot_material[1].fill(-1)
+        slot_material, new_volume = swept_kernels.two_slots(np.ascontiguousarray(m0), X)
         if new_mass.shape[0] == 1:  # far-moving nodes only: the kernel gave one slot
             new_mass = np.vstack([new_mass, np.zeros(n)])
             new_energy = np.vstack([new_energy, np.zeros(n)])
-        new_volume = np.empty((2, n))
-        np.subtract(X[1:], X[:-1], out=new_volume[0])
-        new_volume[1].fill(0.0)
+        mixed_in_windows = []
         for taken, window in _windows(special, n):
             local = slice(window[0], window[1])
             inside = (mixed_j >= window[0]) & (mixed_j < window[1])
@@ -117,7 +112,9 @@ def remap_1d_swept(order_of_cells, cell_left_node, cell_right_node, node_positio
             if heat:
                 kinetic[k] = result["kinetic"][kt]
             taken_cells.append(np.arange(taken[0], taken[1]))
-        new_mixed_j = np.flatnonzero(slot_material[1] >= 0)
+            mixed_in_windows.append(taken[0] + np.flatnonzero(result["slot_material"][1, t] >= 0))
+        # (slot 1 is empty outside the windows' taken cells)
+        new_mixed_j = np.concatenate(mixed_in_windows)
         if np.any(np.abs(new_mixed_j[1:] - new_mixed_j[:-1]) <= 1):
             bad = int(new_mixed_j[np.flatnonzero(np.abs(new_mixed_j[1:] - new_mixed_j[:-1]) <= 1)[0]])
             raise RemapFailure(f"cells {int(cells[bad])} and {int(cells[bad + 1])}: interfaces in "
@@ -132,6 +129,13 @@ def remap_1d_swept(order_of_cells, cell_left_node, cell_right_node, node_positio
         new_volume = (X[1:] - X[:-1])[None, :]
     if np.any(node_mass <= 0):
         return _too_far("a node lost all its mass")
+    if in_order and heat is True:  # the common case: its end in one compiled call
+        velocity, kinetic_new, specific, density = swept_kernels.end_of_swept_remap(
+            node_mass, momentum, corner_new, kinetic, new_mass, new_energy, new_volume,
+            np.concatenate(taken_cells) if taken_cells else np.zeros(0, dtype=np.int64), cells[new_mixed_j])
+        return RemapResult(np.ascontiguousarray(slot_material), new_mass, specific, new_volume, corner_new, node_mass,
+                           velocity, cells[new_mixed_j], float(np.sum(kinetic_new)) - kinetic_before, momentum,
+                           density)
     specific = new_energy / new_mass[:1] if slots == 1 else _specific(new_energy, new_mass, taken_cells)
     velocity, kinetic_new, loss = swept_kernels.node_velocities_and_losses(
         node_mass, momentum, right_corner, corner_new[0], kinetic if heat else node_mass, bool(heat))

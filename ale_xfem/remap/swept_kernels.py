@@ -23,6 +23,7 @@ import numba
 import numpy as np
 
 from ale_xfem.geometry.polygon_kernels import KERNEL, maximum, minimum
+from ale_xfem.model.cell_kernels import slot_density
 
 
 @numba.njit(**KERNEL)
@@ -165,7 +166,8 @@ def pure_cells(x, X, mass, specific_energy, corner, u, order, slots, heat, block
         low, high = max(first - BLOCK_MARGIN, 0), min(last + BLOCK_MARGIN, n)
         window_mass, window_energy, right_corner, window_node_mass, window_momentum, window_start, window_kinetic = \
             pure_cells_window(x[low:high + 1], X[low:high + 1], mass[low:high], specific_energy[low:high],
-                              corner[:, low:high], u[:, low:high + 1], order, heat, negative_density,
+                              np.ascontiguousarray(corner[:, low:high]), np.ascontiguousarray(u[:, low:high + 1]),
+                              order, heat, negative_density,
                               negative_energy)
         for j in range(first, last):  # the block's cells
             new_mass[0, j] = window_mass[j - low]
@@ -388,6 +390,21 @@ def pure_cells_window(x, X, mass, specific_energy, corner, u, order, heat, negat
 
 
 @numba.njit(**KERNEL)
+def two_slots(material, X):  # pragma: no cover (compiled)
+    """The two slots a swept remap of sorted cells fills in (its windows put a second
+    material in some cells): (each slot's material, −1 in slot 1; each slot's volume, the
+    new cell's length X_{j+1} − X_j in slot 0, 0 in slot 1), in one pass."""
+    n = material.size
+    slot_material, volume = np.empty((2, n), dtype=np.int64), np.empty((2, n))
+    for j in range(n):
+        slot_material[0, j] = material[j]
+        slot_material[1, j] = -1
+        volume[0, j] = X[j + 1] - X[j]
+        volume[1, j] = 0.0
+    return slot_material, volume
+
+
+@numba.njit(**KERNEL)
 def node_velocities_and_losses(node_mass, momentum, right_corner, left_corner, kinetic, heat):  # pragma: no cover (compiled)
     """The end of the swept remap over the sorted nodes: each cell's left corner mass (its
     left node's new mass less what the cell before lumps on it), each node's velocity
@@ -417,6 +434,52 @@ def node_velocities_and_losses(node_mass, momentum, right_corner, left_corner, k
 
 
 @numba.njit(**KERNEL)
+def loss_per_unit_mass(loss, node_mass):  # pragma: no cover (compiled)
+    """A node's kinetic-energy loss per unit of its mass (nothing from a node without mass)."""
+    return loss / node_mass if node_mass > 0.0 else 0.0
+
+
+@numba.njit(**KERNEL)
+def end_of_swept_remap(node_mass, momentum, corner, kinetic, mass, energy, volume, slot1_cells, mixed_cells):  # pragma: no cover (compiled)
+    """The end of the swept remap of enriched cells on a mesh whose cell j lies between
+    nodes j and j + 1, every loss deposited: :func:`node_velocities_and_losses` (the left
+    corners filled in ``corner``), the specific energies of the new total energies and
+    masses (slots, n) (slot 1 only in ``slot1_cells``, where it holds mass; 0 elsewhere),
+    :func:`deposit_losses` on them, and the densities (``cell_kernels.slot_densities``: slot
+    1 has no volume outside ``slot1_cells``), in one pass over the cells.  Returns
+    (velocity, ½ p·u, specific energies, densities)."""
+    velocity, kinetic_new, loss = node_velocities_and_losses(node_mass, momentum, corner[1], corner[0], kinetic,
+                                                             True)
+    nodes = node_mass.size
+    slots, cells = mass.shape
+    per_mass = np.empty(nodes)
+    for k in range(nodes):
+        per_mass[k] = loss_per_unit_mass(loss[k], node_mass[k])
+    specific, density = np.empty((slots, cells)), np.empty((slots, cells))
+    for j in range(cells):  # energy / mass, then heat / mass added, as the two passes did
+        right = per_mass[j + 1] * corner[1, j]
+        heat = per_mass[j] * corner[0, j] + right
+        e = energy[0, j] / mass[0, j]
+        specific[0, j] = e + heat / mass[0, j]
+        density[0, j] = slot_density(mass[0, j], volume[0, j])
+    if slots > 1:
+        specific[1] = 0.0
+        density[1] = 0.0
+        for j in slot1_cells:
+            if mass[1, j] > 0.0:
+                specific[1, j] = energy[1, j] / mass[1, j]
+            density[1, j] = slot_density(mass[1, j], volume[1, j])
+        for c in mixed_cells:  # the right corner's share heats slot 1
+            right = per_mass[c + 1] * corner[1, c]
+            heat = per_mass[c] * corner[0, c] + right
+            heat -= right
+            specific[1, c] += right / mass[1, c]
+            e = energy[0, c] / mass[0, c]
+            specific[0, c] = e + heat / mass[0, c]
+    return velocity, kinetic_new, specific, density
+
+
+@numba.njit(**KERNEL)
 def deposit_losses(loss, corner_mass, node_mass, left_node, right_node, in_order, mixed_cells, condensed,
                    material_mass, material_energy):  # pragma: no cover (compiled)
     """pieces_1d.deposit_kinetic_loss with every loss deposited (its docstring gives the
@@ -426,8 +489,8 @@ def deposit_losses(loss, corner_mass, node_mass, left_node, right_node, in_order
     mass."""
     nodes, cells = loss.size, corner_mass.shape[1]
     per_mass = np.empty(nodes)
-    for k in range(nodes):  # nodes without mass take nothing
-        per_mass[k] = loss[k] / node_mass[k] if node_mass[k] > 0.0 else 0.0
+    for k in range(nodes):
+        per_mass[k] = loss_per_unit_mass(loss[k], node_mass[k])
     heat, right = np.empty(cells), np.empty(cells)
     if in_order:
         for j in range(cells):
