@@ -227,6 +227,20 @@ def _clipped_integral(value, slope, centre, lo, hi, a, b):
     return integrate_linear(value, slope, centre, start, end), length, start, end
 
 
+def windows(mixed_j, boundaries, far_nodes, n, taken_margin, window_margin):
+    """swept_1d's windows before they were compiled (swept_kernels.window_ranges): the
+    special cells, then (taken cells, window) pairs of [first, last) sorted ranges around
+    them, merged where they overlap."""
+    special = np.unique(np.concatenate([mixed_j, mixed_j + 1, boundaries, boundaries + 1, far_nodes - 1, far_nodes]))
+    special = special[special < n]
+    lo = np.maximum(special - taken_margin, 0)
+    hi = np.minimum(special + taken_margin + 1, n)
+    starts = np.flatnonzero(np.concatenate([[True], lo[1:] > hi[:-1]]))
+    ends = np.concatenate([starts[1:] - 1, [special.size - 1]])
+    return [((int(first), int(last)), (max(int(first) - window_margin, 0), min(int(last) + window_margin, n)))
+            for first, last in zip(lo[starts], hi[ends])] if special.size else []
+
+
 def swept_sorted(x, X, m0, mass0, specific0, corner_sorted, u, mixed_j, volume0_mixed, m1, mass1,
                   specific1, mixed_velocity, n_materials, order, cut=(False, False)):
     """The swept remap of a run of sorted cells (all of them, or a window of them: ``cut``

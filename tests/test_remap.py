@@ -772,6 +772,32 @@ def test_the_fused_end_of_the_swept_remap_gives_the_bits_of_its_passes():
         assert not same_slots(slot_material, other)
 
 
+def test_the_compiled_windows_of_the_swept_remap_are_the_numpy_ones():
+    """The windows the swept remap redoes material by material (``window_ranges``, compiled)
+    against the numpy code it replaced (tests/oracles.py): mixed cells, material boundaries
+    at nodes and far nodes, alone and together, at the mesh's ends, overlapping, repeated,
+    and none."""
+    import oracles
+
+    from ale_xfem.remap import swept_kernels
+    from ale_xfem.remap.swept_1d import TAKEN_MARGIN, WINDOW_MARGIN
+
+    rng = np.random.default_rng(31)
+    for n in (1, 2, 5, 9, 40, 300):
+        for trial in range(30):
+            picks = [np.sort(rng.integers(0, n, rng.integers(0, 4))) for _ in range(2)]
+            far = np.sort(rng.integers(1, n, rng.integers(0, 3))) if n > 1 else np.zeros(0, dtype=np.int64)
+            if trial == 0:
+                picks, far = [np.zeros(0, dtype=np.int64)] * 2, np.zeros(0, dtype=np.int64)
+            if trial == 1:
+                picks = [np.array([0, n - 1]), np.array([n - 1])]
+            mixed_j, boundaries = (np.asarray(p, dtype=np.int64) for p in picks)
+            got = swept_kernels.window_ranges(mixed_j, boundaries, far.astype(np.int64), n, TAKEN_MARGIN,
+                                              WINDOW_MARGIN)
+            expected = oracles.windows(mixed_j, boundaries, far, n, TAKEN_MARGIN, WINDOW_MARGIN)
+            assert [((a, b), (c, d)) for a, b, c, d in got.tolist()] == expected, (n, trial)
+
+
 def test_the_compiled_lump_energies_and_linear_integrals_give_the_numpy_bits():
     """pieces_1d's ½|p|²/m of lumps and ∫ of a linear piece, which both 1D remaps take from
     the compiled functions the swept windows use, against their numpy originals

@@ -72,11 +72,11 @@ def remap_1d_swept(order_of_cells, cell_left_node, cell_right_node, node_positio
     right_corner = corner_new[1]
 
     # -- windows around the interfaces ---------------------------------------------------
-    special = np.unique(np.concatenate([mixed_j, mixed_j + 1, boundaries, boundaries + 1, far_nodes - 1, far_nodes]))
-    special = special[special < n]
+    ranges = swept_kernels.window_ranges(np.asarray(mixed_j, dtype=np.int64), boundaries, far_nodes, n,
+                                         TAKEN_MARGIN, WINDOW_MARGIN)
     slots = 1
     taken_cells = []
-    if special.size:
+    if ranges.shape[0]:
         if mixed_cells.size:
             mixed_data = (material_volume[0, mixed_cells], cell_material[1, mixed_cells],
                           material_mass[1, mixed_cells], material_energy[1, mixed_cells], interface_velocity)
@@ -87,7 +87,8 @@ def remap_1d_swept(order_of_cells, cell_left_node, cell_right_node, node_positio
             new_mass = np.vstack([new_mass, np.zeros(n)])
             new_energy = np.vstack([new_energy, np.zeros(n)])
         mixed_in_windows = []
-        for taken, window in _windows(special, n):
+        for taken_first, taken_last, window_first, window_last in ranges.tolist():
+            taken, window = (taken_first, taken_last), (window_first, window_last)
             local = slice(window[0], window[1])
             inside = (mixed_j >= window[0]) & (mixed_j < window[1])
             result = _swept_sorted(
@@ -112,10 +113,11 @@ def remap_1d_swept(order_of_cells, cell_left_node, cell_right_node, node_positio
             if heat:
                 kinetic[k] = result["kinetic"][kt]
             taken_cells.append(np.arange(taken[0], taken[1]))
-            mixed_in_windows.append(taken[0] + np.flatnonzero(result["slot_material"][1, t] >= 0))
+            in_window = result["new_mixed_j"]
+            mixed_in_windows.append(window[0] + in_window[(in_window >= t.start) & (in_window < t.stop)])
         # (slot 1 is empty outside the windows' taken cells)
         new_mixed_j = np.concatenate(mixed_in_windows)
-        if np.any(np.abs(new_mixed_j[1:] - new_mixed_j[:-1]) <= 1):
+        if new_mixed_j.size > 1 and np.any(np.abs(new_mixed_j[1:] - new_mixed_j[:-1]) <= 1):
             bad = int(new_mixed_j[np.flatnonzero(np.abs(new_mixed_j[1:] - new_mixed_j[:-1]) <= 1)[0]])
             raise RemapFailure(f"cells {int(cells[bad])} and {int(cells[bad + 1])}: interfaces in "
                                "neighbouring cells (a layer about one cell thick); the mixed-cell "
@@ -206,17 +208,6 @@ def _specific(energy, mass, taken_cells):
 TAKEN_MARGIN, WINDOW_MARGIN = 3, 4
 
 
-def _windows(special, n):
-    """(taken cells, window) pairs of [first, last) sorted cell ranges around the special
-    cells, merged where they overlap."""
-    lo = np.maximum(special - TAKEN_MARGIN, 0)
-    hi = np.minimum(special + TAKEN_MARGIN + 1, n)
-    starts = np.flatnonzero(np.concatenate([[True], lo[1:] > hi[:-1]]))
-    ends = np.concatenate([starts[1:] - 1, [special.size - 1]])
-    for first, last in zip(lo[starts], hi[ends]):
-        yield (int(first), int(last)), (max(int(first) - WINDOW_MARGIN, 0), min(int(last) + WINDOW_MARGIN, n))
-
-
 def _swept_sorted(x, X, m0, mass0, specific0, corner_sorted, u, mixed_j, volume0_mixed, m1, mass1,
                   specific1, mixed_velocity, n_materials, order, cut=(False, False)):
     """The swept remap of a run of sorted cells (all of them, or a window of them: ``cut``
@@ -253,7 +244,10 @@ def _momentum(x, X, xl, xr, mixed_j, gamma, new_mixed_j, new_gamma, rho0, srho0,
     face = 0.5 * (xl + xr)
     face[mixed_j] = gamma
     # the parts' L³ as numpy's power gives them (the C library's pow differs in the last bit)
-    left_cube = (np.append(face, x[-1]) - np.append(xl, x[-1])) ** 3
+    left = np.empty(face.size + 1)  # the last node's part: x_n − x_n
+    np.subtract(face, xl, out=left[:-1])
+    left[-1] = x[-1] - x[-1]
+    left_cube = left ** 3
     right_cube = (xr - face) ** 3
     status, node_mass, momentum, corners, kinetic = swept_kernels.window_momentum(
         x, X, mixed_j, gamma, new_mixed_j, new_gamma, rho0, srho0, centre0, rho1, srho1, centre1,

@@ -390,6 +390,40 @@ def pure_cells_window(x, X, mass, specific_energy, corner, u, order, heat, negat
 
 
 @numba.njit(**KERNEL)
+def window_ranges(mixed_j, boundaries, far_nodes, n, taken_margin, window_margin):  # pragma: no cover (compiled)
+    """The windows around the cells where the whole-mesh pass does not hold (sorted cells
+    of n: each mixed cell and the one after it, the two cells at each node where the
+    material changes (``boundaries``: the cell before it) and at each node that moved far):
+    the cells within ``taken_margin`` of them, merged where they meet, and each such range
+    widened by ``window_margin``.  Returns (k, 4) rows: the taken range [first, last) and
+    its window [first, last), left to right."""
+    special = np.empty(2 * (mixed_j.size + boundaries.size + far_nodes.size), dtype=np.int64)
+    count = 0
+    for values, shift in ((mixed_j, 0), (boundaries, 0), (far_nodes, -1)):
+        for v in values:
+            special[count] = v + shift
+            special[count + 1] = v + shift + 1
+            count += 2
+    special = np.sort(special[:count])
+    ranges = np.empty((count, 4), dtype=np.int64)
+    k = 0
+    for i in range(count):
+        j = special[i]
+        if j >= n or (i > 0 and j == special[i - 1]):
+            continue
+        lo, hi = max(j - taken_margin, 0), min(j + taken_margin + 1, n)
+        if k > 0 and lo <= ranges[k - 1, 1]:  # meets the range before it
+            ranges[k - 1, 1] = hi
+        else:
+            ranges[k, 0], ranges[k, 1] = lo, hi
+            k += 1
+    for r in range(k):
+        ranges[r, 2] = max(ranges[r, 0] - window_margin, 0)
+        ranges[r, 3] = min(ranges[r, 1] + window_margin, n)
+    return ranges[:k]
+
+
+@numba.njit(**KERNEL)
 def two_slots(material, X):  # pragma: no cover (compiled)
     """The two slots a swept remap of sorted cells fills in (its windows put a second
     material in some cells): (each slot's material, −1 in slot 1; each slot's volume, the
