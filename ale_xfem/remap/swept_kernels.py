@@ -474,6 +474,15 @@ def loss_per_unit_mass(loss, node_mass):  # pragma: no cover (compiled)
 
 
 @numba.njit(**KERNEL)
+def cell_heat(left_per_mass, right_per_mass, left_corner, right_corner):  # pragma: no cover (compiled)
+    """The kinetic-energy loss a cell takes from its two nodes (each node's loss per unit
+    of mass times the corner mass the cell lumps on it): (its right corner's share, the
+    whole)."""
+    right = right_per_mass * right_corner
+    return right, left_per_mass * left_corner + right
+
+
+@numba.njit(**KERNEL)
 def end_of_swept_remap(node_mass, momentum, corner, kinetic, mass, energy, volume, slot1_cells, mixed_cells):  # pragma: no cover (compiled)
     """The end of the swept remap of enriched cells on a mesh whose cell j lies between
     nodes j and j + 1, every loss deposited: :func:`node_velocities_and_losses` (the left
@@ -491,8 +500,7 @@ def end_of_swept_remap(node_mass, momentum, corner, kinetic, mass, energy, volum
         per_mass[k] = loss_per_unit_mass(loss[k], node_mass[k])
     specific, density = np.empty((slots, cells)), np.empty((slots, cells))
     for j in range(cells):  # energy / mass, then heat / mass added, as the two passes did
-        right = per_mass[j + 1] * corner[1, j]
-        heat = per_mass[j] * corner[0, j] + right
+        _, heat = cell_heat(per_mass[j], per_mass[j + 1], corner[0, j], corner[1, j])
         e = energy[0, j] / mass[0, j]
         specific[0, j] = e + heat / mass[0, j]
         density[0, j] = slot_density(mass[0, j], volume[0, j])
@@ -504,8 +512,7 @@ def end_of_swept_remap(node_mass, momentum, corner, kinetic, mass, energy, volum
                 specific[1, j] = energy[1, j] / mass[1, j]
             density[1, j] = slot_density(mass[1, j], volume[1, j])
         for c in mixed_cells:  # the right corner's share heats slot 1
-            right = per_mass[c + 1] * corner[1, c]
-            heat = per_mass[c] * corner[0, c] + right
+            right, heat = cell_heat(per_mass[c], per_mass[c + 1], corner[0, c], corner[1, c])
             heat -= right
             specific[1, c] += right / mass[1, c]
             e = energy[0, c] / mass[0, c]
@@ -528,12 +535,11 @@ def deposit_losses(loss, corner_mass, node_mass, left_node, right_node, in_order
     heat, right = np.empty(cells), np.empty(cells)
     if in_order:
         for j in range(cells):
-            right[j] = per_mass[j + 1] * corner_mass[1, j]
-            heat[j] = per_mass[j] * corner_mass[0, j] + right[j]
+            right[j], heat[j] = cell_heat(per_mass[j], per_mass[j + 1], corner_mass[0, j], corner_mass[1, j])
     else:
         for j in range(cells):
-            right[j] = per_mass[right_node[j]] * corner_mass[1, j]
-            heat[j] = per_mass[left_node[j]] * corner_mass[0, j] + right[j]
+            right[j], heat[j] = cell_heat(per_mass[left_node[j]], per_mass[right_node[j]], corner_mass[0, j],
+                                          corner_mass[1, j])
     for c in mixed_cells:
         if condensed:
             to_second = right[c]
