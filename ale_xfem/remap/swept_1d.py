@@ -195,10 +195,7 @@ def _specific(energy, mass, taken_cells):
     """Specific energies: slot 0 everywhere, slot 1 only where the windows put material."""
     specific = np.empty_like(energy)
     np.divide(energy[0], mass[0], out=specific[0])
-    specific[1].fill(0.0)
-    j = np.concatenate(taken_cells)
-    present = mass[1, j] > 0
-    specific[1, j[present]] = energy[1, j[present]] / mass[1, j[present]]
+    swept_kernels.second_slot_specific_energies(specific, mass, energy, np.concatenate(taken_cells))
     return specific
 
 

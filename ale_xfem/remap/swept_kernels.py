@@ -483,6 +483,16 @@ def cell_heat(left_per_mass, right_per_mass, left_corner, right_corner):  # prag
 
 
 @numba.njit(**KERNEL)
+def second_slot_specific_energies(specific, mass, energy, slot1_cells):  # pragma: no cover (compiled)
+    """Slot 1's specific energies, in place: E / m in ``slot1_cells`` (the cells the swept
+    remap's windows redid) where the slot holds mass, 0 elsewhere."""
+    specific[1] = 0.0
+    for j in slot1_cells:
+        if mass[1, j] > 0.0:
+            specific[1, j] = energy[1, j] / mass[1, j]
+
+
+@numba.njit(**KERNEL)
 def end_of_swept_remap(node_mass, momentum, corner, kinetic, mass, energy, volume, slot1_cells, mixed_cells):  # pragma: no cover (compiled)
     """The end of the swept remap of enriched cells on a mesh whose cell j lies between
     nodes j and j + 1, every loss deposited: :func:`node_velocities_and_losses` (the left
@@ -505,11 +515,9 @@ def end_of_swept_remap(node_mass, momentum, corner, kinetic, mass, energy, volum
         specific[0, j] = e + heat / mass[0, j]
         density[0, j] = slot_density(mass[0, j], volume[0, j])
     if slots > 1:
-        specific[1] = 0.0
+        second_slot_specific_energies(specific, mass, energy, slot1_cells)
         density[1] = 0.0
         for j in slot1_cells:
-            if mass[1, j] > 0.0:
-                specific[1, j] = energy[1, j] / mass[1, j]
             density[1, j] = slot_density(mass[1, j], volume[1, j])
         for c in mixed_cells:  # the right corner's share heats slot 1
             right, heat = cell_heat(per_mass[c], per_mass[c + 1], corner[0, c], corner[1, c])
