@@ -215,7 +215,7 @@ def test_the_predictor_corrector_conserves_energy_with_the_full_equation_of_stat
     mean vanishes on every Γ_K).  Nitsche's penalty dissipates: the balance is short, by
     2.1e-4 (triangles) and 1.3e-4 (quadrilaterals) of the internal energy change."""
     from ale_xfem.eos import IdealGas
-    from ale_xfem.mixed.enriched_step_2d import EnrichedStep2D, MaterialStart
+    from ale_xfem.mixed.implicit_step import ImplicitStep, MaterialStart
 
     case = InterfaceCase(24, "line", cell=cell)
     gases = (IdealGas(1.4), IdealGas(5.0 / 3.0))
@@ -226,7 +226,7 @@ def test_the_predictor_corrector_conserves_energy_with_the_full_equation_of_stat
                           energy=energy, pressure=np.full(volume.shape, PRESSURE))
     u0 = [0.1 * case.normal_line[:, None] * np.ones((2, case.mesh.n_nodes)), np.zeros((2, case.mesh.n_nodes))]
     mass, rhs = case.inertia_and_rhs(u0)
-    step = EnrichedStep2D(case.bind(stabilisation), case.mixed, [g.state for g in gases],
+    step = ImplicitStep(case.bind(stabilisation), case.mixed, [g.state for g in gases],
                           case.cut.reconstruction.length)
     result = step.solve(DT, start, mass, rhs, case.tied)
     assert 1 < result["iterations"] <= 10
@@ -252,7 +252,7 @@ def test_the_predictor_corrector_conserves_energy_with_the_full_equation_of_stat
 def test_an_equation_of_state_that_softens_under_compression_stops_the_corrector_naming_the_cell():
     """Along an adiabat the pressure must rise as a material is compressed (D = dp/dV < 0);
     where it does not, the step stops before any solve, naming the mesh cell."""
-    from ale_xfem.mixed.enriched_step_2d import EnrichedStep2D, MaterialStart
+    from ale_xfem.mixed.implicit_step import ImplicitStep, MaterialStart
     from ale_xfem.mixed.equilibrium import MixedCellFailure
 
     case = InterfaceCase(12, "line")
@@ -261,7 +261,7 @@ def test_an_equation_of_state_that_softens_under_compression_stops_the_corrector
     def softening(rho, e):  # p falls with density: ∂p/∂ρ < 0
         return 1.0 - rho, -np.ones_like(rho), np.zeros_like(rho), np.ones_like(rho)
 
-    step = EnrichedStep2D(case.bind("bubble"), case.mixed, [softening, softening], case.cut.reconstruction.length)
+    step = ImplicitStep(case.bind("bubble"), case.mixed, [softening, softening], case.cut.reconstruction.length)
     start = MaterialStart(mass=case.cut.volume.copy(), volume=case.cut.volume, energy=np.ones((2, n)),
                           pressure=np.zeros((2, n)))
     with pytest.raises(MixedCellFailure, match=rf"mixed cell {case.mixed[0]}: the pressure does not rise"):
@@ -272,7 +272,7 @@ def test_a_corrector_state_outside_the_equation_of_states_domain_stops_the_step(
     """A root with c² ≤ 0 (an ideal gas at a negative energy, a stiffened gas below −p∞) is
     no state: the step stops naming the cell, and the run takes it again with a shorter dt
     (the sliver of air at a wall struck by water, ``ale-xfem study stability``)."""
-    from ale_xfem.mixed.enriched_step_2d import EnrichedStep2D, MaterialStart
+    from ale_xfem.mixed.implicit_step import ImplicitStep, MaterialStart
     from ale_xfem.mixed.equilibrium import MixedCellFailure
 
     case = InterfaceCase(12, "line")
@@ -286,9 +286,9 @@ def test_a_corrector_state_outside_the_equation_of_states_domain_stops_the_step(
 
     start = MaterialStart(mass=case.cut.volume.copy(), volume=case.cut.volume, energy=np.full((2, n), 2.5),
                           pressure=np.ones((2, n)))
-    fine = EnrichedStep2D(case.bind("bubble"), case.mixed, [honest, honest], case.cut.reconstruction.length)
+    fine = ImplicitStep(case.bind("bubble"), case.mixed, [honest, honest], case.cut.reconstruction.length)
     assert fine.solve(DT, start, *case.inertia_and_rhs())["iterations"] >= 1
-    step = EnrichedStep2D(case.bind("bubble"), case.mixed, [honest, gas], case.cut.reconstruction.length)
+    step = ImplicitStep(case.bind("bubble"), case.mixed, [honest, gas], case.cut.reconstruction.length)
     with pytest.raises(MixedCellFailure, match=rf"mixed cell {case.mixed[0]}: the corrector's state leaves"):
         step.solve(DT, start, *case.inertia_and_rhs())
 
@@ -298,7 +298,7 @@ def test_nitsches_stiffness_keeps_a_floor_where_the_sound_speed_vanishes():
     (Noh's) or a state with c² ≤ 0 at an iterate keeps a penalty and finite weights (without
     the floor: 0/0 weights, a NaN matrix, the factorisation failed); at the time step the
     sound speed allows the floor does not act."""
-    from ale_xfem.mixed.enriched_step_2d import NITSCHE_STIFFNESS_FLOOR, nitsche_stiffness
+    from ale_xfem.mixed.implicit_step import NITSCHE_STIFFNESS_FLOOR, nitsche_stiffness
     from forms.enriched_interface import nitsche_weights
 
     rho, area, dt = np.array([[1.0, 1.0], [2.0, 2.0]]), np.array([1e-2, 1e-2]), 1e-3
@@ -476,7 +476,7 @@ def test_resolving_with_new_compliances_equals_assembling_them(stabilisation):
     system) it gives what set_materials + solve give, to 10⁻¹² of each field's scale —
     after a change of 30 % (factorised again) and one of 0.1 % (refined on the last
     factors, which happens: the factorisation is not redone).  Nitsche's weight and penalty
-    are kept as set_materials set them (the step's start's: ale_xfem/mixed/enriched_step_2d.py),
+    are kept as set_materials set them (the step's start's: ale_xfem/mixed/implicit_step.py),
     and the system assembled with them is the one resolved."""
     from ale_xfem.studies.interface import BULK
     from forms.enriched_interface import nitsche_weights

@@ -220,9 +220,9 @@ def test_momentum_is_kept_whatever_the_interface_solves_residual(monkeypatch):
     perturbed by 10⁻⁶ of the flow's, the spinning disk (no wall touches its mixed cells)
     still keeps momentum to round-off: the residual is taken out by one shift of the
     nodes' velocities."""
-    from ale_xfem.mixed.enriched_step_2d import EnrichedStep2D
+    from ale_xfem.mixed.implicit_step import ImplicitStep
 
-    solve = EnrichedStep2D.solve
+    solve = ImplicitStep.solve
     noise = np.random.default_rng(5)
 
     def perturbed(self, *args, **kwargs):
@@ -230,7 +230,7 @@ def test_momentum_is_kept_whatever_the_interface_solves_residual(monkeypatch):
         out["velocity"] = [v + 1e-6 * noise.standard_normal(v.shape) for v in out["velocity"]]
         return out
 
-    monkeypatch.setattr(EnrichedStep2D, "solve", perturbed)
+    monkeypatch.setattr(ImplicitStep, "solve", perturbed)
     problem = build_problem(load_scene(resolve_scene_path("spinning-disk"), [
         "mesh.cells=[16,16]", "interface.model=enriched"]))
     result = simulate(problem, stop_after_steps=4)

@@ -256,29 +256,39 @@ def test_the_interface_solve_converges_like_newton(scene, overrides):
     assert result.mixed_cells["iterations_max"] <= 3
 
 
-@pytest.mark.parametrize("scene, overrides", [
-    ("shock-interface", ["mesh.cells=100"]),
-    ("flyer-target-backing", ["mesh.cells=120", "t_end=1.0e-6"]),
-    ("sod-two-gamma-enriched", ["mesh.cells=60", "mesh.motion=eulerian", "t_end=0.1"]),
+@pytest.mark.parametrize("scene, overrides, agreement", [
+    ("shock-interface", ["mesh.cells=100"], 1e-9),
+    ("flyer-target-backing", ["mesh.cells=120", "t_end=1.0e-6"], 1e-9),
+    ("sod-two-gamma-enriched", ["mesh.cells=60", "mesh.motion=eulerian", "t_end=0.1"], 1e-9),
+    ("shock-interface", ["mesh.cells=100", "interface.solver=linearised"], 1e-12),
 ])
-def test_assembled_predictor_equals_the_closed_form(scene, overrides):
-    """The predictor assembled from the UFL forms of forms/enriched_interface.py (the 2D
-    enriched cells' forms, on intervals) on the mixed-cell submesh and solved with PETSc is
-    the same linear system as the 1D elimination: the
-    runs agree to round-off, iteration counts included (also when a remap moves the
-    interface to another cell and the submesh is rebuilt)."""
+def test_the_assembled_step_of_2d_cells_equals_the_closed_form_in_1d(scene, overrides, agreement):
+    """The 1D mixed cells as the 2D ones are solved: the system assembled from the UFL forms
+    of forms/enriched_interface.py (the 2D enriched cells' forms, on intervals) on the
+    mixed-cell submesh, solved with PETSc, iterated by the 2D cells' predictor/corrector
+    (ale_xfem.mixed.implicit_step) — the same equations as the 1D closed-form elimination
+    (ale_xfem.mixed.equilibrium), whose iteration differs (it redistributes a cell's volume
+    between its materials where the 2D corrector updates each material's energy at its
+    volume): the runs agree to the iterations' tolerance (10⁻¹⁰ of ρc²), within an
+    iteration a step, and to round-off with the linearised law alone (one predictor, the
+    same in both); total energy is kept to round-off (also when a remap moves the interface
+    to another cell and the submesh is rebuilt)."""
     closed_problem, closed = run_scene(scene, *overrides)
     problem, assembled = run_scene(scene, *overrides, "interface.predictor=assembled")
     assert closed.status == assembled.status == "ok"
     assert "interface_predictor_assembled" in problem.effects
-    assert assembled.mixed_cells["iterations_mean"] == closed.mixed_cells["iterations_mean"]
+    assert assembled.mixed_cells["solves"] == closed.mixed_cells["solves"]
+    assert abs(assembled.mixed_cells["iterations_mean"] - closed.mixed_cells["iterations_mean"]) < 0.1
+    assert assembled.mixed_cells["iterations_max"] <= closed.mixed_cells["iterations_max"] + 1
+    assert abs(assembled.conservation["total_energy"]) < 1e-13
     scale = np.abs(closed.state.node_velocity).max()
-    np.testing.assert_allclose(assembled.state.node_velocity, closed.state.node_velocity, atol=1e-9 * scale)
+    np.testing.assert_allclose(assembled.state.node_velocity, closed.state.node_velocity, rtol=0,
+                               atol=agreement * scale)
     # relative to the largest interface pressure: an interface the shock has not reached
     # holds round-off (18 Pa beside 2e10 Pa in flyer-target-backing), not a figure
     pressure_scale = np.abs(closed.state.interface_pressure).max()
     np.testing.assert_allclose(assembled.state.interface_pressure, closed.state.interface_pressure, rtol=0,
-                               atol=1e-9 * pressure_scale)
+                               atol=agreement * pressure_scale)
 
 
 @pytest.mark.parametrize("motion", ["lagrangian", "eulerian"])

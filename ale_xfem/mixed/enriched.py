@@ -1,7 +1,8 @@
 """The enriched closure of mixed cells (the paper's method; 1D): one velocity field per
 material, the external nodes massless, the interface pressure π = p_Γ^{n+1} solved
 implicitly with trapezoidal stresses on the internal nodes (paper §2.2.1; the solve itself
-is :mod:`ale_xfem.mixed.equilibrium`)."""
+is :mod:`ale_xfem.mixed.equilibrium`, in closed form, or the 2D cells' assembled system and
+predictor/corrector on intervals, :mod:`ale_xfem.mixed.assembled_predictor`)."""
 
 from __future__ import annotations
 
@@ -17,9 +18,9 @@ from ale_xfem.model.mixed_cells import MixedCells
 
 class EnrichedClosure(SharedClosure):
     """Mixed cells with doubled velocities and an implicit interface pressure.
-    ``assembled``: the predictor is the FE system assembled from the UFL forms (compiled
-    here, once per run), not its closed form, its system bound by ``system``
-    (AssembledPredictor's)."""
+    ``assembled``: the solve is the FE system assembled from the UFL forms (compiled here,
+    once per run) iterated by the 2D cells' predictor/corrector, not the closed form, its
+    system bound by ``system`` (AssembledPredictor's)."""
 
     implicit = True
 
@@ -56,14 +57,13 @@ class EnrichedClosure(SharedClosure):
                          mobility, offset, slope, work_offset)
         mobility_a, mobility_b = mobility
         start = start_values(state, mixed.cells)
-        predictor = None
-        if self.assembled is not None:
-            predictor = self.assembled.predictor_for(mixed, state, predicted, mean_force, dt,
-                                                     mobility_a, mobility_b, start)
         try:
-            pi, va, vb, details = self.equilibrium.solve(start, pi_n, (offset, slope),
-                                                         (work_offset, np.full_like(pi_n, 0.5)),
-                                                         predictor=predictor)
+            if self.assembled is None:
+                pi, va, vb, details = self.equilibrium.solve(start, pi_n, (offset, slope),
+                                                             (work_offset, np.full_like(pi_n, 0.5)))
+            else:  # the 2D cells' system and predictor/corrector, on intervals
+                pi, va, vb, details = self.assembled.solve(mixed, state, predicted, mean_force, dt, mobility_a,
+                                                           mobility_b, start, 2.0 * work_offset)
         except MixedCellFailure as failure:
             raise self.breakdown("interface solve", failure, state.node_position) from None
         change = 0.5 * (pi - pi_n)

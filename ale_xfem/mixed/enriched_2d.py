@@ -2,7 +2,7 @@
 material on the nodes of the mixed cells, mass condensation, the interface system of
 ``forms/enriched_interface.py`` (bubble or Nitsche stabilisation, free slip or stick)
 solved implicitly inside the Wilkins step, with the predictor/corrector of
-:mod:`ale_xfem.mixed.enriched_step_2d`.
+:mod:`ale_xfem.mixed.implicit_step`.
 
 **Within the step.**  The explicit step evaluates every cell's corner forces at n and at the
 predicted state.  The closure keeps, for each material, the time-centred forces F̄ of its
@@ -56,7 +56,7 @@ from ale_xfem.mixed.closure_kernels import add_viscosity, pure_cell_forces
 from ale_xfem.mixed.common import SharedClosure
 from ale_xfem.mixed.cut_cells_2d import (by_material, crossed_volume, edge_weights, edges_of, enriched_geometry,
                                          node_edges)
-from ale_xfem.mixed.enriched_step_2d import EnrichedStep2D, MaterialStart
+from ale_xfem.mixed.implicit_step import ImplicitStep, MaterialStart
 from ale_xfem.mixed.equilibrium import MixedCellFailure
 from ale_xfem.model.mesh import cells_around, cells_at_nodes, csr_rows
 from ale_xfem.model.mixed_cells import MixedCells
@@ -256,7 +256,7 @@ class EnrichedClosure2D(SharedClosure):
         density = np.divide(mass[:, cells], volume[:, cells], out=np.zeros((2, cells.size)), where=volume[:, cells] > 0)
         system.set_ghost(self.ghost_viscosity * 4.0 * density * cell_area / dt)
         eos = [self.materials[k].eos.state for k in range(2)]
-        solver = EnrichedStep2D(system, cells, eos, reconstruction.length, self.nitsche_penalty,
+        solver = ImplicitStep(system, cells, eos, reconstruction.length, self.nitsche_penalty,
                                 mixed.tolerance, mixed.max_iterations)
         start = MaterialStart(mass[:, cells], volume[:, cells], energy[:, cells], pressure[:, cells])
         inertia, right = [self._to_dolfinx(a) for a in inertia], [self._to_dolfinx(a) for a in right]
@@ -295,10 +295,7 @@ class EnrichedClosure2D(SharedClosure):
         cell_mass = mass[:, cells].sum(axis=0)
         heat = np.stack([heat * mass[m, cells] / cell_mass for m in range(2)])
         out["heat"] = heat
-        stats = mixed.stats
-        stats["steps"] += 1
-        stats["iterations"] += out["iterations"]
-        stats["max_iterations"] = max(stats["max_iterations"], out["iterations"])
+        mixed.record_solve(out["iterations"])
         # each material's velocity at n+1 on the mixed cells' nodes; the mesh follows the
         # material each node lies in
         new_velocity = velocity.copy()

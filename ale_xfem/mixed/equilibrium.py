@@ -508,8 +508,7 @@ class PressureEquilibrium:
         ranks = mixed.across_ranks
         return (mixed.max_density_left, mixed.max_density_right) if ranks is None else ranks.density_limits
 
-    def solve(self, state0, pressure0, volume_affine, work_affine, record: bool = True,
-              predictor=None):
+    def solve(self, state0, pressure0, volume_affine, work_affine, record: bool = True):
         """Find the interface pressure π with V(π) = A + Bπ, work pressure W = w0 + w1 π.
 
         state0: (m_α, m_β, V_α0, V_β0, e_α0, e_β0) at the start; pressure0: first iterate.
@@ -517,20 +516,16 @@ class PressureEquilibrium:
         densities and c² at the end.  A root outside a material's EOS domain (c² ≤ 0: a gas
         at negative pressure) is a failure: at that time step the cell's nodes open faster
         than its materials can fill at an admissible pressure (the run retries the step
-        with a smaller one).  Compiled (:func:`interface_solve`) unless ``predictor`` (the
-        assembled FE system) gives the predictor's pressure."""
+        with a smaller one).  Compiled (:func:`interface_solve`)."""
         mixed = self.mixed
         n = np.size(pressure0)
         arrays = cell_arrays((n,), *state0, pressure0, *volume_affine, *work_affine)
         ranks = mixed.across_ranks
         if ranks is not None:  # every rank solves all the ranks' mixed cells (MixedCells.across_ranks)
             arrays = ranks.whole(arrays)
-        if predictor is None:
-            status, index, iterations, pi, va, vb, details, gap = interface_solve(
-                *self.tables, *self.all_sides(), *arrays, mixed.max_iterations, mixed.nonlinear, mixed.tolerance,
-                *self.all_density_limits())
-        else:
-            status, index, iterations, pi, va, vb, details, gap = self._solve_with(predictor, arrays)
+        status, index, iterations, pi, va, vb, details, gap = interface_solve(
+            *self.tables, *self.all_sides(), *arrays, mixed.max_iterations, mixed.nonlinear, mixed.tolerance,
+            *self.all_density_limits())
         at, pi_at, details_at = index, pi, details  # the failing cell's figures, among the arrays solved
         if ranks is not None:
             index = ranks.local(index)
@@ -541,38 +536,11 @@ class PressureEquilibrium:
             raise MixedCellFailure(mixed.cells, index, f"not converged after {mixed.max_iterations} iterations "
                                    f"(pressure change {gap:.3g})")
         if record:
-            self._record(iterations)
+            mixed.record_solve(iterations)
         if status == OUTSIDE_EOS:
             raise MixedCellFailure(mixed.cells, index, f"the root leaves the EOS domain (π = {pi_at[at]:.6g}, "
                                    f"c² = {details_at[6][at]:.3g} | {details_at[7][at]:.3g})")
         return pi, va, vb, tuple(details)
-
-    def _solve_with(self, predictor, arrays):
-        """:func:`interface_solve`'s iteration with the predictor's pressure from
-        ``predictor`` (the assembled FE system): the same compiled laws and corrector."""
-        mixed = self.mixed
-        m_a, m_b, va0, vb0, ea0, eb0, pressure0, offset, slope, w0, w1 = arrays
-        n = pressure0.size
-        va, vb, pi = va0.copy(), vb0.copy(), pressure0.copy()
-        laws, values = np.empty((4, n)), np.empty((6, 2, n))
-        progress = np.empty((4, n))
-        for iteration in range(1, mixed.max_iterations + 1):
-            linearised_laws(*self.tables, *self.all_sides(), *arrays[:6], va, vb, w0, w1, pi, values,
-                            iteration == 1, laws)
-            pi_new = predictor(va, vb, laws[0], laws[2], laws[1], laws[3])
-            status, index, done, details = corrector(
-                *self.tables, *self.all_sides(), *arrays[:6], offset, slope, w0, w1, mixed.nonlinear, mixed.tolerance,
-                *self.all_density_limits(), laws, pi_new, va, vb, pi, values, progress)
-            if status == CANNOT_HOLD:
-                return status, index, iteration, pi, va, vb, details, offset[index] + slope[index] * pi_new[index]
-            if done:
-                return admissible(iteration, pi, va, vb, details)
-        return unconverged(mixed.max_iterations, pi, va, vb, details, progress)
-
-    def _record(self, iterations):
-        self.mixed.stats["steps"] += 1
-        self.mixed.stats["iterations"] += iterations
-        self.mixed.stats["max_iterations"] = max(self.mixed.stats["max_iterations"], iterations)
 
     def relax(self, volume, state0, pressure_guess=None):
         """Pressure relaxation at fixed cell volume: returns (p*, V_α, V_β, details).

@@ -69,6 +69,12 @@ class MixedCells:
         self.max_density_left = self.left_groups.max_density(self.materials)
         self.max_density_right = self.right_groups.max_density(self.materials)
 
+    def record_solve(self, iterations: int) -> None:
+        """Count one interface solve of ``iterations`` predictor/corrector iterations."""
+        self.stats["steps"] += 1
+        self.stats["iterations"] += iterations
+        self.stats["max_iterations"] = max(self.stats["max_iterations"], iterations)
+
 
 def material_names(mixed: MixedCells, index: int) -> str:
     """'α | β' of mixed cell ``index`` (slot 0 | slot 1; in 1D left | right), for diagnostics."""

@@ -590,8 +590,8 @@ def _choice_int(value: Any, key: str, choices: tuple[int, ...]) -> int:
 # [interface] keys that act only with enriched mixed cells (the 1D interface solve)
 # (``slip``: a single-velocity cell moves its materials alike, it sticks by construction)
 ENRICHED_ONLY = ("solver", "predictor", "slip")
-# [interface] keys of the 1D enriched cell's own solver (2D enriched cells are always the
-# assembled system with the predictor/corrector of ale_xfem.mixed.enriched_step_2d)
+# [interface] keys of the 1D enriched cell's solver: its closed form, or the 2D cells' assembled
+# system and predictor/corrector (ale_xfem.mixed.implicit_step), which 2D enriched cells always are
 ONE_D_ONLY = ("solver", "predictor")
 # [interface] keys of 2D enriched mixed cells, with their defaults (ghost_viscosity's by the
 # mesh's cell type: ale_xfem.mixed.enriched_2d.GHOST_VISCOSITY, which the scene may not import)

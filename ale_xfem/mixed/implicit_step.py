@@ -1,5 +1,8 @@
-"""One implicit step of 2D enriched mixed cells with the full equations of state: the
-paper's predictor/corrector (§3) on the system of ``forms/enriched_interface.py``.
+"""One implicit step of enriched mixed cells with the full equations of state: the
+paper's predictor/corrector (§3) on the system of ``forms/enriched_interface.py``, in 2D
+(:mod:`ale_xfem.mixed.enriched_2d`) and in 1D, where that system is the intervals' case of
+the same forms (``interface.predictor = "assembled"``, :mod:`ale_xfem.mixed.assembled_predictor`;
+the closed-form elimination of :mod:`ale_xfem.mixed.equilibrium` is 1D's fast path).
 
 *Predictor*: each material's pressure linearised about the current iterate along its
 trapezoidal adiabat, P_m = c_m + D_m ΔV_m, ΔV_m = dt ∫_{K_m} ∇·ū_m (bubbles included),
@@ -67,30 +70,39 @@ class MaterialStart:
     pressure: np.ndarray
 
 
-class EnrichedStep2D:
+class ImplicitStep:
     """The predictor/corrector of one step (module docstring) on a bound
     :class:`forms.enriched_interface.InterfaceSystem` bound to the mixed cells ``cells`` (mesh
     cell indices, for diagnostics).  ``eos[m](ρ, e)`` → (p, ∂p/∂ρ, ∂p/∂e, c²) of material
     slot m in each mixed cell; ``interface_length`` (n,) |Γ_K| (Nitsche's
-    penalty)."""
+    penalty); ``nonlinear`` false: one predictor, its volumes taken as they are and each
+    material's energy working against the system's pressure (the linearised law alone,
+    ``interface.solver = "linearised"``, which the paper reports unstable when a shock
+    crosses Γ)."""
 
     def __init__(self, system, cells, eos, interface_length, nitsche_penalty: float = 1.0,
-                 tolerance: float = 1e-10, max_iterations: int = 30):
+                 tolerance: float = 1e-10, max_iterations: int = 30, nonlinear: bool = True):
         self.system, self.cells, self.eos = system, np.asarray(cells), eos
         self.nitsche = system.forms.stabilisation == "nitsche"
         self.interface_length, self.nitsche_penalty = interface_length, nitsche_penalty
-        self.tolerance, self.max_iterations = tolerance, max_iterations
+        self.tolerance, self.max_iterations, self.nonlinear = tolerance, max_iterations, nonlinear
 
-    def solve(self, dt: float, start: MaterialStart, mass, rhs, tied=None, viscosity=None, sliding=None) -> dict:
-        """ū_m, the materials' end volumes, energies and pressures, the interface pressure
-        and the iterations (``mass``, ``rhs``, ``tied``, ``sliding``: as
-        :meth:`InterfaceSystem.solve`).
+    def solve(self, dt: float, start: MaterialStart, mass, rhs, tied=None, viscosity=None, sliding=None,
+              start_stress=None) -> dict:
+        """ū_m, the materials' end volumes, energies, pressures and squared sound speeds,
+        the interface pressure and the iterations (``mass``, ``rhs``, ``tied``, ``sliding``:
+        as :meth:`InterfaceSystem.solve`).
         ``viscosity`` (n,): the mixed cells' artificial viscosity q̄ over the step, a stress
         on both materials alike: each works against ½(P^n + p) + q̄, and the system's
-        pressures are p + q̄ (``rhs`` holds f^n with P^n + q̄)."""
+        pressures are p + q̄ (``rhs`` holds f^n with P^n + q̄).  ``start_stress`` (n,): the
+        work's start W^n in place of P^n + 2q̄, each material working against ½(W^n + p)
+        (1D: π^n + q^n + q̄, the viscosity trapezoidal too, as the closed form has it)."""
         m, v0, e0, p0 = start.mass, start.volume, start.energy, start.pressure
         q = np.zeros_like(v0) if viscosity is None else np.broadcast_to(viscosity, v0.shape)
-        p0 = p0 + 2.0 * q  # the work pressure ½(p0 + p) + q̄, written as ½((p0 + 2q̄) + p)
+        if start_stress is None:
+            p0 = p0 + 2.0 * q  # the work pressure ½(p0 + p) + q̄, written as ½((p0 + 2q̄) + p)
+        else:
+            p0 = np.broadcast_to(start_stress, v0.shape)
         volume, energy = v0.copy(), e0.copy()
         for iteration in range(1, self.max_iterations + 1):
             rho = m / volume
@@ -121,12 +133,18 @@ class EnrichedStep2D:
             if not np.all(volume > 0.0):
                 index = int(np.flatnonzero(~np.all(volume > 0.0, axis=0))[0])
                 raise MixedCellFailure(self.cells, index, "a material's volume is not positive at the end of the step")
-            # the corrector: e = e^n − ½(P^n + p₀(ρ) + ∂p/∂e e) ΔV/m, solved for e
             rho = m / volume
+            work = 0.5 * volume_change / m
+            if not self.nonlinear:  # the linearised law alone: each material's energy works
+                # against the system's pressure, as its nodes do (energy kept to round-off)
+                energy = e0 - work * (p0 + (linearised - q))
+                states = [self.eos[k](rho[k], energy[k]) for k in range(2)]
+                pressure, sound = np.stack([s[0] for s in states]), np.stack([s[3] for s in states])
+                break
+            # the corrector: e = e^n − ½(P^n + p₀(ρ) + ∂p/∂e e) ΔV/m, solved for e
             cold = [self.eos[k](rho[k], np.zeros_like(rho[k])) for k in range(2)]
             base = np.stack([s[0] for s in cold])
             dp_de = np.stack([s[2] for s in cold])
-            work = 0.5 * volume_change / m
             energy = (e0 - work * (p0 + base)) / (1.0 + work * dp_de)
             pressure = base + dp_de * energy
             sound = np.stack([self.eos[k](rho[k], energy[k])[3] for k in range(2)])
@@ -144,7 +162,7 @@ class EnrichedStep2D:
             raise MixedCellFailure(self.cells, index, "the corrector's state leaves its equation of state's domain "
                                    "(c² ≤ 0)")
         result = dict(velocity=out["velocity"], volume=volume, energy=energy, pressure=pressure,
-                      iterations=iteration, linearised_pressure=linearised)
+                      sound_speed_squared=sound, iterations=iteration, linearised_pressure=linearised)
         if "interface_pressure" in out:
             result["interface_pressure"] = out["interface_pressure"]
         return result
