@@ -220,11 +220,10 @@ class Remapper2D:
         # materials already below TRACE of their cell (the set-up's geometry made them, or an
         # earlier remap kept them): they stay while the remap leaves them as they are (to
         # round-off), so that a state remapped onto an unmoved mesh is left as it is
-        _, _, area = self._target_geometry(X)
+        Xa, Xb, area = self._target_geometry(X)  # the target's edge ends and cell areas
         standing, standing_where, standing_volume = swept_kernels_2d.standing_traces(volume, area, TRACE)
 
         # -- the swept regions (compiled: ale_xfem.remap.swept_kernels_2d) --------------------
-        Xa, Xb, area = self._target_geometry(X)
         is_mixed = np.zeros(n_cells, dtype=bool)
         if mixed is not None:
             is_mixed[mixed.cells] = True
