@@ -1,8 +1,8 @@
 """The implicit system of enriched mixed cells as UFL forms (the paper's §2 and §3.2;
 docs/design.md §4), compiled once per run and bound to the current mixed cells without
 compiling; triangles and quadrilaterals, and intervals: the 1D mixed cell is this
-system's 1D case (unstabilised: in 1D the natural pair is stable), assembled as the 1D
-closure's predictor (``mixed/assembled_predictor.py``).
+system's 1D case (unstabilised: in 1D the natural pair is stable), assembled and iterated
+as the 2D cells' are for the 1D closure's assembled step (``mixed/assembled_predictor.py``).
 
 Unknowns on the submesh of the mixed cells, for each material m of a cell (α: slot 0, β:
 slot 1): its mean velocity over the step ū_m (vector P1 at every node of every mixed cell:

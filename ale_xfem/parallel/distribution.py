@@ -44,7 +44,7 @@ the bit.
   (:class:`RemapOnEveryRank`): a 1D mesh of a few thousand cells remaps in the time of a
   few of its Lagrange steps, and its interface-following windows and fall-back to the
   general intersection need nothing of their own.
-- **The assembled 1D predictor** is assembled and solved by every rank over all the
+- **The assembled 1D step** (predictor and corrector) is assembled and solved by every rank over all the
   ranks' mixed cells, on the serial mesh (:class:`ale_xfem.mixed.assembled_predictor.AssembledPredictor`),
   as the closed-form solve is; or, with ``interface_solve = "distributed"``, shared out
   over the ranks (:mod:`ale_xfem.parallel.interface_system`).
