@@ -105,8 +105,7 @@ class AssembledPredictor:
             first = 0 if ranks is None else ranks.local(0)
             raise MixedCellFailure(mixed.cells, first, f"the assembled predictor's solve, over all mixed "
                                                        f"cells: {error}") from None
-        volume, energy, pressure = out["volume"], out["energy"], out["pressure"]
-        density = np.stack([m_a, m_b]) / volume
+        volume, energy, pressure, density = out["volume"], out["energy"], out["pressure"], out["density"]
         results = (out["interface_pressure"] - q_star, volume[0], volume[1],  # π: the interface stress less q*
                    energy[0], energy[1], pressure[0], pressure[1], density[0], density[1],
                    *out["sound_speed_squared"])

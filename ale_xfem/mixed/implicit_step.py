@@ -89,7 +89,7 @@ class ImplicitStep:
 
     def solve(self, dt: float, start: MaterialStart, mass, rhs, tied=None, viscosity=None, sliding=None,
               start_stress=None) -> dict:
-        """ū_m, the materials' end volumes, energies, pressures and squared sound speeds,
+        """ū_m, the materials' end volumes, energies, pressures, densities and squared sound speeds,
         the interface pressure and the iterations (``mass``, ``rhs``, ``tied``, ``sliding``:
         as :meth:`InterfaceSystem.solve`).
         ``viscosity`` (n,): the mixed cells' artificial viscosity q̄ over the step, a stress
@@ -161,7 +161,7 @@ class ImplicitStep:
             index = int(np.flatnonzero(~np.all(sound > 0.0, axis=0))[0])
             raise MixedCellFailure(self.cells, index, "the corrector's state leaves its equation of state's domain "
                                    "(c² ≤ 0)")
-        result = dict(velocity=out["velocity"], volume=volume, energy=energy, pressure=pressure,
+        result = dict(velocity=out["velocity"], volume=volume, energy=energy, pressure=pressure, density=rho,
                       sound_speed_squared=sound, iterations=iteration, linearised_pressure=linearised)
         if "interface_pressure" in out:
             result["interface_pressure"] = out["interface_pressure"]
