@@ -101,7 +101,8 @@ def _parser() -> argparse.ArgumentParser:
                             "without an enriched interface, at 1000 and 100000 cells (or --cells); the cases "
                             "run in turn in three rounds, ratios are the median of the rounds'")
     bench.add_argument("--enriched", action="store_true",
-                       help="what 2D enriched mixed cells (bubbles, Nitsche) cost over one velocity field: the "
+                       help="what 2D enriched mixed cells (bubbles, Nitsche; bubbles with the linearised law alone) "
+                            "cost over one velocity field: the "
                             "sheared tube, Eulerian, 100 × 100 and 200 × 200 (or --cells N,M: N × N, M × M), "
                             "time per step by phase")
     bench.add_argument("--plic", action="store_true",

@@ -125,16 +125,18 @@ def test_bench_prints_zone_cycles_per_second(capsys):
 
 def test_bench_enriched_prints_each_closure_by_phase(capsys):
     """`bench --enriched --cells N`: the sheared tube on N × N cells, one velocity field and
-    the enriched cells with bubbles and with Nitsche, a row each with the mixed cells'
-    column zero only for one velocity field and the ratio 1 for it."""
+    the enriched cells with bubbles, with Nitsche and with bubbles and the linearised law,
+    a row each with the mixed cells' column zero only for one velocity field and the ratio
+    1 for it."""
     assert main(["bench", "--enriched", "--cells", "10"]) == 0
     rows = [line.split() for line in capsys.readouterr().out.splitlines() if line.strip()[:1].isdigit()]
-    assert len(rows) == 3 and all(r[0] == "10" for r in rows)
-    reference, bubbles, nitsche = rows  # ... lagrange, mixed, remap, total, ratio, range
+    assert len(rows) == 4 and all(r[0] == "10" for r in rows)
+    reference, bubbles, nitsche, linearised = rows  # ... lagrange, mixed, remap, total, ratio, range
     assert " ".join(reference[2:-6]) == "one velocity field" and float(reference[-5]) == 0.0
     assert float(reference[-2]) == 1.0
     assert " ".join(bubbles[2:-6]) == "enriched, bubbles" and " ".join(nitsche[2:-6]) == "enriched, Nitsche"
-    assert float(bubbles[-5]) > 0.0 and float(nitsche[-5]) > 0.0
+    assert " ".join(linearised[2:-6]) == "bubbles, linearised"
+    assert float(bubbles[-5]) > 0.0 and float(nitsche[-5]) > 0.0 and float(linearised[-5]) > 0.0
 
 
 def test_phase_ratios_pair_runs_of_the_same_round():

@@ -75,6 +75,8 @@ CASES = {
     "sod-2d": ("sod-2d", ["mesh.cells=[16,16]"]),
     "shock-disk": ("shock-disk", ["mesh.cells=[24,12]"]),
     "shock-disk-enriched": ("shock-disk", ["mesh.cells=[24,12]", "interface.model=enriched"]),
+    "shock-disk-enriched-linearised": ("shock-disk", ["mesh.cells=[24,12]", "interface.model=enriched",
+                                                      "interface.solver=linearised"]),
     "slip-line": ("slip-line", ["mesh.cells=[16,16]"]),
     "slip-line-single-velocity": ("slip-line", ["mesh.cells=[16,16]", "interface.model=single_velocity"]),
     "sliding-block": ("sliding-block", ["mesh.cells=[24,12]", "t_end=0.1"]),

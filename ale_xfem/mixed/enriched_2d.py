@@ -257,7 +257,7 @@ class EnrichedClosure2D(SharedClosure):
         system.set_ghost(self.ghost_viscosity * 4.0 * density * cell_area / dt)
         eos = [self.materials[k].eos.state for k in range(2)]
         solver = ImplicitStep(system, cells, eos, reconstruction.length, self.nitsche_penalty,
-                              mixed.tolerance, mixed.max_iterations)
+                              mixed.tolerance, mixed.max_iterations, nonlinear=mixed.nonlinear)
         start = MaterialStart(mass[:, cells], volume[:, cells], energy[:, cells], pressure[:, cells])
         inertia, right = [self._to_dolfinx(a) for a in inertia], [self._to_dolfinx(a) for a in right]
         # A tied node that a wall or piston holds is tied whole.  A sliding tie shares the

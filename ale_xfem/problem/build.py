@@ -365,7 +365,8 @@ def _build_problem_2d(scene: Scene) -> Problem:
         mixed = MixedCells(c, None, None, first, second, materials,
                            tolerance=scene.numerics.interface_tolerance,
                            max_iterations=scene.numerics.interface_max_iterations,
-                           nonlinear=True, model=scene.interface.model, relaxation=scene.interface.relaxation)
+                           nonlinear=scene.interface.solver == "nonlinear", model=scene.interface.model,
+                           relaxation=scene.interface.relaxation)
     layout = MaterialLayout(cell_material, n_materials)
     state, node_mass = state_from_cells(mesh, materials, layout, slot_mass, slot_energy,
                                         material_volume=slot_volume, corner_momentum=corner_momentum)

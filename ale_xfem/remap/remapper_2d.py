@@ -133,7 +133,8 @@ class Remapper2D:
         interface = problem.scene.interface
         self.solver_options = dict(
             tolerance=problem.scene.numerics.interface_tolerance,
-            max_iterations=problem.scene.numerics.interface_max_iterations, nonlinear=True,
+            max_iterations=problem.scene.numerics.interface_max_iterations,
+            nonlinear=interface is None or interface.solver == "nonlinear",
             model="single_velocity" if interface is None else interface.model,
             relaxation=interface is None or interface.relaxation)
         self.normal = "youngs" if interface is None else interface.normal  # PLIC's in the mixed donors

@@ -82,9 +82,9 @@ def scene_effects(scene, n_mixed_cells: int, pistons: list[str]) -> list[Effect]
     effects.append(Effect("mixed_cells_single_velocity", mixed and not enriched, why))
     enriched_1d, enriched_2d = enriched and scene.dimension == 1, enriched and scene.dimension == 2
     for solver in ("nonlinear", "linearised"):
-        effects.append(Effect(f"interface_solver_{solver}", enriched_1d and interface.solver == solver,
-                              f"interface.solver = \"{interface.solver}\"" if enriched_1d
-                              else "needs enriched mixed cells in 1D"))
+        effects.append(Effect(f"interface_solver_{solver}", enriched and interface.solver == solver,
+                              f"interface.solver = \"{interface.solver}\"" if enriched
+                              else "needs enriched mixed cells"))
     for predictor in ("closed_form", "assembled"):
         effects.append(Effect(
             f"interface_predictor_{predictor}", enriched_1d and interface.predictor == predictor,

@@ -590,9 +590,9 @@ def _choice_int(value: Any, key: str, choices: tuple[int, ...]) -> int:
 # [interface] keys that act only with enriched mixed cells (the 1D interface solve)
 # (``slip``: a single-velocity cell moves its materials alike, it sticks by construction)
 ENRICHED_ONLY = ("solver", "predictor", "slip")
-# [interface] keys of the 1D enriched cell's solver: its closed form, or the 2D cells' assembled
+# [interface] keys of the 1D enriched cell's predictor: its closed form, or the 2D cells' assembled
 # system and predictor/corrector (ale_xfem.mixed.implicit_step), which 2D enriched cells always are
-ONE_D_ONLY = ("solver", "predictor")
+ONE_D_ONLY = ("predictor",)
 # [interface] keys of 2D enriched mixed cells, with their defaults (ghost_viscosity's by the
 # mesh's cell type: ale_xfem.mixed.enriched_2d.GHOST_VISCOSITY, which the scene may not import)
 TWO_D_DEFAULTS = {"stabilisation": "bubble", "nitsche_penalty": 1.0,
@@ -654,9 +654,9 @@ def _validate_interface(table: Any, dimension: int, cell_type: str) -> Interface
     if enriched_2d:
         for key in ONE_D_ONLY:
             if key in table:
-                raise SceneError(f"interface.{key}", table[key], "no value in 2D: it sets the 1D enriched cell's "
-                                 "solver; 2D enriched cells always solve the assembled system with the "
-                                 "nonlinear predictor/corrector (remove it)")
+                raise SceneError(f"interface.{key}", table[key], "no value in 2D: it chooses how the 1D enriched "
+                                 "cell is solved; 2D enriched cells always solve the assembled system "
+                                 "(remove it)")
         stabilisation = _choice(table.setdefault("stabilisation", TWO_D_DEFAULTS["stabilisation"]),
                                 "interface.stabilisation", ("bubble", "nitsche", "none"))
         if "nitsche_penalty" in table and stabilisation != "nitsche":

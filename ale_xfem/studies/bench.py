@@ -244,6 +244,9 @@ ENRICHED_CASES = (
     ("one velocity field", []),
     ("enriched, bubbles", ["interface.model=enriched", "interface.stabilisation=bubble"]),
     ("enriched, Nitsche", ["interface.model=enriched", "interface.stabilisation=nitsche"]),
+    # the linearised law alone: one solve a step, no corrector
+    ("bubbles, linearised", ["interface.model=enriched", "interface.stabilisation=bubble",
+                             "interface.solver=linearised"]),
 )
 
 
@@ -252,7 +255,8 @@ def run_enriched_bench(sides=(100, 200), steps: int = 10, out=print, rounds: int
     two-material tube (``rotated-tube-shear``, Eulerian) on side × side quadrilaterals, time
     per step by phase (the mixed-cell column: the interface solve with its cut geometry;
     the remap column includes the per-material momentum remap and the next step's
-    evaluation), and the whole step's ratio to the single-velocity run's."""
+    evaluation), and the whole step's ratio to the single-velocity run's; bubbles with the
+    nonlinear corrector (the default) and with the linearised law alone."""
     out(f"time per step by phase (ms, fastest of {rounds} rounds of {steps} steps), the sheared two-material "
         "tube (rotated-tube-shear, Eulerian); ratio to one velocity field: median of the rounds' (range)")
     out(f"{'side':>5} {'mixed':>6} {'closure':<20} {'lagrange':>9} {'mixed':>9} {'remap':>9} {'total':>9} "
