@@ -148,6 +148,21 @@ def galerkin_product(a_pointer, a_columns, a_values, c_pointer, c_columns, c_val
     return pointer, columns[:filled].copy(), values[:filled].copy()
 
 
+@numba.njit(cache=True)
+def row_scales(pointer, columns, values, x, b):  # pragma: no cover (compiled)
+    """Σ_j |A_ij x_j| + |b_i| for each row i of A in CSR (``pointer``, ``columns``,
+    ``values``): the scale of the componentwise backward error, each row's sum from +0 over
+    its entries in order (np.bincount's order and bits)."""
+    rows = pointer.size - 1
+    scale = np.empty(rows)
+    for i in range(rows):
+        total = 0.0
+        for t in range(pointer[i], pointer[i + 1]):
+            total += np.abs(values[t]) * np.abs(x[columns[t]])
+        scale[i] = total + np.abs(b[i])
+    return scale
+
+
 class FormBinder:
     """A compiled form (dolfinx.fem.compile_form) made into forms over chosen cells, again
     and again, without compiling: what dolfinx.fem.create_form makes, with the coefficients
@@ -214,6 +229,7 @@ class BoundSystem:
         self._factor_solver, self._petsc_options = factor_solver, dict(petsc_options or {})
         self.solver, self._operator, self._options = None, None, []
         self._reduced, self._constraint = (), None
+        self._constraint_pattern = None  # (the CSR pointer and columns of that constraint)
         self._selection = None  # (a constraint, the unknowns it selects or None: _reduce)
         self._factored = None  # (the operator last factorised, its diagonal then)
         self._make_solver()
@@ -328,7 +344,9 @@ class BoundSystem:
                                                               self.residual, self.correction)
         else:
             operator, right, solution, residual, correction = self._reduced
-            pointer, columns, _ = constraint.getValuesCSR()
+            if self._constraint_pattern is None:  # (a kept constraint keeps its pattern)
+                self._constraint_pattern = constraint.getValuesCSR()[:2]
+            pointer, columns = self._constraint_pattern
             # their columns of C: their unknowns in the reduced system (this rank's, local)
             rows = columns[pointer[rows]] - constraint.getOwnershipRangeColumn()[0]
         entries = operator.getDiagonal()
@@ -366,11 +384,9 @@ class BoundSystem:
                 if residual.norm() > target:  # (cheap: no row can be within its scale yet)
                     continue
                 if csr is None:
-                    pointer, columns, values = operator.getValuesCSR()
-                    csr = (np.repeat(np.arange(pointer.size - 1), np.diff(pointer)), columns, np.abs(values))
-                rows, columns, magnitude = csr
+                    csr = operator.getValuesCSR()
                 x, b = self._whole(solution), right.getArray(readonly=True)
-                scale = np.bincount(rows, magnitude * np.abs(x[columns]), minlength=b.size) + np.abs(b)
+                scale = row_scales(*csr, x, b)
                 if every_rank(self._comm, np.all(np.abs(residual.getArray(readonly=True))
                                                  <= REUSE_BACKWARD_ERROR * scale)):
                     return True
@@ -397,8 +413,11 @@ class BoundSystem:
         15 000 unknowns); where it joins unknowns, on one rank, :func:`galerkin_product`
         (PtAP's pattern and bits over the rows C keeps: about 2.5 against 4–5 ms), and on
         several, PETSc's PtAP."""
+        fetched = None  # (C's CSR, when this call reads it)
         if self._selection is None or self._selection[0] is not constraint:
-            pointer, columns, values = constraint.getValuesCSR()
+            fetched = constraint.getValuesCSR()
+            pointer, columns, values = fetched
+            self._constraint_pattern = (pointer, columns)
             rows = np.flatnonzero(np.diff(pointer) > 0)
             chosen = None
             first_row, first_column = constraint.getOwnershipRange()[0], constraint.getOwnershipRangeColumn()[0]
@@ -414,10 +433,9 @@ class BoundSystem:
         if self._parallel:
             return self.matrix.PtAP(constraint, result=result)
         # (C's values, not only A's, may be new: a kept constraint's are refreshed in place)
-        a, c = self.matrix.getValuesCSR(), constraint.getValuesCSR()
+        a, c = self.matrix.getValuesCSR(), fetched if fetched is not None else constraint.getValuesCSR()
         n = constraint.getSize()[1]
-        pointer, columns, values = galerkin_product(a[0].astype(np.int64), a[1].astype(np.int64), a[2],
-                                                    c[0].astype(np.int64), c[1].astype(np.int64), c[2], n)
+        pointer, columns, values = galerkin_product(*a, *c, n)  # (PETSc's int32 indices, as they are)
         pointer, columns = pointer.astype(PETSc.IntType), columns.astype(PETSc.IntType)
         if result is None:  # (PETSc keeps the arrays, not a copy)
             return PETSc.Mat().createAIJWithArrays((n, n), (pointer, columns, values), comm=self._mesh.comm)
@@ -440,7 +458,7 @@ class BoundSystem:
     def _forget_reduced(self) -> None:
         for thing in self._reduced:
             thing.destroy()
-        self._reduced, self._constraint = (), None
+        self._reduced, self._constraint, self._constraint_pattern = (), None, None
 
     def _solve(self, operator, right, solution, residual, correction, what: str) -> None:
         # a factorisation cannot change its operator's size, and reads its options (the
