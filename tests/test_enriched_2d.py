@@ -644,6 +644,26 @@ def test_a_constraint_that_only_selects_unknowns_reduces_to_the_submatrix_with_p
     same_bits(reduced, bound.matrix.PtAP(joined))
 
 
+def test_the_backward_errors_row_scales_are_the_sums_of_the_rows_magnitudes():
+    """forms.bound_system.row_scales: Σ_j |A_ij x_j| + |b_i| over A's CSR rows, each sum
+    from +0 in the entries' order — the bits of np.bincount over the entries, which it
+    replaced (a run's refinement on the factors stops on them); rows twenty orders of
+    magnitude apart, as the system's are."""
+    from forms.bound_system import row_scales
+
+    case, system, mass, _ = _kink_system()
+    system._set_mass(mass)
+    system.system.assemble()
+    pointer, columns, values = system.system.matrix.getValuesCSR()
+    generator = np.random.default_rng(3)
+    x, b = generator.normal(size=pointer.size - 1), generator.normal(size=pointer.size - 1)
+    rows = np.repeat(np.arange(pointer.size - 1), np.diff(pointer))
+    expected = np.bincount(rows, np.abs(values) * np.abs(x[columns]), minlength=b.size) + np.abs(b)
+    scale = row_scales(pointer, columns, values, x, b)
+    assert np.array_equal(scale.view(np.uint64), expected.view(np.uint64))
+    assert expected.max() > 1e15 * expected.min()
+
+
 def test_a_scene_asking_for_lu_keeps_mumps():
     """The system factorises by LDLᵀ by default; a scene's ``pc_type = "lu"`` switches the
     factorisation, which made PETSc forget MUMPS and fall back to its own LU, which stops on

@@ -587,7 +587,7 @@ def _choice_int(value: Any, key: str, choices: tuple[int, ...]) -> int:
     return int(value)
 
 
-# [interface] keys that act only with enriched mixed cells (the 1D interface solve)
+# [interface] keys that act only with enriched mixed cells (their interface solve)
 # (``slip``: a single-velocity cell moves its materials alike, it sticks by construction)
 ENRICHED_ONLY = ("solver", "predictor", "slip")
 # [interface] keys of the 1D enriched cell's predictor: its closed form, or the 2D cells' assembled
