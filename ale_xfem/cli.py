@@ -102,9 +102,8 @@ def _parser() -> argparse.ArgumentParser:
                             "run in turn in three rounds, ratios are the median of the rounds'")
     bench.add_argument("--enriched", action="store_true",
                        help="what 2D enriched mixed cells (bubbles, Nitsche; bubbles with the linearised law alone) "
-                            "cost over one velocity field: the "
-                            "sheared tube, Eulerian, 100 × 100 and 200 × 200 (or --cells N,M: N × N, M × M), "
-                            "time per step by phase")
+                            "cost over one velocity field: the sheared tube, Eulerian, 100 × 100 and 200 × 200 "
+                            "(or --cells N,M: N × N, M × M), time per step by phase")
     bench.add_argument("--plic", action="store_true",
                        help="one PLIC reconstruction with Youngs' and with LVIRA's normals (interface.normal): "
                             "the rotated two-material tube's mixed cells, 200 × 200 (or --cells N: N × N)")
