@@ -374,57 +374,79 @@ def _fan_shape_integrals(vertices, polygons, points, weights, steps, tolerance):
 
 
 @dataclass
-class EnrichedGeometry:
-    """The two materials' share of a 2D mesh with enriched mixed cells, material 0 as α in
-    every mixed cell: the cut cells, the material each node lies in, the nodes with pure
-    cells of both, and each material's corner masses — pure cells m_K/k at each corner,
-    mixed cells condensed (:func:`condensed_masses`).  The Lagrange step's momentum rows and
-    the remap's momentum use these same masses, so momentum passes between them exactly."""
+class InterfaceGeometry:
+    """Where the interface lies on a 2D mesh with enriched mixed cells, material 0 as α in
+    every mixed cell: the cut cells, the material each node lies in and the nodes with pure
+    cells of both — what the interface system of a step is built on."""
 
     cut: CutCells
     owner: np.ndarray  # (n_nodes,) the material each node lies in
     tied: np.ndarray  # (n_nodes,) bool
     sliding: np.ndarray  # (n_nodes,) bool: tied, and Γ follows no mesh edge into the node
+
+
+@dataclass
+class EnrichedGeometry(InterfaceGeometry):
+    """An :class:`InterfaceGeometry` with each material's corner masses — pure cells m_K/k
+    at each corner, mixed cells condensed (:func:`condensed_masses`).  The Lagrange step's
+    momentum rows and the remap's momentum use these same masses, so momentum passes
+    between them exactly."""
+
     corner_mass: np.ndarray  # (2, k, n_cells) each material's mass at each corner
     node_mass: np.ndarray  # (2, n_nodes)
     internal: np.ndarray  # (2, n_nodes) bool: the node carries the material's mass
 
 
-def enriched_geometry(mesh, position, volume, mass, cells, normal: str = "youngs") -> EnrichedGeometry:
-    """The :class:`EnrichedGeometry` of a mesh of triangles or quadrilaterals (``mesh``:
+def interface_geometry(mesh, position, volume, mass, cells, normal: str = "youngs") -> InterfaceGeometry:
+    """The :class:`InterfaceGeometry` of a mesh of triangles or quadrilaterals (``mesh``:
     its cell_nodes, n_nodes and cell type, as ``MeshArrays``) at ``position`` (2, n_nodes):
     ``volume``, ``mass`` (2, n_cells) each material's area and mass per cell, ``cells`` the
     mixed cells.  The interface: PLIC with Youngs' normals of material 0's fraction, LVIRA's
     with ``normal`` = "lvira" (as the remap reconstructs it: ale_xfem.model.plic)."""
     cell_nodes = mesh.cell_nodes
-    k, n_cells, n_nodes = cell_nodes.shape[1], cell_nodes.shape[0], position.shape[1]
+    n_cells, n_nodes = cell_nodes.shape[0], position.shape[1]
     cells = np.asarray(cells)
     # (a cell of no area: the cells a gather on several ranks leaves out, whose entries are
     # zero; what is made of them is not used: parallel/enriched_cells.py)
     total = volume[0] + volume[1]
     fraction = np.divide(volume[0], total, out=np.zeros(n_cells), where=total > 0.0)
-    cell_material = np.where(mass[1] > 0.0, 1, 0)
-    cell_material[cells] = -1
+    cell_material = _cell_materials(mass, cells)
     normals = refined_normals(mesh, position, fraction, cells,
                               youngs_normals(mesh, position, fraction[None, :], cells)[0], normal)
     vertices = np.moveaxis(position[:, cell_nodes[cells]], 0, -1)
     reconstruction = reconstruct(vertices, normals, fraction[cells], cells)
-    alpha = np.zeros(cells.size, dtype=np.int64)
-    cut = cut_cells(cell_nodes, position, cells, reconstruction, cell_material, alpha)
+    cut = cut_cells(cell_nodes, position, cells, reconstruction, cell_material, np.zeros(cells.size, dtype=np.int64))
     slots = np.stack([np.maximum(cell_material, 0), np.full(n_cells, -1)])
     slot_volume = np.stack([volume.sum(axis=0), np.zeros(n_cells)])
     slots[:, cells] = [[0], [1]]
     slot_volume[:, cells] = volume[:, cells]
     owner, tied = node_materials(cell_nodes, n_nodes, cell_material, slot_volume, slots)
-    condensed, internal_in_cell = condensed_masses(cut, cell_nodes, owner, mass[:, cells],
-                                                   np.stack([alpha, 1 - alpha]))
-    corner_mass, internal, node_mass = _material_corner_masses(
-        np.ascontiguousarray(cell_nodes, dtype=np.int64), cell_material, mass, cells, condensed, internal_in_cell,
-        n_nodes)
     # a tied node slides (its normal parts tied only, under free slip) unless Γ reaches it
     # along a mesh edge between pure cells of the two materials (a kink: forms/enriched_interface.py)
     on_edge = _on_material_edges(*edges_of(cell_nodes), cell_material, n_nodes)
-    return EnrichedGeometry(cut, owner, tied, tied & ~on_edge, corner_mass, node_mass, internal)
+    return InterfaceGeometry(cut, owner, tied, tied & ~on_edge)
+
+
+def enriched_geometry(mesh, position, volume, mass, cells, normal: str = "youngs") -> EnrichedGeometry:
+    """The :class:`EnrichedGeometry`: :func:`interface_geometry` (the same arguments) and
+    each material's corner and nodal masses."""
+    interface = interface_geometry(mesh, position, volume, mass, cells, normal)
+    cell_nodes, cells = mesh.cell_nodes, np.asarray(cells)
+    alpha = np.zeros(cells.size, dtype=np.int64)  # (material 0 is α in every mixed cell)
+    condensed, internal_in_cell = condensed_masses(interface.cut, cell_nodes, interface.owner, mass[:, cells],
+                                                   np.stack([alpha, 1 - alpha]))
+    corner_mass, internal, node_mass = _material_corner_masses(
+        np.ascontiguousarray(cell_nodes, dtype=np.int64), _cell_materials(mass, cells), mass, cells, condensed,
+        internal_in_cell, position.shape[1])
+    return EnrichedGeometry(interface.cut, interface.owner, interface.tied, interface.sliding, corner_mass,
+                            node_mass, internal)
+
+
+def _cell_materials(mass, cells) -> np.ndarray:
+    """(n_cells,): each cell's material, −1 for the mixed ``cells`` (``mass`` (2, n_cells))."""
+    cell_material = np.where(mass[1] > 0.0, 1, 0)
+    cell_material[cells] = -1
+    return cell_material
 
 
 @numba.njit(cache=True)

@@ -54,7 +54,7 @@ import dolfinx_solver  # noqa: F401  (before dolfinx: it loads MPI and PETSc)
 from ale_xfem.lagrange.breakdown import Breakdown
 from ale_xfem.mixed.closure_kernels import add_viscosity, pure_cell_forces
 from ale_xfem.mixed.common import SharedClosure
-from ale_xfem.mixed.cut_cells_2d import (by_material, crossed_volume, edge_weights, edges_of, enriched_geometry,
+from ale_xfem.mixed.cut_cells_2d import (by_material, crossed_volume, edge_weights, edges_of, interface_geometry,
                                          node_edges)
 from ale_xfem.mixed.implicit_step import ImplicitStep, MaterialStart
 from ale_xfem.mixed.equilibrium import MixedCellFailure
@@ -203,7 +203,7 @@ class EnrichedClosure2D(SharedClosure):
         energy = by_material(state.material_energy, layout)
         pressure = by_material(state.material_pressure, layout)
         try:
-            geometry = enriched_geometry(mesh, x0, volume, mass, cells, self.normal)
+            geometry = interface_geometry(mesh, x0, volume, mass, cells, self.normal)
         except ValueError as failure:
             raise Breakdown("interface reconstruction", int(cells[0]), float("nan"),
                             mesh.cell_centroids(x0)[cells[0]], detail=str(failure)) from None

@@ -351,9 +351,7 @@ class Remapper2D:
             loss = losses_only(loss, (total_loss, gains_left_out))
             per_mass = loss / node_mass
             if corner_mass is not None:  # Σ_m Σ_K Σ_k (loss_i / M_i) c_m,K,k is the whole loss
-                gathered = per_mass[self.mesh.cell_nodes.T]  # (k, n_cells)
-                for m in range(corner_mass.shape[0]):
-                    energy[m] += np.sum(gathered * corner_mass[m], axis=0)
+                swept_kernels_2d.deposit_corner_heat(self.mesh.compiled_cell_nodes, per_mass, corner_mass, energy)
                 return
             swept_kernels_2d.deposit_heat(self.mesh.cell_nodes, per_mass, mass, energy)
         elif self.heat and total_loss < 0:

@@ -631,6 +631,21 @@ def deposit_heat(cell_nodes, per_mass, mass, energy):  # pragma: no cover (compi
 
 
 @numba.njit(**KERNEL)
+def deposit_corner_heat(cell_nodes, per_mass, corner_mass, energy):  # pragma: no cover (compiled)
+    """The kinetic energy a remap lost, ``per_mass`` at each node (loss over nodal mass),
+    into each material's internal energy (2, n_cells), in place: each cell takes its
+    corners' Σ_i per_mass_i c_mi, c the material's own corner masses (2, k, n_cells;
+    remapper_2d's ``_deposit``, 2D enriched cells), summed corner by corner."""
+    n_cells, k = cell_nodes.shape
+    for m in range(corner_mass.shape[0]):
+        for c in range(n_cells):
+            total = per_mass[cell_nodes[c, 0]] * corner_mass[m, 0, c]
+            for i in range(1, k):
+                total += per_mass[cell_nodes[c, i]] * corner_mass[m, i, c]
+            energy[m, c] += total
+
+
+@numba.njit(**KERNEL)
 def material_momentum_fluxes(cell_nodes, corner_mass, node_velocity, node_internal, flux_mass, donor,
                              receiver, added_mass, added_momentum, added_kinetic):  # pragma: no cover (compiled)
     """2D enriched cells, each material on its own (remapper_2d's
@@ -710,34 +725,55 @@ def material_node_velocities(cell_nodes, corner_mass, node_mass, owner, momentum
                 total += corner_mass[m, i, c]
                 old += old_corner_mass[m, i, c]
             cell_mass[m, c], old_cell_mass[m, c] = total, old
-    # each cell's mean velocity of the material and the new-mass-weighted mean of its
-    # corners' deviations, the same for its k corners: formed once a cell (formed for each
-    # corner, their divisions took most of the kernel's time)
+    # each corner's share of its cell's new mass of the material (kept for the fluxes'
+    # kinetic energy below), each cell's mean velocity of the material and the
+    # new-mass-weighted mean of its corners' deviations, the same for its k corners: formed
+    # once a cell (formed for each corner, their divisions took most of the kernel's time),
+    # in loops over the cells that vectorise
+    shares = np.empty((2, k, n_cells))
     mean_velocity, spread = np.empty((2, 2, n_cells)), np.empty((2, 2, n_cells))
-    share = np.empty(k)
     for m in range(2):
-        for c in range(n_cells):
-            mass = cell_mass[m, c]
-            for r in range(k):
-                share[r] = corner_mass[m, r, c] / mass if mass > 0 else 0.0
-            for d in range(2):
-                mean_velocity[m, d, c] = momentum[d, m, c] / mass if mass > 0 else 0.0
-                total = share[0] * deviation[m, d, 0, c]
-                for r in range(1, k):
-                    total = total + share[r] * deviation[m, d, r, c]
-                spread[m, d, c] = total
-    velocity = np.zeros((2, 2, n_nodes))
-    node_momentum = np.empty(n_nodes)
-    for m in range(2):
+        for r in range(k):
+            for c in range(n_cells):
+                mass = cell_mass[m, c]
+                shares[m, r, c] = corner_mass[m, r, c] / mass if mass > 0 else 0.0
         for d in range(2):
-            node_momentum[:] = 0.0
-            for i in range(k):
+            for c in range(n_cells):
+                mass = cell_mass[m, c]
+                mean_velocity[m, d, c] = momentum[d, m, c] / mass if mass > 0 else 0.0
+            for c in range(n_cells):
+                spread[m, d, c] = shares[m, 0, c] * deviation[m, d, 0, c]
+            for r in range(1, k):
                 for c in range(n_cells):
-                    corner_velocity = mean_velocity[m, d, c] + deviation[m, d, i, c] - spread[m, d, c]
-                    node_momentum[cell_nodes[c, i]] += corner_mass[m, i, c] * corner_velocity
-            for node in range(n_nodes):
-                if node_mass[m, node] > 0:
-                    velocity[m, d, node] = node_momentum[node] / node_mass[m, node]
+                    spread[m, d, c] = spread[m, d, c] + shares[m, r, c] * deviation[m, d, r, c]
+    # corner by corner, each over the cells in order: each material's momentum at the nodes
+    # (node_sums[:, 2 m + d]) and the kinetic energy the fluxes bring them (node_sums[:, 4]),
+    # by the corners' shares of the cell's new mass of the material, or of its old mass in a
+    # cell the material has left — one pass over the corners for the five sums
+    node_sums = np.zeros((n_nodes, 5))
+    for i in range(k):
+        for c in range(n_cells):
+            node = cell_nodes[c, i]
+            for t in range(4):
+                m, d = t // 2, t % 2
+                corner_velocity = mean_velocity[m, d, c] + deviation[m, d, i, c] - spread[m, d, c]
+                node_sums[node, t] += corner_mass[m, i, c] * corner_velocity
+            brought = 0.0
+            for m in range(2):
+                if cell_mass[m, c] > 0:
+                    share = shares[m, i, c]
+                elif old_cell_mass[m, c] > 0:
+                    share = old_corner_mass[m, i, c] / old_cell_mass[m, c]
+                else:
+                    share = 1.0 / k
+                brought = share * kinetic_in[m, c] if m == 0 else brought + share * kinetic_in[m, c]
+            node_sums[node, 4] += brought
+    velocity = np.zeros((2, 2, n_nodes))
+    for t in range(4):
+        m, d = t // 2, t % 2
+        for node in range(n_nodes):
+            if node_mass[m, node] > 0:
+                velocity[m, d, node] = node_sums[node, t] / node_mass[m, node]
     mesh_velocity = np.empty((2, n_nodes))
     for node in range(n_nodes):
         for d in range(2):
@@ -745,19 +781,6 @@ def material_node_velocities(cell_nodes, corner_mass, node_mass, owner, momentum
         for m in range(2):
             if node_mass[m, node] <= 0:
                 velocity[m, 0, node], velocity[m, 1, node] = mesh_velocity[0, node], mesh_velocity[1, node]
-    in_nodes = np.zeros(n_nodes)
-    for i in range(k):
-        for c in range(n_cells):
-            brought = 0.0
-            for m in range(2):
-                if cell_mass[m, c] > 0:
-                    share = corner_mass[m, i, c] / cell_mass[m, c]
-                elif old_cell_mass[m, c] > 0:
-                    share = old_corner_mass[m, i, c] / old_cell_mass[m, c]
-                else:
-                    share = 1.0 / k
-                brought = share * kinetic_in[m, c] if m == 0 else brought + share * kinetic_in[m, c]
-            in_nodes[cell_nodes[c, i]] += brought
     kinetic_before = np.empty(n_nodes)
     loss = np.empty(n_nodes)
     for node in range(n_nodes):
@@ -768,7 +791,7 @@ def material_node_velocities(cell_nodes, corner_mass, node_mass, owner, momentum
             before += old_node_mass[m, node] * (old_velocity[m, d, node] * old_velocity[m, d, node])
             after += node_mass[m, node] * (velocity[m, d, node] * velocity[m, d, node])
         kinetic_before[node] = 0.5 * before
-        loss[node] = kinetic_before[node] + in_nodes[node] - 0.5 * after
+        loss[node] = kinetic_before[node] + node_sums[node, 4] - 0.5 * after
     return velocity, mesh_velocity, kinetic_before, loss
 
 
