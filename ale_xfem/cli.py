@@ -104,6 +104,9 @@ def _parser() -> argparse.ArgumentParser:
                        help="what 2D enriched mixed cells (bubbles, Nitsche; bubbles with the linearised law alone) "
                             "cost over one velocity field: the sheared tube, Eulerian, 100 × 100 and 200 × 200 "
                             "(or --cells N,M: N × N, M × M), time per step by phase")
+    bench.add_argument("--cell-type", choices=("quadrilateral", "triangle"), default=None,
+                       help="with --enriched: the mesh's cells (default quadrilateral; triangle: each square "
+                            "of the mesh split into four crossed triangles)")
     bench.add_argument("--plic", action="store_true",
                        help="one PLIC reconstruction with Youngs' and with LVIRA's normals (interface.normal): "
                             "the rotated two-material tube's mixed cells, 200 × 200 (or --cells N: N × N)")
@@ -233,6 +236,10 @@ def _study(args) -> int:
 def _bench(args) -> int:
     from ale_xfem.studies.bench import run_bench, run_phase_bench
 
+    if args.cell_type is not None and not args.enriched:
+        print(f"error: --cell-type = {args.cell_type!r}: acts with --enriched only (the 2D enriched cells' bench)",
+              file=sys.stderr)
+        return EXIT_BAD_INPUT
     if args.peers:
         from ale_xfem.studies.peers import SIZES, pyclaw_available, run_peer_comparison
 
@@ -285,7 +292,8 @@ def _bench(args) -> int:
     elif args.enriched:
         from ale_xfem.studies.bench import run_enriched_bench
 
-        run_enriched_bench(sizes if args.cells != "1000,10000,100000,1000000" else (100, 200))
+        run_enriched_bench(sizes if args.cells != "1000,10000,100000,1000000" else (100, 200),
+                           cell_type=args.cell_type or "quadrilateral")
     elif args.phases and args.dimension == 2:
         from ale_xfem.studies.bench import run_phase_bench_2d
 

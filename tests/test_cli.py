@@ -123,14 +123,24 @@ def test_bench_prints_zone_cycles_per_second(capsys):
         assert 0 < low <= float(ratio) <= high
 
 
-def test_bench_enriched_prints_each_closure_by_phase(capsys):
-    """`bench --enriched --cells N`: the sheared tube on N × N cells, one velocity field and
-    the enriched cells with bubbles, with Nitsche and with bubbles and the linearised law,
-    a row each with the mixed cells' column zero only for one velocity field and the ratio
-    1 for it."""
-    assert main(["bench", "--enriched", "--cells", "10"]) == 0
-    rows = [line.split() for line in capsys.readouterr().out.splitlines() if line.strip()[:1].isdigit()]
+@pytest.mark.parametrize("cell_type, mesh", [(None, "quadrilaterals"),
+                                             ("triangle", "squares of four crossed triangles")])
+def test_bench_enriched_prints_each_closure_by_phase(cell_type, mesh, capsys):
+    """`bench --enriched --cells N [--cell-type triangle]`: the sheared tube on N × N cells
+    (quadrilaterals, or squares of crossed triangles), one velocity field and the enriched
+    cells with bubbles, with Nitsche and with bubbles and the linearised law, a row each
+    with the mixed cells' column zero only for one velocity field and the ratio 1 for it;
+    the mixed cells counted on that mesh."""
+    from ale_xfem.problem import build_problem
+
+    assert main(["bench", "--enriched", "--cells", "10", *(["--cell-type", cell_type] if cell_type else [])]) == 0
+    out = capsys.readouterr().out
+    assert f"on side × side {mesh};" in out
+    rows = [line.split() for line in out.splitlines() if line.strip()[:1].isdigit()]
     assert len(rows) == 4 and all(r[0] == "10" for r in rows)
+    problem = build_problem(load_scene(resolve_scene_path("rotated-tube-shear"),
+                                       ["mesh.cells=[10,10]", f"mesh.cell_type={cell_type or 'quadrilateral'}"]))
+    assert all(int(r[1]) == problem.mixed.cells.size for r in rows)
     reference, bubbles, nitsche, linearised = rows  # ... lagrange, mixed, remap, total, ratio, range
     assert " ".join(reference[2:-6]) == "one velocity field" and float(reference[-5]) == 0.0
     assert float(reference[-2]) == 1.0
@@ -168,6 +178,17 @@ def test_bench_plic_prints_both_normals(capsys):
 
 def test_bench_rejects_bad_sizes(capsys):
     assert main(["bench", "--cells", "10,x"]) == 2
+
+
+@pytest.mark.parametrize("argv", [["--cell-type", "triangle"], ["--plic", "--cell-type", "triangle"],
+                                  ["--peers", "--cell-type", "quadrilateral"]])
+def test_bench_rejects_a_cell_type_without_the_enriched_bench(argv, capsys):
+    """--cell-type acts on `bench --enriched` only: elsewhere one line, exit 2, nothing run."""
+    assert main(["bench", *argv]) == 2
+    captured = capsys.readouterr()
+    assert captured.out == ""
+    assert captured.err.startswith(f"error: --cell-type = {argv[-1]!r}: acts with --enriched only")
+    assert captured.err.count("\n") == 1
 
 
 def test_xt_writes_the_diagram_with_one_row_per_recorded_step(tmp_path):

@@ -250,29 +250,34 @@ ENRICHED_CASES = (
 )
 
 
-def run_enriched_bench(sides=(100, 200), steps: int = 10, out=print, rounds: int = 3) -> list[dict]:
+def run_enriched_bench(sides=(100, 200), steps: int = 10, out=print, rounds: int = 3,
+                       cell_type: str = "quadrilateral") -> list[dict]:
     """What the paper's 2D enriched mixed cells cost over one velocity field: the sheared
-    two-material tube (``rotated-tube-shear``, Eulerian) on side × side quadrilaterals, time
-    per step by phase (the mixed-cell column: the interface solve with its cut geometry;
-    the remap column includes the per-material momentum remap and the next step's
-    evaluation), and the whole step's ratio to the single-velocity run's; bubbles with the
-    nonlinear corrector (the default) and with the linearised law alone."""
+    two-material tube (``rotated-tube-shear``, Eulerian) on side × side quadrilaterals (or,
+    ``cell_type`` = "triangle", side × side squares of four crossed triangles), time per step
+    by phase (the mixed-cell column: the interface solve with its cut geometry; the remap
+    column includes the per-material momentum remap and the next step's evaluation), and
+    the whole step's ratio to the single-velocity run's; bubbles with the nonlinear
+    corrector (the default) and with the linearised law alone."""
+    mesh = {"quadrilateral": "quadrilaterals", "triangle": "squares of four crossed triangles"}[cell_type]
     out(f"time per step by phase (ms, fastest of {rounds} rounds of {steps} steps), the sheared two-material "
-        "tube (rotated-tube-shear, Eulerian); ratio to one velocity field: median of the rounds' (range)")
+        f"tube (rotated-tube-shear, Eulerian) on side × side {mesh}; ratio to one velocity field: median of the "
+        "rounds' (range)")
     out(f"{'side':>5} {'mixed':>6} {'closure':<20} {'lagrange':>9} {'mixed':>9} {'remap':>9} {'total':>9} "
         f"{'ratio':>7} {'range':>11}")
     rows = []
     for side in sides:
-        cases = [lambda overrides=overrides: phase_times(side, steps, [f"mesh.cells=[{side},{side}]", *overrides],
+        mesh_overrides = [f"mesh.cells=[{side},{side}]", f"mesh.cell_type={cell_type}"]
+        cases = [lambda overrides=overrides: phase_times(side, steps, [*mesh_overrides, *overrides],
                                                          "rotated-tube-shear", repeats=1)
                  for _, overrides in ENRICHED_CASES]
         runs = _interleaved(cases, rounds)
-        mixed = _mixed_cells("rotated-tube-shear", side)
+        mixed = _mixed_cells("rotated-tube-shear", mesh_overrides)
         for (label, _), case_runs in zip(ENRICHED_CASES, runs):
             t = _fastest(case_runs)
             ratio, low, high = _ratios(case_runs, runs[0])
-            rows.append({"side": side, "mixed_cells": mixed, "case": label, **t, "ratio": ratio,
-                         "ratio_range": (low, high)})
+            rows.append({"side": side, "cell_type": cell_type, "mixed_cells": mixed, "case": label, **t,
+                         "ratio": ratio, "ratio_range": (low, high)})
             out(f"{side:>5d} {mixed:>6d} {label:<20} {1e3 * t['lagrange']:>9.2f} {1e3 * t['mixed_cell_solve']:>9.2f} "
                 f"{1e3 * t['remap']:>9.2f} {1e3 * t['total']:>9.2f} {ratio:>7.2f} {low:>5.2f}–{high:<5.2f}")
     return rows
@@ -306,9 +311,9 @@ def run_plic_bench(side: int = 200, out=print, repeats: int = 20) -> list[dict]:
     return rows
 
 
-def _mixed_cells(scene: str, side: int) -> int:
-    """The scene's mixed cells at the start on side × side cells."""
-    problem = build_problem(load_scene(resolve_scene_path(scene), [f"mesh.cells=[{side},{side}]"]))
+def _mixed_cells(scene: str, overrides) -> int:
+    """The scene's mixed cells at the start, with its ``overrides`` (its mesh)."""
+    problem = build_problem(load_scene(resolve_scene_path(scene), list(overrides)))
     return 0 if problem.mixed is None else int(problem.mixed.cells.size)
 
 
