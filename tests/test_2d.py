@@ -1367,6 +1367,26 @@ def test_node_neighbour_cells_are_the_cells_sharing_a_node(mesh_name):
         assert all(d == -1 for d in row[len(expected):])  # padding last
 
 
+@pytest.mark.parametrize("mesh_name", MESHES)
+def test_cells_at_nodes_are_every_cell_touching_them_once_in_order(mesh_name):
+    """cells_at_nodes (csr_rows of the node-to-cell table): the cells one of whose nodes is
+    among the nodes asked for — repeated, unordered, or none — each once, in increasing
+    order, as a set computed from cell_nodes says; and csr_rows of rows with no entries
+    gives an empty array of the table's integer type."""
+    from ale_xfem.model.mesh import cells_at_nodes, csr_rows
+
+    mesh = MESHES[mesh_name]()
+    rng = np.random.default_rng(3)
+    for size in (0, 1, 7, mesh.n_nodes):
+        nodes = rng.integers(0, mesh.n_nodes, size=size)
+        expected = np.flatnonzero(np.isin(mesh.cell_nodes, nodes).any(axis=1))
+        found = cells_at_nodes(mesh, nodes)
+        assert found.dtype == np.int64 and np.array_equal(found, expected)
+    first, entries = np.array([0, 2, 2, 5]), np.array([4, 1, 9, 1, 4])
+    assert csr_rows(first, entries, [1]).size == 0 and csr_rows(first, entries, [1]).dtype == entries.dtype
+    assert csr_rows(first, entries, [2, 0, 2]).tolist() == [1, 4, 9]
+
+
 def test_the_remap_puts_each_cells_largest_material_first_the_lower_one_on_a_tie():
     """state.ranked_materials (the slot-0 material of a remapped or set-up cell) is np.argmax
     over the materials: the largest, the first of equal ones — on values with many ties;

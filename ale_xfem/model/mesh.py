@@ -32,6 +32,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from ale_xfem.model import cell_kernels
@@ -170,13 +171,34 @@ def cells_around(mesh, cells) -> np.ndarray:
 
 
 def csr_rows(first, entries, rows) -> np.ndarray:
-    """The entries of ``rows`` of a compressed-row table (row i: ``entries[first[i]:first[i + 1]]``),
-    each once, in increasing order."""
-    rows = np.asarray(rows, dtype=np.int64)
-    start, length = first[rows], first[rows + 1] - first[rows]
-    # each wanted row's run of positions, one after the other
-    position = np.arange(int(length.sum())) + np.repeat(start - np.cumsum(length) + length, length)
-    return np.unique(entries[position])
+    """The entries of ``rows`` of a compressed-row table (row i: ``entries[first[i]:first[i + 1]]``,
+    entries ≥ 0), each once, in increasing order."""
+    return _csr_rows(first, entries, np.asarray(rows, dtype=np.int64))
+
+
+@numba.njit(cache=True)
+def _csr_rows(first, entries, rows):  # pragma: no cover (compiled)
+    """:func:`csr_rows`: the entries met marked in a table as long as the largest of them,
+    then read off it in order (a sort of the rows' entries, np.unique's way, took a
+    millisecond a step at 200² with 2D enriched cells)."""
+    largest = -1
+    for r in rows:
+        for j in range(first[r], first[r + 1]):
+            largest = max(largest, entries[j])
+    seen = np.zeros(largest + 1, dtype=np.bool_)
+    count = 0
+    for r in rows:
+        for j in range(first[r], first[r + 1]):
+            if not seen[entries[j]]:
+                seen[entries[j]] = True
+                count += 1
+    out = np.empty(count, dtype=entries.dtype)
+    count = 0
+    for entry in range(largest + 1):
+        if seen[entry]:
+            out[count] = entry
+            count += 1
+    return out
 
 
 def cells_at_nodes(mesh, nodes) -> np.ndarray:
