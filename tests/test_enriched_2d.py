@@ -396,6 +396,38 @@ def test_the_compiled_node_materials_give_the_numpy_bits(cell):
         assert np.any(two) and np.any(~two) and len(np.unique(owner)) == n_materials
 
 
+@pytest.mark.parametrize("cell", ["triangle", "quadrilateral"])
+def test_the_enriched_cells_node_materials_are_node_materials_of_their_slots(cell):
+    """enriched_node_materials (two materials, enriched mixed cells: what the cut geometry
+    reads) gives node_materials' owners and flags on the slots it stands for — a pure cell's
+    material with its whole area, a mixed cell's material 0 then material 1 with their
+    areas — with traces (zero areas), ties of pure cells, and nodes among mixed cells only."""
+    from ale_xfem.mixed.cut_cells_2d import enriched_node_materials, node_materials
+    from ale_xfem.model.mesh import rectangle_mesh
+
+    mesh = rectangle_mesh([[0.0, 1.0], [0.0, 1.0]], [9, 7], cell)
+    rng = np.random.default_rng(31)
+    n, flagged = mesh.n_cells, []
+    for trial, mixed_share in enumerate((0.3, 0.9)):
+        cell_material = rng.integers(0, 2, n)
+        mixed = rng.random(n) < mixed_share
+        cell_material[mixed] = -1
+        volume = rng.uniform(0.0, 1.0, (2, n)) * (rng.random((2, n)) < 0.9)
+        if trial == 1:
+            volume = np.round(volume, 1)  # (equal areas: ties)
+        pure = np.flatnonzero(~mixed)
+        volume[1 - cell_material[pure], pure] = 0.0  # a pure cell holds its own material
+        slots = np.stack([np.where(mixed, 0, cell_material), np.where(mixed, 1, -1)])
+        slot_volume = np.stack([np.where(mixed, volume[0], volume.sum(axis=0)), np.where(mixed, volume[1], 0.0)])
+        owner, two = enriched_node_materials(mesh.cell_nodes.astype(np.int64), mesh.n_nodes, cell_material, volume)
+        expected_owner, expected_two = node_materials(mesh.cell_nodes, mesh.n_nodes, cell_material, slot_volume, slots)
+        np.testing.assert_array_equal(owner, expected_owner)
+        np.testing.assert_array_equal(two, expected_two)
+        assert np.any(~two) and set(np.unique(owner)) == {0, 1}
+        flagged.append(bool(np.any(two)))
+    assert flagged[0]  # (nodes with pure cells of both materials around them)
+
+
 def test_a_form_binder_makes_create_forms_forms_and_names_a_missing_coefficient():
     """forms.bound_system.FormBinder: the compiled form over chosen cells assembles to what
     dolfinx.fem.create_form's does (the same C++ form, the coefficients and constants looked

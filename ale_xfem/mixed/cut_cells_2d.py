@@ -295,6 +295,47 @@ def _node_materials(cell_nodes, n_nodes, cell_material, material_volume, materia
     return owner, two_pure
 
 
+@numba.njit(cache=True)
+def enriched_node_materials(cell_nodes, n_nodes, cell_material, volume):  # pragma: no cover (compiled)
+    """:func:`node_materials` of two materials with enriched mixed cells (``cell_material``
+    −1), ``volume`` (2, n_cells) each material's area: the slots of such a mesh — a pure
+    cell's material with the cell's area, then, of a mixed cell, material 0 in slot 0 and
+    material 1 in slot 1 — read without making them, the same sums in the same order (the
+    slot arrays over the whole mesh took 0.7 ms a step at 200² quadrilaterals)."""
+    n_cells, k = cell_nodes.shape
+    pure_count = np.zeros((2, n_nodes), dtype=np.int64)
+    first_slot = np.zeros((2, n_nodes))  # slot 0's areas at the nodes, by material
+    second_slot = np.zeros(n_nodes)  # slot 1's (material 1's in the mixed cells)
+    for c in range(n_cells):
+        m = cell_material[c]
+        if m >= 0:
+            area = volume[0, c] + volume[1, c]
+            for i in range(k):
+                pure_count[m, cell_nodes[c, i]] += 1
+                first_slot[m, cell_nodes[c, i]] += area
+        else:
+            for i in range(k):
+                first_slot[0, cell_nodes[c, i]] += volume[0, c]
+                second_slot[cell_nodes[c, i]] += volume[1, c]
+    owner = np.zeros(n_nodes, dtype=np.int64)
+    two_pure = np.zeros(n_nodes, dtype=np.bool_)
+    for node in range(n_nodes):
+        # (the slots' sums added as node_materials adds them, slot by slot from +0)
+        share0 = (0.0 + first_slot[0, node]) + 0.0
+        share1 = (0.0 + first_slot[1, node]) + second_slot[node]
+        total = share0 + share1
+        best = -np.inf
+        touching = 0
+        for m in range(2):
+            fraction = (share0 if m == 0 else share1) / total if total > 0 else 0.0
+            score = pure_count[m, node] + 0.5 * fraction
+            if score > best:
+                best, owner[node] = score, m
+            touching += pure_count[m, node] > 0
+        two_pure[node] = touching > 1
+    return owner, two_pure
+
+
 def condensed_masses(cut: CutCells, cell_nodes, node_material, mass, materials,
                      external_share: float = EXTERNAL_SHARE):
     """(masses, internal), each (2, n, k): each material's mass in each mixed cell lumped
@@ -416,11 +457,8 @@ def interface_geometry(mesh, position, volume, mass, cells, normal: str = "young
     vertices = np.moveaxis(position[:, cell_nodes[cells]], 0, -1)
     reconstruction = reconstruct(vertices, normals, fraction[cells], cells)
     cut = cut_cells(cell_nodes, position, cells, reconstruction, cell_material, np.zeros(cells.size, dtype=np.int64))
-    slots = np.stack([np.maximum(cell_material, 0), np.full(n_cells, -1)])
-    slot_volume = np.stack([volume.sum(axis=0), np.zeros(n_cells)])
-    slots[:, cells] = [[0], [1]]
-    slot_volume[:, cells] = volume[:, cells]
-    owner, tied = node_materials(cell_nodes, n_nodes, cell_material, slot_volume, slots)
+    owner, tied = enriched_node_materials(np.ascontiguousarray(cell_nodes, dtype=np.int64), n_nodes, cell_material,
+                                          np.ascontiguousarray(volume, dtype=float))
     # a tied node slides (its normal parts tied only, under free slip) unless Γ reaches it
     # along a mesh edge between pure cells of the two materials (a kink: forms/enriched_interface.py)
     on_edge = _on_material_edges(*edges_of(cell_nodes), cell_material, n_nodes)

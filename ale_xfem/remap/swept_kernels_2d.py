@@ -662,14 +662,23 @@ def material_momentum_fluxes(cell_nodes, corner_mass, node_velocity, node_intern
     n = donor.size
     momentum = np.zeros((2, 2, n_cells))
     kinetic_in = np.zeros((2, n_cells))
-    deviation = np.zeros((2, 2, k, n_cells))
+    deviation = np.empty((2, 2, k, n_cells))
     cell_velocity = np.zeros((2, n_cells))
     into, out = np.empty((3, n_cells)), np.empty((3, n_cells))
     for m in range(2):
         for c in range(n_cells):
             cell_mass = corner_mass[m, 0, c]
+            empty = corner_mass[m, 0, c] == 0.0
             for i in range(1, k):
                 cell_mass += corner_mass[m, i, c]
+                empty &= corner_mass[m, i, c] == 0.0
+            if empty and added_mass[m, c] == 0.0:  # the material is not in the cell: its sums are zeros
+                for d in range(2):
+                    momentum[d, m, c] = 0.0 + added_momentum[d, m, c]
+                    cell_velocity[d, c] = 0.0
+                    for i in range(k):
+                        deviation[m, d, i, c] = 0.0
+                continue
             cell_mass += added_mass[m, c]
             for d in range(2):
                 total = corner_mass[m, 0, c] * node_velocity[m, d, cell_nodes[c, 0]]
@@ -679,14 +688,15 @@ def material_momentum_fluxes(cell_nodes, corner_mass, node_velocity, node_intern
                 momentum[d, m, c] = total
                 mean = total / cell_mass if cell_mass > 0 else 0.0
                 cell_velocity[d, c] = mean
-                if cell_mass > 0:
-                    for i in range(k):
-                        node = cell_nodes[c, i]
-                        if node_internal[m, node]:
-                            deviation[m, d, i, c] = node_velocity[m, d, node] - mean
+                for i in range(k):
+                    node = cell_nodes[c, i]
+                    internal = cell_mass > 0 and node_internal[m, node]
+                    deviation[m, d, i, c] = node_velocity[m, d, node] - mean if internal else 0.0
         into[:] = 0.0
         out[:] = 0.0
         for j in range(n):
+            if flux_mass[m, j] == 0.0:  # (it would add zeros: sums that start at +0 keep their bits)
+                continue
             v0, v1 = cell_velocity[0, donor[j]], cell_velocity[1, donor[j]]
             f0, f1 = flux_mass[m, j] * v0, flux_mass[m, j] * v1
             kinetic = 0.5 * flux_mass[m, j] * (v0 * v0 + v1 * v1)
@@ -754,10 +764,12 @@ def material_node_velocities(cell_nodes, corner_mass, node_mass, owner, momentum
     for i in range(k):
         for c in range(n_cells):
             node = cell_nodes[c, i]
-            for t in range(4):
-                m, d = t // 2, t % 2
-                corner_velocity = mean_velocity[m, d, c] + deviation[m, d, i, c] - spread[m, d, c]
-                node_sums[node, t] += corner_mass[m, i, c] * corner_velocity
+            for m in range(2):
+                if corner_mass[m, i, c] == 0.0:  # (zeros: the material is not at this corner)
+                    continue
+                for d in range(2):
+                    corner_velocity = mean_velocity[m, d, c] + deviation[m, d, i, c] - spread[m, d, c]
+                    node_sums[node, 2 * m + d] += corner_mass[m, i, c] * corner_velocity
             brought = 0.0
             for m in range(2):
                 if cell_mass[m, c] > 0:
