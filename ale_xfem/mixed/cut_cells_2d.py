@@ -557,7 +557,8 @@ def _corner_sums(cell_nodes, corner_mass, n_nodes):  # pragma: no cover (compile
     for m in range(2):
         for i in range(k):
             for c in range(n_cells):
-                node_mass[m, cell_nodes[c, i]] += corner_mass[m, i, c]
+                if corner_mass[m, i, c] != 0.0:  # (a material's absence: zeros, which change no sum from +0)
+                    node_mass[m, cell_nodes[c, i]] += corner_mass[m, i, c]
     return node_mass
 
 
