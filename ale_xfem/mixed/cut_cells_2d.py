@@ -277,6 +277,16 @@ def _node_materials(cell_nodes, n_nodes, cell_material, material_volume, materia
         for m in range(n_materials):
             for node in range(n_nodes):
                 share[m, node] += slot_share[m, node]
+    return _owners(pure_count, share)
+
+
+@numba.njit(cache=True)
+def _owners(pure_count, share):  # pragma: no cover (compiled)
+    """The material each node lies in, from the pure cells of each material around it
+    (``pure_count``) and each material's area around it (``share``), both (n_materials,
+    n_nodes): the most pure cells, and among equals the larger share of the area; and
+    which nodes have pure cells of two materials around them."""
+    n_materials, n_nodes = share.shape
     owner = np.zeros(n_nodes, dtype=np.int64)
     two_pure = np.zeros(n_nodes, dtype=np.bool_)
     for node in range(n_nodes):
@@ -301,7 +311,7 @@ def enriched_node_materials(cell_nodes, n_nodes, cell_material, volume):  # prag
     −1), ``volume`` (2, n_cells) each material's area: the slots of such a mesh — a pure
     cell's material with the cell's area, then, of a mixed cell, material 0 in slot 0 and
     material 1 in slot 1 — read without making them, the same sums in the same order (the
-    slot arrays over the whole mesh took 0.7 ms a step at 200² quadrilaterals)."""
+    slot arrays over the whole mesh took 1.4 ms a call at 200² crossed triangles)."""
     n_cells, k = cell_nodes.shape
     pure_count = np.zeros((2, n_nodes), dtype=np.int64)
     first_slot = np.zeros((2, n_nodes))  # slot 0's areas at the nodes, by material
@@ -317,23 +327,12 @@ def enriched_node_materials(cell_nodes, n_nodes, cell_material, volume):  # prag
             for i in range(k):
                 first_slot[0, cell_nodes[c, i]] += volume[0, c]
                 second_slot[cell_nodes[c, i]] += volume[1, c]
-    owner = np.zeros(n_nodes, dtype=np.int64)
-    two_pure = np.zeros(n_nodes, dtype=np.bool_)
+    # the slots' sums added as node_materials adds them, slot by slot from +0
+    share = np.empty((2, n_nodes))
     for node in range(n_nodes):
-        # (the slots' sums added as node_materials adds them, slot by slot from +0)
-        share0 = (0.0 + first_slot[0, node]) + 0.0
-        share1 = (0.0 + first_slot[1, node]) + second_slot[node]
-        total = share0 + share1
-        best = -np.inf
-        touching = 0
-        for m in range(2):
-            fraction = (share0 if m == 0 else share1) / total if total > 0 else 0.0
-            score = pure_count[m, node] + 0.5 * fraction
-            if score > best:
-                best, owner[node] = score, m
-            touching += pure_count[m, node] > 0
-        two_pure[node] = touching > 1
-    return owner, two_pure
+        share[0, node] = (0.0 + first_slot[0, node]) + 0.0
+        share[1, node] = (0.0 + first_slot[1, node]) + second_slot[node]
+    return _owners(pure_count, share)
 
 
 def condensed_masses(cut: CutCells, cell_nodes, node_material, mass, materials,
