@@ -383,8 +383,22 @@ def _fan_moments(x, polygons, points, weights, exponents, quadrilateral, steps, 
                     jacobian = abs(det)
                 weight = area * weights[q] / jacobian
                 for r in range(e):
-                    out[i, r] += weight * s ** exponents[r, 0] * t ** exponents[r, 1]
+                    out[i, r] += weight * integer_power(s, exponents[r, 0]) * integer_power(t, exponents[r, 1])
     return out
+
+
+@numba.njit(cache=True)
+def integer_power(x, n):  # pragma: no cover (compiled)
+    """x ** n for an integer n ≥ 0, by the squarings numba compiles float ** int to: the
+    kernels' plain-Python run (NUMBA_DISABLE_JIT=1) then gives the compiled bits, where
+    numpy's float ** int calls the C library's pow."""
+    result = 1.0
+    while n != 0:
+        if n & 1:
+            result *= x
+        n >>= 1
+        x *= x
+    return result
 
 
 def _triangle_jacobians(x):

@@ -259,12 +259,16 @@ def test_the_progress_bar_reports_simulated_time_and_steps_and_is_silent_when_re
     ("sod-two-gamma-enriched", ["mesh.cells=40", "mesh.motion=eulerian"], "profile.csv"),
     ("sod-2d", ["mesh.cells=[6,6]"], "cells.csv"),
     ("noh", ["mesh.cells=[6,6]", "mesh.cell_type=triangle"], "cells.csv"),
+    ("rotated-tube-shear", ["mesh.cells=[8,8]", "interface.model=enriched", "t_end=0.2"], "cells.csv"),
+    ("rotated-tube-shear", ["mesh.cells=[6,6]", "mesh.cell_type=triangle", "interface.model=enriched",
+                            "interface.stabilisation=nitsche", "t_end=0.2"], "cells.csv"),
 ])
 def test_the_kernels_run_as_plain_python_with_the_compiled_results(tmp_path, scene, overrides, output):
     """NUMBA_DISABLE_JIT=1 (the way to step through a kernel in a debugger, README) runs
     every compiled kernel as plain Python: the runs it makes — 1D, an enriched interface
-    through the swept remap, quadrilaterals with hourglass control, triangles — write the
-    same bytes as the compiled kernels'."""
+    through the swept remap, quadrilaterals with hourglass control, triangles, 2D enriched
+    cells (their cut geometry, cut weights, interface solve and per-material remap) — write
+    the same bytes as the compiled kernels'."""
     files = {}
     for label, environment in (("compiled", {}), ("python", {"NUMBA_DISABLE_JIT": "1"})):
         out = tmp_path / label
