@@ -184,7 +184,14 @@ def cap_outflow(volume, donor, flux_volume):  # pragma: no cover (compiled)
             continue
         for j in range(n):
             d = donor[j]
-            ratio = volume[m, d] / out[d] if out[d] > volume[m, d] else 1.0
+            if not out[d] > volume[m, d]:
+                # a donor that gives no more than it holds: its regions keep their volumes,
+                # what the other materials gain is +0 (which turns a −0 into +0, as below)
+                for o in range(n_materials):
+                    if o != m:
+                        flux_volume[o, j] += 0.0
+                continue
+            ratio = volume[m, d] / out[d]
             kept = flux_volume[m, j] * ratio
             moved = flux_volume[m, j] - kept
             flux_volume[m, j] = kept
