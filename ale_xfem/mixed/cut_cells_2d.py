@@ -423,6 +423,7 @@ class InterfaceGeometry:
     owner: np.ndarray  # (n_nodes,) the material each node lies in
     tied: np.ndarray  # (n_nodes,) bool
     sliding: np.ndarray  # (n_nodes,) bool: tied, and Γ follows no mesh edge into the node
+    cell_material: np.ndarray  # (n_cells,) each cell's material, −1 for the mixed cells
 
 
 @dataclass
@@ -443,25 +444,23 @@ def interface_geometry(mesh, position, volume, mass, cells, normal: str = "young
     ``volume``, ``mass`` (2, n_cells) each material's area and mass per cell, ``cells`` the
     mixed cells.  The interface: PLIC with Youngs' normals of material 0's fraction, LVIRA's
     with ``normal`` = "lvira" (as the remap reconstructs it: ale_xfem.model.plic)."""
-    cell_nodes = mesh.cell_nodes
-    n_cells, n_nodes = cell_nodes.shape[0], position.shape[1]
+    cell_nodes, n_nodes = mesh.cell_nodes, position.shape[1]
     cells = np.asarray(cells)
-    # (a cell of no area: the cells a gather on several ranks leaves out, whose entries are
-    # zero; what is made of them is not used: parallel/enriched_cells.py)
-    total = volume[0] + volume[1]
-    fraction = np.divide(volume[0], total, out=np.zeros(n_cells), where=total > 0.0)
-    cell_material = _cell_materials(mass, cells)
+    volume = np.ascontiguousarray(volume, dtype=float)
+    # (what is made of a cell of no area is not used: parallel/enriched_cells.py)
+    fraction, cell_material = _fractions_and_materials(volume, np.ascontiguousarray(mass, dtype=float),
+                                                       np.ascontiguousarray(cells, dtype=np.int64))
     normals = refined_normals(mesh, position, fraction, cells,
                               youngs_normals(mesh, position, fraction[None, :], cells)[0], normal)
     vertices = np.moveaxis(position[:, cell_nodes[cells]], 0, -1)
     reconstruction = reconstruct(vertices, normals, fraction[cells], cells)
     cut = cut_cells(cell_nodes, position, cells, reconstruction, cell_material, np.zeros(cells.size, dtype=np.int64))
     owner, tied = enriched_node_materials(np.ascontiguousarray(cell_nodes, dtype=np.int64), n_nodes, cell_material,
-                                          np.ascontiguousarray(volume, dtype=float))
+                                          volume)
     # a tied node slides (its normal parts tied only, under free slip) unless Γ reaches it
     # along a mesh edge between pure cells of the two materials (a kink: forms/enriched_interface.py)
     on_edge = _on_material_edges(*edges_of(cell_nodes), cell_material, n_nodes)
-    return InterfaceGeometry(cut, owner, tied, tied & ~on_edge)
+    return InterfaceGeometry(cut, owner, tied, tied & ~on_edge, cell_material)
 
 
 def enriched_geometry(mesh, position, volume, mass, cells, normal: str = "youngs") -> EnrichedGeometry:
@@ -473,17 +472,30 @@ def enriched_geometry(mesh, position, volume, mass, cells, normal: str = "youngs
     condensed, internal_in_cell = condensed_masses(interface.cut, cell_nodes, interface.owner, mass[:, cells],
                                                    np.stack([alpha, 1 - alpha]))
     corner_mass, internal, node_mass = _material_corner_masses(
-        np.ascontiguousarray(cell_nodes, dtype=np.int64), _cell_materials(mass, cells), mass, cells, condensed,
+        np.ascontiguousarray(cell_nodes, dtype=np.int64), interface.cell_material, mass, cells, condensed,
         internal_in_cell, position.shape[1])
-    return EnrichedGeometry(interface.cut, interface.owner, interface.tied, interface.sliding, corner_mass,
+    return EnrichedGeometry(interface.cut, interface.owner, interface.tied, interface.sliding, interface.cell_material,
+                            corner_mass,
                             node_mass, internal)
 
 
-def _cell_materials(mass, cells) -> np.ndarray:
-    """(n_cells,): each cell's material, −1 for the mixed ``cells`` (``mass`` (2, n_cells))."""
-    cell_material = np.where(mass[1] > 0.0, 1, 0)
-    cell_material[cells] = -1
-    return cell_material
+@numba.njit(cache=True)
+def _fractions_and_materials(volume, mass, cells):  # pragma: no cover (compiled)
+    """(material 0's fraction of each cell's area (n_cells,), 0 in a cell of no area — the
+    cells a gather on several ranks leaves out, whose entries are zero; each cell's
+    material (n_cells,): 1 where it holds mass of material 1, else 0, −1 for the mixed
+    ``cells``) of ``volume``, ``mass`` (2, n_cells) by material."""
+    n_cells = volume.shape[1]
+    fraction = np.zeros(n_cells)
+    cell_material = np.empty(n_cells, dtype=np.int64)
+    for c in range(n_cells):
+        total = volume[0, c] + volume[1, c]
+        if total > 0.0:
+            fraction[c] = volume[0, c] / total
+        cell_material[c] = 1 if mass[1, c] > 0.0 else 0
+    for j in range(cells.size):
+        cell_material[cells[j]] = -1
+    return fraction, cell_material
 
 
 @numba.njit(cache=True)
