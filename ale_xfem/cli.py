@@ -105,8 +105,8 @@ def _parser() -> argparse.ArgumentParser:
                             "cost over one velocity field: the sheared tube, Eulerian, 100 × 100 and 200 × 200 "
                             "(or --cells N,M: N × N, M × M), time per step by phase")
     bench.add_argument("--cell-type", choices=("quadrilateral", "triangle"), default=None,
-                       help="with --enriched: the mesh's cells (default quadrilateral; triangle: each square "
-                            "of the mesh split into four crossed triangles)")
+                       help="with --enriched, or --phases --dimension 2: the mesh's cells (default quadrilateral; "
+                            "triangle: each square of the mesh split into four crossed triangles)")
     bench.add_argument("--plic", action="store_true",
                        help="one PLIC reconstruction with Youngs' and with LVIRA's normals (interface.normal): "
                             "the rotated two-material tube's mixed cells, 200 × 200 (or --cells N: N × N)")
@@ -236,9 +236,9 @@ def _study(args) -> int:
 def _bench(args) -> int:
     from ale_xfem.studies.bench import run_bench, run_phase_bench
 
-    if args.cell_type is not None and not args.enriched:
-        print(f"error: --cell-type = {args.cell_type!r}: acts with --enriched only (the 2D enriched cells' bench)",
-              file=sys.stderr)
+    if args.cell_type is not None and not (args.enriched or (args.phases and args.dimension == 2)):
+        print(f"error: --cell-type = {args.cell_type!r}: acts with --enriched or --phases --dimension 2 only "
+              "(the 2D benches of the rotated tube)", file=sys.stderr)
         return EXIT_BAD_INPUT
     if args.peers:
         from ale_xfem.studies.peers import SIZES, pyclaw_available, run_peer_comparison
@@ -297,7 +297,8 @@ def _bench(args) -> int:
     elif args.phases and args.dimension == 2:
         from ale_xfem.studies.bench import run_phase_bench_2d
 
-        run_phase_bench_2d(200 if args.cells == "1000,10000,100000,1000000" else sizes[0])
+        run_phase_bench_2d(200 if args.cells == "1000,10000,100000,1000000" else sizes[0],
+                           cell_type=args.cell_type or "quadrilateral")
     elif args.phases:
         run_phase_bench(sizes if args.cells != "1000,10000,100000,1000000" else (1_000, 100_000))
     elif args.dimension == 2:

@@ -149,6 +149,28 @@ def test_bench_enriched_prints_each_closure_by_phase(cell_type, mesh, capsys):
     assert float(bubbles[-5]) > 0.0 and float(nitsche[-5]) > 0.0 and float(linearised[-5]) > 0.0
 
 
+@pytest.mark.parametrize("cell_type, mesh", [(None, "quadrilaterals"),
+                                             ("triangle", "squares of four crossed triangles")])
+def test_bench_phases_2d_prints_what_the_remap_adds_on_either_cell_type(cell_type, mesh, capsys):
+    """`bench --phases --dimension 2 --cells N [--cell-type triangle]`: the rotated tube on N
+    × N cells, Lagrangian, Eulerian and smoothed, a row each; the Lagrangian run has no
+    remap (its ratios 0), the remapped runs a remap column and what the remap adds above 0,
+    each median within its rounds' range."""
+    assert main(["bench", "--phases", "--dimension", "2", "--cells", "10",
+                 *(["--cell-type", cell_type] if cell_type else [])]) == 0
+    out = capsys.readouterr().out
+    assert f"10 × 10 {mesh};" in out
+    rows = [line.split() for line in out.splitlines() if line.startswith("rotated two-material tube")]
+    assert len(rows) == 3
+    (_, _, _, _, lagrangian_remap, _, lagrangian_column, _, lagrangian_added, _), *remapped = (r[-10:] for r in rows)
+    assert float(lagrangian_remap) == 0.0 and float(lagrangian_column) == 0.0 and float(lagrangian_added) == 0.0
+    for _, _, _, remap, total, column, column_range, added, added_range in (r[-9:] for r in remapped):
+        assert float(remap) > 0.0 and float(total) > float(remap)
+        for value, spread in ((column, column_range), (added, added_range)):
+            low, high = (float(v) for v in spread.split("–"))
+            assert 0.0 < low <= float(value) <= high
+
+
 def test_phase_ratios_pair_runs_of_the_same_round():
     """A machine that slows down between rounds must not bias the ratios: each round's case
     is divided by the same round's reference (here the true ratio is 1.5 in every round)."""
@@ -181,13 +203,15 @@ def test_bench_rejects_bad_sizes(capsys):
 
 
 @pytest.mark.parametrize("argv", [["--cell-type", "triangle"], ["--plic", "--cell-type", "triangle"],
-                                  ["--peers", "--cell-type", "quadrilateral"]])
+                                  ["--peers", "--cell-type", "quadrilateral"], ["--phases", "--cell-type", "triangle"]])
 def test_bench_rejects_a_cell_type_without_the_enriched_bench(argv, capsys):
-    """--cell-type acts on `bench --enriched` only: elsewhere one line, exit 2, nothing run."""
+    """--cell-type acts on `bench --enriched` and `bench --phases --dimension 2` only:
+    elsewhere (the 1D phases among them) one line, exit 2, nothing run."""
     assert main(["bench", *argv]) == 2
     captured = capsys.readouterr()
     assert captured.out == ""
-    assert captured.err.startswith(f"error: --cell-type = {argv[-1]!r}: acts with --enriched only")
+    assert captured.err.startswith(f"error: --cell-type = {argv[-1]!r}: acts with --enriched or --phases "
+                                   "--dimension 2 only")
     assert captured.err.count("\n") == 1
 
 

@@ -213,19 +213,23 @@ PHASE_CASES_2D = (
 )
 
 
-def run_phase_bench_2d(side: int = 200, steps: int = 10, out=print, rounds: int = 3) -> list[dict]:
+def run_phase_bench_2d(side: int = 200, steps: int = 10, out=print, rounds: int = 3,
+                       cell_type: str = "quadrilateral") -> list[dict]:
     """The 2D remap against the Lagrange step: the rotated two-material tube (its interface
-    crossing the domain, single-velocity mixed cells) on side × side quadrilaterals.  Two
-    ratios to the Lagrangian run's step: the remap column's (which holds the relaxation and
-    the force evaluation of the remapped state, which the step then skips) and what the
-    remap adds to a step, the remapped run's step less the Lagrangian one (as the 1D bench
+    crossing the domain, single-velocity mixed cells) on side × side quadrilaterals (or,
+    ``cell_type`` = "triangle", side × side squares of four crossed triangles).  Two ratios
+    to the Lagrangian run's step: the remap column's (which holds the relaxation and the
+    force evaluation of the remapped state, which the step then skips) and what the remap
+    adds to a step, the remapped run's step less the Lagrangian one (as the 1D bench
     measures it)."""
+    mesh = {"quadrilateral": "quadrilaterals", "triangle": "squares of four crossed triangles"}[cell_type]
     out(f"time per step by phase (ms, fastest of {rounds} rounds of {steps} steps), 2D rotated two-material "
-        f"tube, {side} × {side} quadrilaterals; ratios to the Lagrangian run's step: median of the rounds' (range)")
+        f"tube, {side} × {side} {mesh}; ratios to the Lagrangian run's step: median of the rounds' (range)")
     out(f"{'case':<44} {'lagrange':>9} {'remap':>9} {'total':>9} {'remap column':>13} {'range':>11} "
         f"{'the remap adds':>15} {'range':>11}")
-    cases = [lambda overrides=overrides: phase_times(side, steps, [f"mesh.cells=[{side},{side}]", *overrides],
-                                                     "rotated-tube", repeats=1)
+    mesh_overrides = [f"mesh.cells=[{side},{side}]", f"mesh.cell_type={cell_type}"]
+    cases = [lambda overrides=overrides: phase_times(side, steps, [*mesh_overrides, *overrides], "rotated-tube",
+                                                     repeats=1)
              for _, overrides in PHASE_CASES_2D]
     runs = _interleaved(cases, rounds)
     rows = []
