@@ -12,7 +12,9 @@ over whole arrays, with the same operations in the same order, so the results ar
 to the bit (tests/test_2d.py compares them with that code, kept in tests/oracles.py, and
 tests/test_regression.py compares the shipped scenes).  Comparisons follow numpy's
 (``geometry.polygon_kernels.maximum``/``minimum``; ``clip_unit`` for np.clip with scalar
-bounds, which keeps a −0).
+bounds, which keeps a −0).  Where a term would only add zeros to a sum that starts at +0
+(a material absent from a cell, a corner or an edge; a donor the outflow cap leaves as it
+is), the loops skip it: the sums keep their bits.
 """
 
 from __future__ import annotations
