@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 
 from conftest import fitted_rate, run_scene
+from ale_xfem.lagrange.interval_steps import BLOCK_CELLS
 
 SIZES = (100, 200, 400)
 
@@ -152,13 +153,15 @@ def test_a_run_too_short_for_t_end_stops_alike_in_compiled_chunks_and_step_by_st
 
 @pytest.mark.parametrize("scene, overrides", [
     ("sod", ["mesh.cells=150"]),  # one ideal gas between walls
+    ("sod", [f"mesh.cells={3 * BLOCK_CELLS + 7}", "t_end=0.01"]),  # blocks of inner cells, the last one short
+    ("piston", [f"mesh.cells={2 * BLOCK_CELLS + 2}", "t_end=0.01"]),  # the last block full
     ("sod", ["mesh.cells=2", "t_end=20.0"]),  # each end's cell is the other's
     ("piston", ["mesh.cells=1", "t_end=20.0"]),  # both ends in one cell
     ("piston", ["mesh.cells=40"]),  # a piston drives one end
     ("sod", ["mesh.cells=80", "materials.gas.eos=stiffened_gas", "materials.gas.p_inf=0.05"]),  # p∞ ≠ 0
     ("sod", ["mesh.cells=80", "boundaries.left=free", "boundaries.right=free"]),  # free ends
     ("blast-symmetric", ["mesh.cells=40", "numerics.q_linear=0.0", "numerics.q_quadratic=0.0"]),
-], ids=["sod", "two-cells", "one-cell", "piston", "stiffened-gas", "free-ends", "no-viscosity"])
+], ids=["sod", "blocks", "full-blocks", "two-cells", "one-cell", "piston", "stiffened-gas", "free-ends", "no-viscosity"])
 def test_interval_steps_in_three_passes_are_the_staged_steps_to_the_bit(scene, overrides):
     """One gas on intervals numbered along the tube takes its compiled steps in three stages
     over the cells (ale_xfem.lagrange.interval_steps) instead of the staged step's dozen:
@@ -187,6 +190,41 @@ def test_interval_steps_in_three_passes_are_the_staged_steps_to_the_bit(scene, o
         np.testing.assert_array_equal(getattr(passes[1], name), getattr(staged[1], name))
     for name in ("volume", "stress", "viscosity", "velocity_jump", "nodal_force"):
         np.testing.assert_array_equal(getattr(passes[2], name), getattr(staged[2], name))
+
+
+def test_the_least_of_values_is_the_running_minimum_of_numbers_to_the_bit():
+    """kernels.least_of takes the least of values in [+0, +∞] from their bits (read as
+    unsigned integers, they order as the numbers do), and of any others as numbers in four
+    running minima: both give what the running minima alone give, −0, NaN and +∞ included,
+    over any part of an array (+∞ over none)."""
+    from ale_xfem.lagrange.kernels import least, least_of
+
+    def running_minima(values):  # the four interleaved running minima, as numbers
+        def smaller(a, b):
+            return a if a <= b or a != a else b
+        minima = [np.inf] * 4
+        body = len(values) // 4 * 4
+        for k in range(body):
+            minima[k % 4] = smaller(minima[k % 4], values[k])
+        for k in range(body, len(values)):
+            minima[0] = smaller(minima[0], values[k])
+        return smaller(smaller(minima[0], minima[1]), smaller(minima[2], minima[3]))
+
+    rng = np.random.default_rng(7)
+    specials = [0.0, -0.0, np.inf, -np.inf, np.nan, -1.5, 5e-324, -5e-324, 1.7976931348623157e308]
+    for _ in range(2000):
+        n = int(rng.integers(0, 30))
+        values = rng.random(n) * 10.0 ** rng.integers(-300, 300)
+        for special in rng.choice(specials, size=rng.integers(0, 3)):
+            if n:
+                values[rng.integers(0, n)] = special
+        start = int(rng.integers(0, n + 1))
+        stop = int(rng.integers(start, n + 1))
+        got, expected = least_of(values, start, stop), running_minima(values[start:stop])
+        assert np.array_equal(got, expected, equal_nan=True) and np.signbit(got) == np.signbit(expected), (
+            values[start:stop], got, expected)
+    limits = rng.random(1000) + 1e-3
+    assert least(limits) == limits.min() and least(np.zeros(0)) == np.inf
 
 
 def test_only_one_gas_on_a_plain_tube_takes_its_steps_in_three_stages():

@@ -27,6 +27,17 @@ the regression captures).  The two end nodes, the only ones the boundaries may h
 computed first and held (:func:`ale_xfem.lagrange.kernels.hold`); the cells beside them
 are taken apart from the loop, which then has no branch and vectorises.
 
+On a mesh of more than BLOCK_CELLS cells the three stages go block by block
+(:func:`_blocked_step`): the ends first, then for each block of inner cells the
+predictor's cells, the corrector's cells and nodes whose predicted stresses are all known
+(a cell reads its neighbours'), and the time-step limits of the cells whose new stresses
+are; each loop reads what the loop before it has just written, from a core's L2 cache
+rather than from memory.  The values are the same numbers, computed in another order of
+cells; the least limits are the least of the blocks' least.  Each loop runs over views that
+begin a cell before its first cell, from index 1: from a first index it could not bound
+below, the compiler guarded each ``k − 1`` against a negative index, and the loops did not
+vectorise.
+
 The chunk's last state is evaluated in full at its end (density, pressure, viscosity,
 nodal forces), as :func:`ale_xfem.lagrange.kernels.pure_steps` does.
 """
@@ -38,9 +49,9 @@ import numpy as np
 
 from ale_xfem.eos.kernels import BODY, LOOP, STIFFENED_GAS, pressure_sound_speed
 from ale_xfem.lagrange.kernels import (RUNS, account_step, advanced, artificial_viscosity, cfl_step, clamped_step,
-                                       energy_after, evaluate_intervals, hold, least, moved, node_force, plain_step,
-                                       sound_time, velocity_jump)
-from ale_xfem.model.cell_kernels import INTERVAL, nan_max
+                                       energy_after, evaluate_intervals, hold, least, least_of, moved, node_force,
+                                       plain_step, sound_time, velocity_jump)
+from ale_xfem.model.cell_kernels import INTERVAL, nan_max, nan_min
 
 
 def runs_in_passes(cell_code: int, runs, scatter_mode: int, held_nodes, n_cells: int, n_nodes: int,
@@ -55,6 +66,13 @@ def runs_in_passes(cell_code: int, runs, scatter_mode: int, held_nodes, n_cells:
     return bool(cell_code == INTERVAL and runs[4] == 1 and runs[0] == 0 and runs[1] == 1 and scatter_mode == RUNS
                 and n_nodes == n_cells + 1 and components == 1 and gas_model == STIFFENED_GAS
                 and np.isin(held_nodes, (0, n_nodes - 1)).all())
+
+
+# the inner cells a step takes in one block (_blocked_step): its arrays' values for them,
+# about twenty arrays of 32 kB, stay in a core's L2 cache from one loop to the next.  (On
+# the Intel Xeon machine of BENCHMARKS.md, 10⁵ cells: 2048, 4096 and 8192 within the
+# machine's drift of each other; a mesh of one block takes the stages whole.)
+BLOCK_CELLS = 4096
 
 
 @numba.njit(**LOOP)
@@ -118,12 +136,11 @@ def keep_cell(two, k, e, v, c, du, stress, law, out):  # pragma: no cover (compi
 
 
 @numba.njit(**BODY)
-def _stage(kind, two, parameters, law, boundaries, dt, inverse_node_mass, x0, u0, mass, energy,
-           stress0, stress1, u, x, velocity_sum, mean_force, out):  # pragma: no cover (compiled)
-    """One stage over every cell (module docstring); ``u``, ``x``: the new node values
-    (the predictor's only at the ends), ``velocity_sum`` and ``mean_force`` at the ends
-    (the boundary reactions').  Returns whether every cell is sound."""
-    n = mass.size
+def _stage_ends(two, boundaries, dt, inverse_node_mass, x0, u0, stress0, stress1, u, x, velocity_sum,
+                mean_force):  # pragma: no cover (compiled)
+    """A stage's two end nodes (module docstring): their new velocities (held), velocity
+    sums, positions and forces stored; returns (s, x) of the first and of the last."""
+    n = stress0.size
     first, last = end_forces(two, stress0, stress1)
     u[0, 0] = advanced(u0[0, 0], first, dt, inverse_node_mass[0])
     u[0, n] = advanced(u0[0, n], last, dt, inverse_node_mass[n])
@@ -133,35 +150,90 @@ def _stage(kind, two, parameters, law, boundaries, dt, inverse_node_mass, x0, u0
     x[0, 0], x[0, n] = x_first, x_last
     velocity_sum[0, 0], velocity_sum[0, n] = s_first, s_last
     mean_force[0, 0], mean_force[0, n] = first, last
-    if n == 1:
-        e, v, c, du, p = stage_cell(kind, two, parameters, law, dt, 0, mass, energy, stress0, stress1,
-                                    u[0, 0], s_first, x_first, u[0, 1], s_last, x_last)
-        return keep_cell(two, 0, e, v, c, du, p, law, out)
-    # cell 0: the first end and node 1
+    return s_first, x_first, s_last, x_last
+
+
+@numba.njit(**BODY)
+def _first_cell(kind, two, parameters, law, dt, inverse_node_mass, x0, u0, mass, energy, stress0, stress1, u,
+                s_first, x_first, out):  # pragma: no cover (compiled)
+    """Cell 0 of a mesh of two cells or more: the first end and node 1."""
     ub = advanced(u0[0, 1], stage_force(two, stress0, stress1, 1), dt, inverse_node_mass[1])
     sb, xb = moved(u0[0, 1], ub, x0[0, 1], dt)
     e, v, c, du, p = stage_cell(kind, two, parameters, law, dt, 0, mass, energy, stress0, stress1,
                                 u[0, 0], s_first, x_first, ub, sb, xb)
-    sound = keep_cell(two, 0, e, v, c, du, p, law, out)
-    for k in range(1, n - 1):
-        ua = advanced(u0[0, k], stage_force(two, stress0, stress1, k), dt, inverse_node_mass[k])
-        sa, xa = moved(u0[0, k], ua, x0[0, k], dt)
-        ub = advanced(u0[0, k + 1], stage_force(two, stress0, stress1, k + 1), dt, inverse_node_mass[k + 1])
-        sb, xb = moved(u0[0, k + 1], ub, x0[0, k + 1], dt)
-        e, v, c, du, p = stage_cell(kind, two, parameters, law, dt, k, mass, energy, stress0, stress1,
-                                    ua, sa, xa, ub, sb, xb)
-        sound &= keep_cell(two, k, e, v, c, du, p, law, out)
-    # cell n − 1: node n − 1 and the last end
+    return keep_cell(two, 0, e, v, c, du, p, law, out)
+
+
+@numba.njit(**BODY)
+def _last_cell(kind, two, parameters, law, dt, inverse_node_mass, x0, u0, mass, energy, stress0, stress1, u,
+               s_last, x_last, out):  # pragma: no cover (compiled)
+    """Cell n − 1 of a mesh of two cells or more: node n − 1 and the last end."""
+    n = mass.size
     ua = advanced(u0[0, n - 1], stage_force(two, stress0, stress1, n - 1), dt, inverse_node_mass[n - 1])
     sa, xa = moved(u0[0, n - 1], ua, x0[0, n - 1], dt)
     e, v, c, du, p = stage_cell(kind, two, parameters, law, dt, n - 1, mass, energy, stress0, stress1,
                                 ua, sa, xa, u[0, n], s_last, x_last)
-    sound &= keep_cell(two, n - 1, e, v, c, du, p, law, out)
-    if two:  # the nodes' new velocities and positions, in a loop of their own (module docstring)
-        for i in range(1, n):
-            ui = advanced(u0[0, i], stage_force(True, stress0, stress1, i), dt, inverse_node_mass[i])
-            u[0, i] = ui
-            x[0, i] = moved(u0[0, i], ui, x0[0, i], dt)[1]
+    return keep_cell(two, n - 1, e, v, c, du, p, law, out)
+
+
+@numba.njit(**BODY)
+def _stage_cells(kind, two, parameters, law, dt, inverse_node_mass, x0, u0, mass, energy, stress0, stress1, out,
+                 start, stop):  # pragma: no cover (compiled)
+    """Cells start … stop − 1 of a stage, none of them an end cell: each computes its two
+    nodes' values itself.  Returns whether they are sound.  (The loop runs over views that
+    begin a cell before ``start``, from index 1: the compiler then knows that no index is
+    negative, and the corrector's loop vectorises, which it did not from a ``start`` it
+    could not bound.)"""
+    before, end = start - 1, stop + 1
+    x, u, inverse = x0[0, before:end], u0[0, before:end], inverse_node_mass[before:end]
+    m, e0, s0, s1 = mass[before:end], energy[before:end], stress0[before:end], stress1[before:end]
+    kept = (out[0][before:end], out[1][before:end], out[2][before:end], out[3][before:end])
+    sound = True
+    for k in range(1, stop - before):
+        ua = advanced(u[k], stage_force(two, s0, s1, k), dt, inverse[k])
+        sa, xa = moved(u[k], ua, x[k], dt)
+        ub = advanced(u[k + 1], stage_force(two, s0, s1, k + 1), dt, inverse[k + 1])
+        sb, xb = moved(u[k + 1], ub, x[k + 1], dt)
+        e, v, c, du, p = stage_cell(kind, two, parameters, law, dt, k, m, e0, s0, s1, ua, sa, xa, ub, sb, xb)
+        sound &= keep_cell(two, k, e, v, c, du, p, law, kept)
+    return sound
+
+
+@numba.njit(**BODY)
+def _corrector_nodes(dt, inverse_node_mass, x0, u0, stress0, stress1, u, x, start, stop):  # pragma: no cover (compiled)
+    """The corrector's new velocities and positions of nodes start … stop − 1 (not the
+    ends), in a loop of their own (module docstring); over views from index 1, as in
+    :func:`_stage_cells`."""
+    before = start - 1
+    inverse, s0, s1 = inverse_node_mass[before:stop], stress0[before:stop], stress1[before:stop]
+    u_start, x_start, u_new, x_new = u0[0, before:stop], x0[0, before:stop], u[0, before:stop], x[0, before:stop]
+    for i in range(1, stop - before):
+        ui = advanced(u_start[i], stage_force(True, s0, s1, i), dt, inverse[i])
+        u_new[i] = ui
+        x_new[i] = moved(u_start[i], ui, x_start[i], dt)[1]
+
+
+@numba.njit(**BODY)
+def _stage(kind, two, parameters, law, boundaries, dt, inverse_node_mass, x0, u0, mass, energy,
+           stress0, stress1, u, x, velocity_sum, mean_force, out):  # pragma: no cover (compiled)
+    """One stage over every cell (module docstring); ``u``, ``x``: the new node values
+    (the predictor's only at the ends), ``velocity_sum`` and ``mean_force`` at the ends
+    (the boundary reactions').  Returns whether every cell is sound."""
+    n = mass.size
+    s_first, x_first, s_last, x_last = _stage_ends(two, boundaries, dt, inverse_node_mass, x0, u0, stress0, stress1,
+                                                   u, x, velocity_sum, mean_force)
+    if n == 1:
+        e, v, c, du, p = stage_cell(kind, two, parameters, law, dt, 0, mass, energy, stress0, stress1,
+                                    u[0, 0], s_first, x_first, u[0, 1], s_last, x_last)
+        return keep_cell(two, 0, e, v, c, du, p, law, out)
+    sound = _first_cell(kind, two, parameters, law, dt, inverse_node_mass, x0, u0, mass, energy, stress0, stress1,
+                        u, s_first, x_first, out)
+    sound &= _stage_cells(kind, two, parameters, law, dt, inverse_node_mass, x0, u0, mass, energy, stress0,
+                          stress1, out, 1, n - 1)
+    sound &= _last_cell(kind, two, parameters, law, dt, inverse_node_mass, x0, u0, mass, energy, stress0, stress1,
+                        u, s_last, x_last, out)
+    if two:
+        _corrector_nodes(dt, inverse_node_mass, x0, u0, stress0, stress1, u, x, 1, n)
     return sound
 
 
@@ -196,22 +268,123 @@ def acceleration_ratio(volume, a, b):  # pragma: no cover (compiled)
     return volume / nan_max(abs(a), abs(b))
 
 
-@numba.njit(**LOOP)
-def next_time_step(stress, volume, sound_times, inverse_node_mass, boundaries, cfl, acceleration,
-                   ratios):  # pragma: no cover (compiled)
-    """The CFL time step of the state a corrector made (kernels.stable_time_step's)."""
+@numba.njit(**BODY)
+def _end_ratios(stress, volume, inverse_node_mass, boundaries, acceleration, ratios):  # pragma: no cover (compiled)
+    """The time step's L / a of the two end cells (of the one cell), from the end nodes'
+    held accelerations."""
     n = volume.size
     first, last = end_accelerations(stress, inverse_node_mass, boundaries, acceleration)
     if n == 1:
         ratios[0] = acceleration_ratio(volume[0], first, last)
     else:
         ratios[0] = acceleration_ratio(volume[0], first, node_force(stress[0], stress[1]) * inverse_node_mass[1])
-        for k in range(1, n - 1):
-            ratios[k] = acceleration_ratio(volume[k], node_force(stress[k - 1], stress[k]) * inverse_node_mass[k],
-                                           node_force(stress[k], stress[k + 1]) * inverse_node_mass[k + 1])
         ratios[n - 1] = acceleration_ratio(volume[n - 1], node_force(stress[n - 2], stress[n - 1])
                                            * inverse_node_mass[n - 1], last)
+
+
+@numba.njit(**BODY)
+def _ratio_cells(stress, volume, inverse_node_mass, ratios, start, stop):  # pragma: no cover (compiled)
+    """The time step's L / a of cells start … stop − 1, none of them an end cell; over views
+    from index 1, as in :func:`_stage_cells`."""
+    before = start - 1
+    p, v, inverse, r = stress[before:stop + 1], volume[before:stop], inverse_node_mass[before:stop + 1], ratios[before:stop]
+    for k in range(1, stop - before):
+        r[k] = acceleration_ratio(v[k], node_force(p[k - 1], p[k]) * inverse[k],
+                                  node_force(p[k], p[k + 1]) * inverse[k + 1])
+
+
+@numba.njit(**LOOP)
+def next_time_step(stress, volume, sound_times, inverse_node_mass, boundaries, cfl, acceleration,
+                   ratios):  # pragma: no cover (compiled)
+    """The CFL time step of the state a corrector made (kernels.stable_time_step's)."""
+    n = volume.size
+    _end_ratios(stress, volume, inverse_node_mass, boundaries, acceleration, ratios)
+    _ratio_cells(stress, volume, inverse_node_mass, ratios, 1, n - 1)
     return cfl_step(cfl, least(sound_times), least(ratios))
+
+
+@numba.njit(**LOOP)
+def stage_cells(kind, two, parameters, law, dt, inverse_node_mass, x0, u0, mass, energy, stress0, stress1, out,
+                start, stop):  # pragma: no cover (compiled)
+    """:func:`_stage_cells` compiled for each ``kind`` and ``two`` apart, both constants of
+    its loop (as :func:`stage`), so that it vectorises."""
+    numba.literally(kind)
+    numba.literally(two)
+    return _stage_cells(kind, two, parameters, law, dt, inverse_node_mass, x0, u0, mass, energy, stress0, stress1,
+                        out, start, stop)
+
+
+@numba.njit(**LOOP)
+def corrector_nodes(dt, inverse_node_mass, x0, u0, stress0, stress1, u, x, start, stop):  # pragma: no cover (compiled)
+    """:func:`_corrector_nodes` in a loop of its own."""
+    _corrector_nodes(dt, inverse_node_mass, x0, u0, stress0, stress1, u, x, start, stop)
+
+
+@numba.njit(**LOOP)
+def ratio_cells(stress, volume, inverse_node_mass, ratios, start, stop):  # pragma: no cover (compiled)
+    """:func:`_ratio_cells` in a loop of its own."""
+    _ratio_cells(stress, volume, inverse_node_mass, ratios, start, stop)
+
+
+@numba.njit(**BODY)
+def _blocked_step(kind, parameters, law, boundaries, dt, inverse_node_mass, x0, u0, mass, energy, stress0,
+                  predicted, u, x, velocity_sum, mean_force, corrected, cfl, acceleration, ratios,
+                  block):  # pragma: no cover (compiled)
+    """A whole step of a mesh of three cells or more, block by block (module docstring):
+    the predictor's and the corrector's ends first, then for each ``block`` of inner cells
+    the predictor's cells, the corrector's cells and nodes whose predicted stresses are all
+    known, and the time step's limits of the cells whose new stresses are, each loop
+    reading what the loop before it has just written.  Returns (whether every cell is
+    sound, the next CFL time step).  ``corrected``: the corrector's (energy, volume,
+    stress, sound-speed time limits); ``predicted``: the predictor's arrays (its u, s, x at
+    the ends, its stress)."""
+    n = mass.size
+    e, volume, stress, sound_times = corrected
+    predicted_stress = predicted[15]
+    kept = (predicted[5], predicted[6], predicted_stress, sound_times)  # (the predictor stores the stress only)
+    # the predictor's ends and end cells, then the corrector's ends, which read their stresses
+    s_first, x_first, s_last, x_last = _stage_ends(False, boundaries, dt, inverse_node_mass, x0, u0, stress0, stress0,
+                                                   predicted[0], predicted[2], predicted[1], mean_force)
+    sound = _first_cell(kind, False, parameters, law, dt, inverse_node_mass, x0, u0, mass, energy, stress0, stress0,
+                        predicted[0], s_first, x_first, kept)
+    sound &= _last_cell(kind, False, parameters, law, dt, inverse_node_mass, x0, u0, mass, energy, stress0, stress0,
+                        predicted[0], s_last, x_last, kept)
+    s_first, x_first, s_last, x_last = _stage_ends(True, boundaries, dt, inverse_node_mass, x0, u0, stress0,
+                                                   predicted_stress, u, x, velocity_sum, mean_force)
+    # (where each inner range has reached; not literal constants, which would compile the
+    # loops once more for them, unvectorised)
+    corrected_to = nodes_to = ratios_to = np.int64(1)
+    least_sound, least_ratio = np.inf, np.inf
+    for start in range(1, n - 1, block):
+        stop = min(start + block, n - 1)
+        sound &= stage_cells(kind, False, parameters, law, dt, inverse_node_mass, x0, u0, mass, energy, stress0,
+                             stress0, kept, start, stop)
+        if start == 1:  # cell 0 reads the predicted stresses of cells 0 and 1
+            sound &= _first_cell(kind, True, parameters, law, dt, inverse_node_mass, x0, u0, mass, energy, stress0,
+                                 predicted_stress, u, s_first, x_first, corrected)
+            least_sound = nan_min(least_sound, sound_times[0])
+        # a cell reads the predicted stresses of its neighbours, a node those of its two cells
+        last_block = stop == n - 1
+        cells_to = n - 1 if last_block else stop - 1
+        sound &= stage_cells(kind, True, parameters, law, dt, inverse_node_mass, x0, u0, mass, energy, stress0,
+                             predicted_stress, corrected, corrected_to, cells_to)
+        corrector_nodes(dt, inverse_node_mass, x0, u0, stress0, predicted_stress, u, x, nodes_to,
+                        n if last_block else stop)
+        least_sound = nan_min(least_sound, least_of(sound_times, corrected_to, cells_to))
+        # the limits of the cells whose neighbours' new stresses are known
+        if cells_to - 1 > ratios_to:
+            ratio_cells(stress, volume, inverse_node_mass, ratios, ratios_to, cells_to - 1)
+            least_ratio = nan_min(least_ratio, least_of(ratios, ratios_to, cells_to - 1))
+            ratios_to = cells_to - 1
+        corrected_to, nodes_to = cells_to, stop
+    sound &= _last_cell(kind, True, parameters, law, dt, inverse_node_mass, x0, u0, mass, energy, stress0,
+                        predicted_stress, u, s_last, x_last, corrected)
+    least_sound = nan_min(least_sound, sound_times[n - 1])
+    _ratio_cells(stress, volume, inverse_node_mass, ratios, ratios_to, n - 1)
+    _end_ratios(stress, volume, inverse_node_mass, boundaries, acceleration, ratios)
+    least_ratio = nan_min(least_ratio, least_of(ratios, ratios_to, n - 1))
+    least_ratio = nan_min(least_ratio, nan_min(ratios[0], ratios[n - 1]))
+    return sound, cfl_step(cfl, least_sound, least_ratio)
 
 
 @numba.njit(**BODY)
@@ -224,6 +397,7 @@ def _interval_steps(kind, mesh, boundaries, eos, cell_material, law, hourglass_c
     dt_min, dt_max = np.inf, 0.0
     current = 0
     arrays = first[0]
+    n = mass.size
     volume, sound_speed, jump = arrays[6], arrays[12], arrays[13]
     for k in range(volume.size):  # the start's limits, as the corrector leaves them
         sound_times[k] = interval_sound_time(sound_speed[k], jump[k], volume[k], law)
@@ -237,20 +411,30 @@ def _interval_steps(kind, mesh, boundaries, eos, cell_material, law, hourglass_c
             break
         u0, x0, energy, stress = arrays[0], arrays[2], arrays[5], arrays[15]
         u, velocity_sum, x, e, volume, new_stress = new[0], new[1], new[2], new[5], new[6], new[15]
-        if not stage(kind, False, eos[1], law, boundaries, dt, inverse_node_mass, x0, u0, mass,
-                      energy, stress, stress, predicted[0], predicted[2], predicted[1], mean_force,
-                      (predicted[5], predicted[6], predicted[15], sound_times)):
-            break
-        if not stage(kind, True, eos[1], law, boundaries, dt, inverse_node_mass, x0, u0, mass,
-                      energy, stress, predicted[15], u, x, velocity_sum, mean_force,
-                      (e, volume, new_stress, sound_times)):
-            break
+        if n <= BLOCK_CELLS:  # (one block: the stages whole, fewer calls)
+            if not stage(kind, False, eos[1], law, boundaries, dt, inverse_node_mass, x0, u0, mass,
+                         energy, stress, stress, predicted[0], predicted[2], predicted[1], mean_force,
+                         (predicted[5], predicted[6], predicted[15], sound_times)):
+                break
+            if not stage(kind, True, eos[1], law, boundaries, dt, inverse_node_mass, x0, u0, mass,
+                         energy, stress, predicted[15], u, x, velocity_sum, mean_force,
+                         (e, volume, new_stress, sound_times)):
+                break
+            dt_next = next_time_step(new_stress, volume, sound_times, inverse_node_mass, boundaries, cfl,
+                                     acceleration, ratios)
+        else:
+            sound, dt_next = _blocked_step(kind, eos[1], law, boundaries, dt, inverse_node_mass, x0, u0, mass, energy,
+                                           stress, predicted, u, x, velocity_sum, mean_force,
+                                           (e, volume, new_stress, sound_times), cfl, acceleration, ratios,
+                                           BLOCK_CELLS)
+            if not sound:
+                break
         work, t, dt_min, dt_max = account_step(node_mass, held, u0, u, velocity_sum, mean_force, dt, impulse, t,
                                                work, dt_min, dt_max)
         dt_previous = dt
         steps += 1
         current = target
-        dt = next_time_step(new_stress, volume, sound_times, inverse_node_mass, boundaries, cfl, acceleration, ratios)
+        dt = dt_next
     if steps:  # the state reached, evaluated in full
         arrays, (s0, s1, q), _ = buffers[0] if current == 1 else buffers[1]
         evaluate_intervals(kind, arrays[2], arrays[0], arrays[3], mesh[0], mesh[1], eos, cell_material, mass, arrays[5],

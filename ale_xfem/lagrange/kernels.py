@@ -21,6 +21,7 @@ cells are visited in, and a state at rest stays at rest to round-off.
 from __future__ import annotations
 
 import numba
+import numba.extending
 import numpy as np
 
 from ale_xfem.eos.kernels import BODY, LOOP, STIFFENED_GAS, pressure_sound_speed
@@ -738,22 +739,65 @@ def quad_combinations_and_energy(cell_nodes, u, combos0, combos, energy, mass, d
                                       stress_b, False, hourglass, s0, s1, q, out)
 
 
+def double_of_bits(bits):
+    """The double whose bits are the unsigned 64-bit integer ``bits`` (a reinterpretation,
+    no conversion; compiled, one instruction)."""
+    return np.uint64(bits).view(np.float64)
+
+
+@numba.extending.intrinsic
+def _reinterpreted_as_double(typingctx, bits):
+    if bits != numba.types.uint64:
+        return None
+
+    def codegen(context, builder, signature, arguments):
+        return builder.bitcast(arguments[0], context.get_value_type(numba.types.float64))
+    return numba.types.float64(numba.types.uint64), codegen
+
+
+@numba.extending.overload(double_of_bits)
+def _double_of_bits_compiled(bits):
+    return lambda bits: _reinterpreted_as_double(bits)
+
+
+# the bits of +∞: non-negative doubles, +0 to +∞, order as their bits do; a negative double or
+# a NaN has bits above these, read unsigned
+INFINITY_BITS = np.uint64(0x7FF0000000000000)
+
+
 @numba.njit(**LOOP)
-def least(values):  # pragma: no cover (compiled)
-    """The least of ``values`` (NaN if any is; +∞ if empty), in four interleaved running
-    minima so that the comparisons do not wait on each other (the minimum of a set does not
-    depend on the order it is taken in)."""
+def least_of(values, start, stop):  # pragma: no cover (compiled)
+    """The least of ``values[start:stop]`` (NaN if any is; +∞ if none), exactly.  Where
+    every value lies in [+0, +∞] (time limits, lengths) it is the least of their bits read
+    as unsigned integers, whose minimum and maximum vectorise; otherwise (a negative value,
+    −0 or a NaN: the bits' maximum is above +∞'s) it is taken as numbers, in four
+    interleaved running minima so that the comparisons do not wait on each other (the
+    minimum of a set does not depend on the order it is taken in, so the least of a whole
+    is the least of its parts' least)."""
+    bits = values[start:stop].view(np.uint64)
+    low, high = INFINITY_BITS, np.uint64(0)
+    for k in range(bits.size):
+        b = bits[k]
+        low = b if b < low else low
+        high = b if b > high else high
+    if high <= INFINITY_BITS:
+        return double_of_bits(low)
     m0 = m1 = m2 = m3 = np.inf
-    n = values.size
-    body = n - n % 4
-    for k in range(0, body, 4):
+    body = start + (stop - start) // 4 * 4 if stop > start else start
+    for k in range(start, body, 4):
         m0 = nan_min(m0, values[k])
         m1 = nan_min(m1, values[k + 1])
         m2 = nan_min(m2, values[k + 2])
         m3 = nan_min(m3, values[k + 3])
-    for k in range(body, n):
+    for k in range(body, stop):
         m0 = nan_min(m0, values[k])
     return nan_min(nan_min(m0, m1), nan_min(m2, m3))
+
+
+@numba.njit(**LOOP)
+def least(values):  # pragma: no cover (compiled)
+    """The least of ``values`` (NaN if any is; +∞ if empty): :func:`least_of` all of them."""
+    return least_of(values, 0, values.size)
 
 
 @numba.njit(**BODY)
