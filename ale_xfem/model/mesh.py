@@ -441,8 +441,13 @@ class MeshArrays:
 
     def __post_init__(self):
         self.corners = Corners(self.cell_nodes, self.node_position.shape[1], self.grid)
-        # what the compiled loops take (ale_xfem.model.cell_kernels)
-        self.compiled_cell_nodes = np.ascontiguousarray(self.cell_nodes, dtype=np.int64)
+        # what the compiled loops take (ale_xfem.model.cell_kernels): unsigned, so that a
+        # node read through it needs no guard against a negative index (numba wraps signed
+        # ones as Python does), 32 bits, half the bytes of int64 (BENCHMARKS.md, "2D
+        # explicit loop")
+        if self.n_nodes > np.iinfo(np.uint32).max:
+            raise ValueError(f"a mesh of {self.n_nodes} nodes: at most {np.iinfo(np.uint32).max} are numbered")
+        self.compiled_cell_nodes = np.ascontiguousarray(self.cell_nodes, dtype=np.uint32)
         self.corner_runs = cell_kernels.corner_runs(self.compiled_cell_nodes)
         self._node_corners = None
 
