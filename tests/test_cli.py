@@ -10,6 +10,7 @@ import tomllib
 import numpy as np
 import pytest
 
+from ale_xfem.lagrange.interval_steps import BLOCK_CELLS
 from ale_xfem.cli import main
 from ale_xfem.scene import load_scene, resolve_scene_path
 
@@ -75,9 +76,10 @@ def test_run_writes_summary_profile_plot_and_resolved_scene(tmp_path):
     assert load_scene(out / "scene.toml").mesh.cells == 100  # the resolved scene runs as is
 
 
-def test_breakdown_stops_with_exit_code_3_and_writes_the_last_good_state(tmp_path):
+@pytest.mark.parametrize("cells", [50, 2 * BLOCK_CELLS + 3])  # (one gas: a step's stages whole, or in blocks)
+def test_breakdown_stops_with_exit_code_3_and_writes_the_last_good_state(tmp_path, cells):
     scene = tmp_path / "cavitation.toml"
-    scene.write_text(CAVITATION)
+    scene.write_text(CAVITATION.replace("cells = 50", f"cells = {cells}"))
     out = tmp_path / "run"
     done = cli("run", str(scene), "--out", str(out))
     assert done.returncode == 3
@@ -89,7 +91,7 @@ def test_breakdown_stops_with_exit_code_3_and_writes_the_last_good_state(tmp_pat
     assert summary["t_reached"] < summary["t_end"]
     with (out / "profile.csv").open() as handle:
         rows = list(csv.DictReader(handle))
-    assert len(rows) == 50 and all(float(r["density"]) > 0 for r in rows)
+    assert len(rows) == cells and all(float(r["density"]) > 0 for r in rows)
 
 
 def test_run_reports_a_slip_lines_velocity_errors_along_the_normal_and_the_contact(tmp_path, capsys):
