@@ -155,13 +155,14 @@ def test_a_run_too_short_for_t_end_stops_alike_in_compiled_chunks_and_step_by_st
     ("sod", ["mesh.cells=150"]),  # one ideal gas between walls
     ("sod", [f"mesh.cells={3 * BLOCK_CELLS + 7}", "t_end=0.01"]),  # blocks of inner cells, the last one short
     ("piston", [f"mesh.cells={2 * BLOCK_CELLS + 2}", "t_end=0.01"]),  # the last block full
+    ("sod", [f"mesh.cells={BLOCK_CELLS + 3}", "t_end=0.01"]),  # a last block of one cell
     ("sod", ["mesh.cells=2", "t_end=20.0"]),  # each end's cell is the other's
     ("piston", ["mesh.cells=1", "t_end=20.0"]),  # both ends in one cell
     ("piston", ["mesh.cells=40"]),  # a piston drives one end
     ("sod", ["mesh.cells=80", "materials.gas.eos=stiffened_gas", "materials.gas.p_inf=0.05"]),  # p∞ ≠ 0
     ("sod", ["mesh.cells=80", "boundaries.left=free", "boundaries.right=free"]),  # free ends
     ("blast-symmetric", ["mesh.cells=40", "numerics.q_linear=0.0", "numerics.q_quadratic=0.0"]),
-], ids=["sod", "blocks", "full-blocks", "two-cells", "one-cell", "piston", "stiffened-gas", "free-ends", "no-viscosity"])
+], ids=["sod", "blocks", "full-blocks", "one-cell-block", "two-cells", "one-cell", "piston", "stiffened-gas", "free-ends", "no-viscosity"])
 def test_interval_steps_in_three_passes_are_the_staged_steps_to_the_bit(scene, overrides):
     """One gas on intervals numbered along the tube takes its compiled steps in three stages
     over the cells (ale_xfem.lagrange.interval_steps) instead of the staged step's dozen:

@@ -71,7 +71,7 @@ def runs_in_passes(cell_code: int, runs, scatter_mode: int, held_nodes, n_cells:
 # the inner cells a step takes in one block (_blocked_step): its arrays' values for them,
 # about twenty arrays of 32 kB, stay in a core's L2 cache from one loop to the next.  (On
 # the Intel Xeon machine of BENCHMARKS.md, 10⁵ cells: 2048, 4096 and 8192 within the
-# machine's drift of each other; a mesh of one block takes the stages whole.)
+# machine's drift of each other; a mesh of at most BLOCK_CELLS cells takes the stages whole.)
 BLOCK_CELLS = 4096
 
 
