@@ -287,7 +287,8 @@ def _ratio_cells(stress, volume, inverse_node_mass, ratios, start, stop):  # pra
     """The time step's L / a of cells start … stop − 1, none of them an end cell; over views
     from index 1, as in :func:`_stage_cells`."""
     before = start - 1
-    p, v, inverse, r = stress[before:stop + 1], volume[before:stop], inverse_node_mass[before:stop + 1], ratios[before:stop]
+    p, inverse = stress[before:stop + 1], inverse_node_mass[before:stop + 1]
+    v, r = volume[before:stop], ratios[before:stop]
     for k in range(1, stop - before):
         r[k] = acceleration_ratio(v[k], node_force(p[k - 1], p[k]) * inverse[k],
                                   node_force(p[k], p[k + 1]) * inverse[k + 1])
@@ -388,8 +389,11 @@ def _blocked_step(kind, parameters, law, boundaries, dt, inverse_node_mass, x0, 
 
 
 @numba.njit(**BODY)
-def _interval_steps(kind, mesh, boundaries, eos, cell_material, law, hourglass_coefficient, inverse_node_mass,
-                    mass, time_step, held, clock, first, predicted, buffers, impulse):  # pragma: no cover (compiled)
+def _interval_steps(kind, blocked, mesh, boundaries, eos, cell_material, law, hourglass_coefficient,
+                    inverse_node_mass, mass, time_step, held, clock, first, predicted, buffers,
+                    impulse):  # pragma: no cover (compiled)
+    """The run loop of :func:`one_gas_steps` (``blocked`` a constant: False, the stages
+    whole; True, :func:`_blocked_step`, which needs more than two cells)."""
     node_mass, cfl, _, acceleration, sound_times, ratios, _, _ = time_step
     mean_force = held[4]
     t, t_end, dt_previous, growth, budget, steps_left, watch_stall, work, t_stop = clock
@@ -397,7 +401,6 @@ def _interval_steps(kind, mesh, boundaries, eos, cell_material, law, hourglass_c
     dt_min, dt_max = np.inf, 0.0
     current = 0
     arrays = first[0]
-    n = mass.size
     volume, sound_speed, jump = arrays[6], arrays[12], arrays[13]
     for k in range(volume.size):  # the start's limits, as the corrector leaves them
         sound_times[k] = interval_sound_time(sound_speed[k], jump[k], volume[k], law)
@@ -411,7 +414,7 @@ def _interval_steps(kind, mesh, boundaries, eos, cell_material, law, hourglass_c
             break
         u0, x0, energy, stress = arrays[0], arrays[2], arrays[5], arrays[15]
         u, velocity_sum, x, e, volume, new_stress = new[0], new[1], new[2], new[5], new[6], new[15]
-        if n <= BLOCK_CELLS:  # (one block: the stages whole, fewer calls)
+        if not blocked:
             if not stage(kind, False, eos[1], law, boundaries, dt, inverse_node_mass, x0, u0, mass,
                          energy, stress, stress, predicted[0], predicted[2], predicted[1], mean_force,
                          (predicted[5], predicted[6], predicted[15], sound_times)):
@@ -452,5 +455,16 @@ def one_gas_steps(cell_type, mesh, boundaries, eos, cell_material, law, hourglas
     must be an evaluation whose nodal forces are the scatter of its stresses (every pure
     state's is)."""
     # (cell_type: pure_steps' signature; always intervals here)
-    return _interval_steps(STIFFENED_GAS, mesh, boundaries, eos, cell_material, law, hourglass_coefficient,
+    return _interval_steps(STIFFENED_GAS, False, mesh, boundaries, eos, cell_material, law, hourglass_coefficient,
+                           inverse_node_mass, mass, time_step, held, clock, first, predicted, buffers, impulse)
+
+
+@numba.njit(**LOOP)
+def one_gas_steps_in_blocks(cell_type, mesh, boundaries, eos, cell_material, law, hourglass_coefficient,
+                            inverse_node_mass, mass, time_step, held, clock, first, predicted, buffers,
+                            impulse):  # pragma: no cover (compiled)
+    """:func:`one_gas_steps` on a mesh of more than BLOCK_CELLS cells: each step block by
+    block (:func:`_blocked_step`), the same numbers to the bit.  An entry point of its own,
+    so that a run on a smaller mesh does not compile the blocked step's loops."""
+    return _interval_steps(STIFFENED_GAS, True, mesh, boundaries, eos, cell_material, law, hourglass_coefficient,
                            inverse_node_mass, mass, time_step, held, clock, first, predicted, buffers, impulse)

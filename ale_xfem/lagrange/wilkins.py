@@ -26,7 +26,7 @@ import numpy as np
 from ale_xfem.lagrange import kernels
 from ale_xfem.lagrange.breakdown import Breakdown
 from ale_xfem.lagrange.compile_clock import own_clock
-from ale_xfem.lagrange.interval_steps import one_gas_steps, runs_in_passes
+from ale_xfem.lagrange.interval_steps import BLOCK_CELLS, one_gas_steps, one_gas_steps_in_blocks, runs_in_passes
 from ale_xfem.eos import kernel_tables
 from ale_xfem.model.cell_kernels import CELL_TYPE_CODES, cell_geometry, quad_combinations
 from ale_xfem.model.diagnostics import place
@@ -558,7 +558,7 @@ class ExplicitWilkins:
         budget, steps_left, watch_stall, boundary_work, and t_stop (optional: stop once the
         time reaches it).  One gas on intervals numbered along the tube takes its steps in
         three stages, four loops over the cells and nodes (``in_passes``,
-        ale_xfem.lagrange.interval_steps), other
+        ale_xfem.lagrange.interval_steps; block by block above BLOCK_CELLS cells), other
         states in stages (kernels.pure_steps): the same numbers.  Returns (steps taken, state,
         evaluation, last dt, least dt, largest dt, boundary work, boundary impulse)."""
         u0, x0 = np.ascontiguousarray(state.node_velocity), np.ascontiguousarray(state.node_position)
@@ -588,7 +588,8 @@ class ExplicitWilkins:
         impulse = np.array(boundary_impulse, dtype=float)
         passes = in_passes and runs_in_passes(self.cell_code, self.runs, self.scatter_mode, held, n, n_nodes,
                                               u0.shape[0], self.gas_model)
-        steps, t, dt_previous, dt_min, dt_max, work, current = (one_gas_steps if passes else kernels.pure_steps)(
+        in_stages = (one_gas_steps_in_blocks if n > BLOCK_CELLS else one_gas_steps) if passes else kernels.pure_steps
+        steps, t, dt_previous, dt_min, dt_max, work, current = in_stages(
             self.cell_code, (self.cell_nodes, self.runs, self.scatter_mode, self.corner_is_run, self.scratch),
             self.held, self.eos_tables, self.pure_layout.cell_material[0],
             self.viscosity_law, float(self.hourglass), self.inverse_node_mass, state.material_mass[0],
