@@ -169,18 +169,15 @@ def pure_cells(x, X, mass, specific_energy, corner, u, order, slots, heat, block
                               np.ascontiguousarray(corner[:, low:high]), np.ascontiguousarray(u[:, low:high + 1]),
                               order, heat, negative_density,
                               negative_energy)
-        for j in range(first, last):  # the block's cells
-            new_mass[0, j] = window_mass[j - low]
-            new_energy[0, j] = window_energy[j - low]
-            corner_new[1, j] = right_corner[j - low]
-        end = last + 1 if last == n else last  # the block's nodes: the left one of each cell, the mesh's last
-        for k in range(first, end):
-            node_mass[k] = window_node_mass[k - low]
-            kinetic_start[k] = window_start[k - low]
-            kinetic[k] = window_kinetic[k - low]
-        for c in range(components):
-            for k in range(first, end):
-                momentum[c, k] = window_momentum[c, k - low]
+        # the block's cells, and its nodes: the left one of each cell, the mesh's last
+        new_mass[0, first:last] = window_mass[first - low:last - low]
+        new_energy[0, first:last] = window_energy[first - low:last - low]
+        corner_new[1, first:last] = right_corner[first - low:last - low]
+        end = last + 1 if last == n else last
+        node_mass[first:end] = window_node_mass[first - low:end - low]
+        kinetic_start[first:end] = window_start[first - low:end - low]
+        kinetic[first:end] = window_kinetic[first - low:end - low]
+        momentum[:, first:end] = window_momentum[:, first - low:end - low]
     return new_mass, new_energy, corner_new, node_mass, momentum, kinetic_start, kinetic, far
 
 
