@@ -243,8 +243,9 @@ def stage(kind, two, parameters, law, boundaries, dt, inverse_node_mass, x0, u0,
     """A stage (:func:`_stage`), compiled for each ``kind`` (the gas's model) and ``two`` (the
     corrector) apart, both constants of its loop (numba.literally; it is called from
     compiled code with constants).  A function of its own: inlined into the run loop, its
-    loops did not vectorise (measured: the 1D step took 3.2 ms at 10⁵ cells, against about
-    1.5 ms as it is)."""
+    loops did not vectorise (measured on the EPYC machine of BENCHMARKS.md: the 1D step took
+    3.2 ms at 10⁵ cells, against about 1.5 ms as a function of its own, before the blocks of
+    :func:`_blocked_step`)."""
     numba.literally(kind)
     numba.literally(two)
     return _stage(kind, two, parameters, law, boundaries, dt, inverse_node_mass, x0, u0, mass, energy,
