@@ -420,7 +420,9 @@ class Remapper2D:
         # cell the material has left (its outflow counted there, or a trace of it moved away),
         # the old ones — every cell's share reaches the nodes, so the losses sum to the kinetic
         # energy the remap changed (by the new shares alone, what left a cell was lost: total
-        # energy drifted by 10⁻⁶ a remap on the sheared tube)
+        # energy drifted by 10⁻⁶ a remap on the sheared tube); and the mass the new shares
+        # move between a cell's corners takes its kinetic energy along, so that a uniform
+        # velocity loses none (tests/test_enriched_2d_run.py, the disk in a uniform flow)
         velocity, mesh_velocity, kinetic_before, loss = swept_kernels_2d.material_node_velocities(
             mesh.cell_nodes, corner_mass, node_mass, owner, momentum, deviation, state.material_node_mass,
             state.material_node_velocity, state.material_corner_mass, kinetic_in)
