@@ -127,6 +127,19 @@ def _parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _unwritable(folder: Path) -> str | None:
+    """Why a run could not write its outputs into ``folder`` (made here if missing), or None."""
+    import os
+
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as error:
+        return f"cannot make that folder ({error.strerror.lower() if error.strerror else error})"
+    if not os.access(folder, os.W_OK | os.X_OK):
+        return "that folder is not writable"
+    return None
+
+
 def main(argv: list[str] | None = None) -> int:
     args, unknown = _parser().parse_known_args(argv)
     if unknown:
@@ -338,7 +351,7 @@ def _stability(args) -> int:
     rows = run_stability_study(args.out, args.cells, args.random, args.seed, names=args.cases or None)
     passed = sum(r["verdict"] == "pass" for r in rows)
     print(f"{passed} of {len(rows)} cases pass; written: {args.out}/stability.csv, stability.md")
-    return EXIT_OK if passed == len(rows) else 1
+    return EXIT_OK if passed == len(rows) else EXIT_BREAKDOWN  # (1 is kept for the program's own errors)
 
 
 def _run(args) -> int:
@@ -355,7 +368,7 @@ def _run(args) -> int:
             print(f"error: {error}", file=sys.stderr)
         return EXIT_BAD_INPUT
 
-    from ale_xfem.output.files import write_outputs
+    from ale_xfem.output.files import remove_earlier_outputs, write_outputs
     from ale_xfem.problem import build_problem
     from ale_xfem.run import Progress, simulate
 
@@ -416,6 +429,19 @@ def _run(args) -> int:
             except SceneError as error:
                 print(f"on {ranks()} MPI ranks: refused: {error}")
         return EXIT_OK
+    # the output folder, checked before the run (a long run's results are not lost at its
+    # end) and cleared of an earlier run's outputs of this scene, by rank 0 for all
+    unwritable = _unwritable(out) if root else None
+    if root and not unwritable:
+        remove_earlier_outputs(out, scene.name)
+    if launched_by_mpiexec():
+        from mpi4py import MPI
+
+        unwritable = MPI.COMM_WORLD.bcast(unwritable, root=0)
+    if unwritable:
+        if root:
+            print(f"error: --out = {out}: {unwritable}", file=sys.stderr)
+        return EXIT_BAD_INPUT
     progress = Progress(scene.t_end, enabled=False if args.quiet or not root else None)
     history = None
     if args.xt and root:

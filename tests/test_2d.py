@@ -338,6 +338,7 @@ def test_the_time_step_resolves_the_viscositys_stiffness_on_sliver_triangles(tmp
     ("regions.0.velocity=[1.0]", "regions[0].velocity"),
     ("regions.0.disk={center = [0.5, 0.5], radius = -1.0}", "regions[0]"),
     ("boundaries.front=wall", "boundaries.front"),
+    ("regions.0.interval=[0.0, 1.0]", "regions[0].interval = [0.0, 1.0]: a key of 1D scenes"),
     ("mesh.kind=file", "mesh.file"),
     ("mesh.kind=saltzman", "mesh.extent"),  # the unit square: the skew would fold the mesh
 ])

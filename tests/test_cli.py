@@ -248,6 +248,33 @@ def test_a_run_option_that_cannot_act_in_the_scene_is_an_error(argv, message, ca
     assert not (tmp_path / "out").exists()
 
 
+def test_an_output_folder_that_cannot_be_written_is_an_error_before_the_run(capsys, tmp_path):
+    """``--out`` naming a file, or a folder that cannot be made, exits 2 with one line before
+    anything runs (after the run its results would be lost)."""
+    in_the_way = tmp_path / "a-file"
+    in_the_way.write_text("kept\n")
+    for out in (in_the_way, in_the_way / "below"):
+        assert main(["run", "sod", "--set", "mesh.cells=20", "--quiet", "--no-plot", "--out", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert err.startswith(f"error: --out = {out}: cannot make that folder") and err.count("\n") == 1, err
+    assert in_the_way.read_text() == "kept\n"
+
+
+def test_a_run_replaces_an_earlier_runs_outputs_of_its_scene_and_nothing_else(tmp_path):
+    """The output folder holds one run's outputs: what an earlier run of the scene wrote
+    there and this one does not (its plot under ``--no-plot``, its x–t diagram, frames) is
+    removed before the run; other files, other scenes' outputs included, are kept."""
+    out = tmp_path / "out"
+    (out / "sod-cells.bp").mkdir(parents=True)
+    earlier = ["sod.png", "sod-xt.png", "sod_0003.vtu", "sod.pvd", "summary.json"]
+    kept = ["notes.txt", "noh.png", "sod_3.vtu", "sod.png.bak"]
+    for name in earlier + kept:
+        (out / name).write_text("earlier\n")
+    assert main(["run", "sod", "--set", "mesh.cells=20", "--quiet", "--no-plot", "--out", str(out)]) == 0
+    assert sorted(p.name for p in out.iterdir()) == sorted(kept + ["profile.csv", "scene.toml", "summary.json"])
+    assert json.loads((out / "summary.json").read_text())["cells"] == 20
+
+
 @pytest.mark.parametrize("argv, command", [
     (["run", "sod", "--bogus"], "ale-xfem run"),
     (["study", "stability", "--output", "x"], "ale-xfem study stability"),

@@ -106,6 +106,15 @@ BAD = {
                                       "interface", "the regions hold one material"),
     "a boolean shown as the scene writes it": (lambda d: d.setdefault("numerics", {}).update(
         viscous_time_step=True), "numerics.viscous_time_step", "= true: no value with a 1D mesh"),
+    # keys of 2D scenes, named so (not as unknown keys, which reads as a typo)
+    "a 2D mesh's cell type in 1D": (lambda d: set_path(d, ["mesh", "cell_type"], "triangle"), "mesh.cell_type",
+                                    "a key of 2D scenes: it cannot act in this one, of dimension = 1"),
+    "a 2D region's rotation in 1D": (lambda d: set_path(d, ["regions", 0, "rotation"], {}), "regions[0].rotation",
+                                     "a key of 2D scenes"),
+    "a 2D region's shape in 1D": (lambda d: set_path(d, ["regions", 0, "box"], [[0, 1], [0, 1]]), "regions[0].box",
+                                  "a key of 2D scenes"),
+    "a 2D boundary in 1D": (lambda d: set_path(d, ["boundaries", "top"], "wall"), "boundaries.top",
+                            "a key of 2D scenes"),
 }
 
 

@@ -89,6 +89,18 @@ def test_cli_writes_the_table_and_rejects_an_unknown_case(tmp_path):
     assert done.returncode == 2 and "toro-9" in done.stderr and not (tmp_path / "never").exists()
 
 
+def test_cli_exits_3_when_a_case_fails(tmp_path, monkeypatch, capsys):
+    """A failing case is the suite's breakdown: exit 3, as a run that breaks down (1 is kept
+    for an error of the program itself)."""
+    from ale_xfem import cli
+    from ale_xfem.studies import stability
+
+    monkeypatch.setattr(stability, "verdict", lambda row, case: "volume ≤ 0")
+    assert cli.main(["study", "stability", "--cells", "40", "--random", "0", "--case", "toro-1",
+                     "--out", str(tmp_path / "stability")]) == 3
+    assert "0 of 1 cases pass" in capsys.readouterr().out
+
+
 # -- extreme interfaces: air against water ---------------------------------------------------
 
 @settings(max_examples=10, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])

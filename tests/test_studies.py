@@ -49,6 +49,24 @@ def test_second_order_remap_beats_first_order_at_equal_resolution(tmp_path):
     assert all(second[n] < first[n] for n in (100, 200))
 
 
+def test_each_variant_is_warmed_up_untimed_before_the_timed_runs(tmp_path, monkeypatch):
+    """Loading a variant's compiled kernels is not charged to its first timed run: each
+    variant first takes a few steps on the coarsest mesh, and only then do the timed runs,
+    to the end, begin."""
+    import ale_xfem.run as run
+
+    calls, simulate = [], run.simulate
+
+    def recorded(problem, **kwargs):
+        calls.append((problem.scene.mesh.cells, kwargs.get("stop_after_steps")))
+        return simulate(problem, **kwargs)
+
+    monkeypatch.setattr(run, "simulate", recorded)
+    study = study_from_vary("sod", [60, 30], ["numerics.cfl=0.3,0.5"], [])
+    run_accuracy_study(study, tmp_path, echo=lambda line: None)
+    assert calls == [(30, 2), (30, 2), (60, None), (30, None), (60, None), (30, None)]
+
+
 @pytest.mark.parametrize("path", shipped_studies(), ids=lambda p: p.stem)
 def test_shipped_studies_are_valid_and_run_at_small_size(path, tmp_path):
     study = load_study(path)

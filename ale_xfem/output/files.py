@@ -14,6 +14,35 @@ from ale_xfem.problem.build import Problem
 from ale_xfem.run import RunResult
 
 
+# what a run of a scene named <name> writes into its output folder (ale_xfem.output.cells_2d,
+# ale_xfem.output.vtx, the plots): an earlier run's are removed before a run, so that the
+# folder holds one run's outputs (a coarser rerun with fewer frames left the finer run's
+# last frames beside its own)
+RUN_FILES = ("summary.json", "scene.toml", "profile.csv", "cells.csv")
+SCENE_FILES = ("{name}.png", "{name}-xt.png", "{name}.pvd", "{name}_[0-9][0-9][0-9][0-9].vtu")
+SCENE_FOLDERS = ("{name}-cells.bp", "{name}-velocity.bp")
+
+
+def remove_earlier_outputs(folder: Path, name: str) -> list[Path]:
+    """Remove from ``folder`` the outputs an earlier run of the scene ``name`` wrote there
+    (RUN_FILES, SCENE_FILES, SCENE_FOLDERS; nothing else is touched).  Returns what was
+    removed."""
+    import shutil
+
+    folder = Path(folder)
+    removed = [folder / file for file in RUN_FILES if (folder / file).is_file()]
+    for pattern in SCENE_FILES:
+        removed += [path for path in folder.glob(pattern.format(name=name)) if path.is_file()]
+    for path in removed:
+        path.unlink()
+    for pattern in SCENE_FOLDERS:
+        path = folder / pattern.format(name=name)
+        if path.is_dir():
+            shutil.rmtree(path)
+            removed.append(path)
+    return removed
+
+
 def write_resolved_scene(problem: Problem, folder: Path) -> Path:
     path = folder / "scene.toml"
     path.write_bytes(tomli_w.dumps(problem.scene.resolved).encode())

@@ -26,6 +26,8 @@ from ale_xfem.scene import effects
 
 BOUNDARY_SIDES_1D = ("left", "right")
 BOUNDARY_SIDES_2D = ("left", "right", "bottom", "top")
+MESH_KEYS_2D = ("cell_type", "kind", "file")  # (beside extent, cells and motion, which both have)
+REGION_KEYS_2D = ("total_energy", "radial_velocity", "rotation")  # and a shape (shapes.SHAPES)
 MOTIONS_AVAILABLE = ("lagrangian", "eulerian", "smoothed", "interface")
 MOTIONS_2D = ("lagrangian", "eulerian", "smoothed")  # interface-following is 1D only
 CELL_TYPES_2D = ("quadrilateral", "triangle")
@@ -241,11 +243,17 @@ def apply_override(data: dict, item: str) -> None:
 # ----------------------------------------------------------------------------- validation helpers
 
 
-def _keys(table: Any, where: str, required: tuple[str, ...], optional: tuple[str, ...] = ()) -> dict:
+def _keys(table: Any, where: str, required: tuple[str, ...], optional: tuple[str, ...] = (),
+          other_dimension: tuple[str, ...] = (), dimension: int = 1) -> dict:
+    """``table`` checked to hold the ``required`` keys and no others but the ``optional``
+    ones; a key of the scenes of the other dimension (``other_dimension``) is named so."""
     if not isinstance(table, dict):
         raise SceneError(where or "scene", table, "a table")
     prefix = f"{where}." if where else ""
     for key in table:
+        if key in other_dimension:
+            raise SceneError(f"{prefix}{key}", table[key], f"a key of {3 - dimension}D scenes: it cannot act in "
+                             f"this one, of dimension = {dimension}")
         if key not in required and key not in optional:
             allowed = ", ".join(sorted(required + optional))
             # (known keys: whether one can act in this scene is checked after, with its own error)
@@ -325,7 +333,7 @@ def validate(data: dict, source: str = "") -> Scene:
 
 
 def _validate_mesh(table: Any) -> MeshSpec:
-    mesh_table = _keys(table, "mesh", ("extent", "cells"), ("motion",))
+    mesh_table = _keys(table, "mesh", ("extent", "cells"), ("motion",), MESH_KEYS_2D, dimension=1)
     extent = _reals(mesh_table["extent"], "mesh.extent", 2)
     if not extent[0] < extent[1]:
         raise SceneError("mesh.extent", mesh_table["extent"], "[x0, x1] with x0 < x1")
@@ -340,7 +348,7 @@ def _validate_mesh_2d(table: Any) -> MeshSpec:
     spacing along y); kind rectangle | saltzman (the rectangle's nodes shifted by
     (y1 − y) sin(π (x − x0)/(x1 − x0)) along x: Saltzman's skewed mesh) | file (an XDMF
     mesh; extent then gives the box whose sides carry the boundary conditions)."""
-    mesh_table = _keys(table, "mesh", ("extent", "cells"), ("motion", "cell_type", "kind", "file"))
+    mesh_table = _keys(table, "mesh", ("extent", "cells"), ("motion",) + MESH_KEYS_2D, dimension=2)
     raw = mesh_table["extent"]
     if not isinstance(raw, list) or len(raw) != 2 or not all(isinstance(r, list) for r in raw):
         raise SceneError("mesh.extent", raw, "[[x0, x1], [y0, y1]] in 2D")
@@ -408,10 +416,11 @@ def _validate_regions(regions: Any, materials: dict[str, MaterialSpec], mesh: Me
         where = f"regions[{index}]"
         interval = shape = radial = rotation = None
         if dimension == 1:
-            _keys(table, where, ("material", "interval", "density", "pressure"), ("velocity",))
+            _keys(table, where, ("material", "interval", "density", "pressure"), ("velocity",),
+                  REGION_KEYS_2D + shapes.SHAPES, dimension=1)
         else:
-            _keys(table, where, ("material", "density"),
-                  ("pressure", "total_energy", "velocity", "radial_velocity", "rotation") + shapes.SHAPES)
+            _keys(table, where, ("material", "density"), ("pressure", "velocity") + REGION_KEYS_2D + shapes.SHAPES,
+                  ("interval",), dimension=2)
             if ("pressure" in table) == ("total_energy" in table):
                 raise SceneError(where, ", ".join(k for k in ("pressure", "total_energy") if k in table) or _MISSING,
                                  "exactly one of pressure, total_energy (the region's internal energy)")
@@ -507,7 +516,8 @@ def _validate_shape(table: dict, where: str):
 
 def _validate_boundaries(table: Any, dimension: int = 1) -> dict[str, BoundarySpec]:
     sides = BOUNDARY_SIDES_1D if dimension == 1 else BOUNDARY_SIDES_2D
-    _keys(table, "boundaries", (), sides)
+    _keys(table, "boundaries", (), sides, tuple(side for side in BOUNDARY_SIDES_2D if side not in sides),
+          dimension=dimension)
     boundaries = {}
     for side in sides:
         value = table.setdefault(side, "wall")
