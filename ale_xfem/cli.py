@@ -12,6 +12,7 @@ import time
 from pathlib import Path
 
 EXIT_OK, EXIT_BAD_INPUT, EXIT_BREAKDOWN = 0, 2, 3
+DEFAULT_BENCH_CELLS = "1000,10000,100000,1000000"  # bench's 1D loop without --cells
 EXIT_DEFECT = 1  # an error of the program itself (Python's own code for an uncaught exception)
 ABORT_GRACE_SECONDS = 0.5  # before an error on one rank aborts them all (_run_on_every_rank)
 DEFAULT_FRAMES = 20  # 2D runs: the VTK series's states after the initial one
@@ -90,7 +91,7 @@ def _parser() -> argparse.ArgumentParser:
 
     bench = commands.add_parser("bench", help="zone-cycles per second of the explicit loop; with an option, time by "
                                                  "phase, the 2D enriched cells, PLIC, PyClaw, several ranks")
-    bench.add_argument("--cells", default="1000,10000,100000,1000000",
+    bench.add_argument("--cells", default=None,
                        help="comma-separated mesh sizes (default: 1000,...,1000000)")
     bench.add_argument("--dimension", type=int, choices=(1, 2), default=1,
                        help="2: the 2D loop on √n × √n quadrilaterals (scene sod-2d), n = 10^4 ... 10^6 "
@@ -260,7 +261,7 @@ def _bench(args) -> int:
             print("error: --peers needs PyClaw (package clawpack), which is not installed: run "
                   "`make bench-peers` (it installs clawpack into .venv; the build needs gfortran)", file=sys.stderr)
             return EXIT_BAD_INPUT
-        sizes = SIZES if args.cells == "1000,10000,100000,1000000" else None
+        sizes = SIZES if args.cells is None else None
         try:
             sizes = sizes or _cells(args.cells)
         except ValueError as error:
@@ -270,6 +271,9 @@ def _bench(args) -> int:
         print(f"written: {args.out}/peers.csv, peers.md, peers.png")
         return EXIT_OK
 
+    given = args.cells is not None  # (without --cells each mode has its own sizes)
+    if not given:
+        args.cells = DEFAULT_BENCH_CELLS
     try:
         sizes = [int(v) for v in args.cells.split(",")]
         if any(v < 1 for v in sizes):
@@ -293,29 +297,29 @@ def _bench(args) -> int:
                   "(the mpich wheel DOLFINx needs puts it there: `make test` or `make demo` sets .venv up)",
                   file=sys.stderr)
             return EXIT_BAD_INPUT
-        if len(sizes) > 1 and args.cells != "1000,10000,100000,1000000":
+        if len(sizes) > 1 and given:
             print(f"error: --cells = {args.cells!r}: one size with --ranks", file=sys.stderr)
             return EXIT_BAD_INPUT
-        run_rank_bench(ranks, 1_000_000 if args.cells == "1000,10000,100000,1000000" else sizes[0])
+        run_rank_bench(ranks, 1_000_000 if not given else sizes[0])
         return EXIT_OK
     if args.plic:
         from ale_xfem.studies.bench import run_plic_bench
 
-        run_plic_bench(200 if args.cells == "1000,10000,100000,1000000" else sizes[0])
+        run_plic_bench(200 if not given else sizes[0])
     elif args.enriched:
         from ale_xfem.studies.bench import run_enriched_bench
 
-        run_enriched_bench(sizes if args.cells != "1000,10000,100000,1000000" else (100, 200),
+        run_enriched_bench(sizes if given else (100, 200),
                            cell_type=args.cell_type or "quadrilateral")
     elif args.phases and args.dimension == 2:
         from ale_xfem.studies.bench import run_phase_bench_2d
 
-        run_phase_bench_2d(200 if args.cells == "1000,10000,100000,1000000" else sizes[0],
+        run_phase_bench_2d(200 if not given else sizes[0],
                            cell_type=args.cell_type or "quadrilateral")
     elif args.phases:
-        run_phase_bench(sizes if args.cells != "1000,10000,100000,1000000" else (1_000, 100_000))
+        run_phase_bench(sizes if given else (1_000, 100_000))
     elif args.dimension == 2:
-        run_bench(sizes if args.cells != "1000,10000,100000,1000000" else (10_000, 100_000, 1_000_000), "sod-2d")
+        run_bench(sizes if given else (10_000, 100_000, 1_000_000), "sod-2d")
     else:
         run_bench(sizes)
     return EXIT_OK

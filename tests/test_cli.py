@@ -200,6 +200,20 @@ def test_bench_plic_prints_both_normals(capsys):
     assert float(rows["youngs"][2]) == 0.0 and 0.0 < float(rows["lvira"][2]) < 5.0
 
 
+def test_bench_runs_the_sizes_given_even_when_they_are_the_1d_default(monkeypatch):
+    """``--cells`` given is what runs; without it each mode has its own sizes (the 2D loop
+    10⁴ to 10⁶ zones), also when the sizes given are written as the 1D default."""
+    import ale_xfem.studies.bench as bench
+
+    runs = []
+    monkeypatch.setattr(bench, "run_bench", lambda sizes, scene="sod": runs.append((list(sizes), scene)))
+    assert main(["bench", "--dimension", "2", "--cells", "1000,10000,100000,1000000"]) == 0
+    assert main(["bench", "--dimension", "2"]) == 0
+    assert main(["bench"]) == 0
+    assert runs == [([1000, 10000, 100000, 1000000], "sod-2d"), ([10000, 100000, 1000000], "sod-2d"),
+                    ([1000, 10000, 100000, 1000000], "sod")]
+
+
 def test_bench_rejects_bad_sizes(capsys):
     assert main(["bench", "--cells", "10,x"]) == 2
 
