@@ -7,14 +7,15 @@ Exit codes: 0 success; 2 bad input (scene or arguments: one line on stderr, noth
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import time
 from pathlib import Path
 
 EXIT_OK, EXIT_BAD_INPUT, EXIT_BREAKDOWN = 0, 2, 3
-DEFAULT_BENCH_CELLS = "1000,10000,100000,1000000"  # bench's 1D loop without --cells
 EXIT_DEFECT = 1  # an error of the program itself (Python's own code for an uncaught exception)
 ABORT_GRACE_SECONDS = 0.5  # before an error on one rank aborts them all (_run_on_every_rank)
+DEFAULT_BENCH_CELLS = "1000,10000,100000,1000000"  # bench's 1D loop without --cells
 DEFAULT_FRAMES = 20  # 2D runs: the VTK series's states after the initial one
 COMPILE_NOTE_SECONDS = 1.0  # a run that compiled kernels for this long says so (a fresh install's first run)
 
@@ -130,8 +131,6 @@ def _parser() -> argparse.ArgumentParser:
 
 def _unwritable(folder: Path) -> str | None:
     """Why a run could not write its outputs into ``folder`` (made here if missing), or None."""
-    import os
-
     try:
         folder.mkdir(parents=True, exist_ok=True)
     except OSError as error:

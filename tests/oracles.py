@@ -874,7 +874,8 @@ def material_node_velocities(cell_nodes, corner_mass, node_mass, owner, momentum
     """Each material's nodal velocities on the remapped mesh, the mesh's velocity (each
     node's own material's) and the kinetic energy the remap dissipated per node (2D
     enriched cells: ale_xfem.remap.remapper_2d, before it was compiled into
-    swept_kernels_2d.material_node_velocities)."""
+    swept_kernels_2d.material_node_velocities; with the kinetic energy of the mass the new
+    shares re-lump, as the kernel has it since)."""
     n_cells, k = cell_nodes.shape
     n_nodes = node_mass.shape[1]
     flat = cell_nodes.T.ravel()
@@ -882,9 +883,11 @@ def material_node_velocities(cell_nodes, corner_mass, node_mass, owner, momentum
     share = np.divide(corner_mass, cell_mass[:, None, :], out=np.zeros_like(corner_mass),
                       where=cell_mass[:, None, :] > 0)
     velocity = np.zeros((2, 2, n_nodes))
+    means = np.zeros((2, 2, n_cells))
     for m in range(2):
         for d in range(2):
             mean = np.divide(momentum[d][m], cell_mass[m], out=np.zeros(n_cells), where=cell_mass[m] > 0)
+            means[m, d] = mean
             corner_velocity = mean + deviation[m, d] - np.sum(share[m] * deviation[m, d], axis=0)
             node_momentum = np.bincount(flat, (corner_mass[m] * corner_velocity).ravel(), n_nodes)
             np.divide(node_momentum, node_mass[m], out=velocity[m, d], where=node_mass[m] > 0)
@@ -896,7 +899,12 @@ def material_node_velocities(cell_nodes, corner_mass, node_mass, owner, momentum
     old_share = np.divide(old_corner_mass, old_cell_mass[:, None, :], out=np.full_like(old_corner_mass, 1.0 / k),
                           where=old_cell_mass[:, None, :] > 0)
     flux_share = np.where(cell_mass[:, None, :] > 0, share, old_share)
-    in_nodes = np.bincount(flat, (flux_share * kinetic_in[:, None, :]).sum(axis=0).ravel(), n_nodes)
+    brought = flux_share * kinetic_in[:, None, :]
+    # the old mass the new shares move between a cell's corners, at the cell's new mean velocity
+    relumped = share * old_cell_mass[:, None, :] - old_corner_mass
+    speed2 = means[:, 0] * means[:, 0] + means[:, 1] * means[:, 1]
+    brought = np.where(cell_mass[:, None, :] > 0, brought + 0.5 * relumped * speed2[:, None, :], brought)
+    in_nodes = np.bincount(flat, brought.sum(axis=0).ravel(), n_nodes)
     loss = kinetic_before + in_nodes - 0.5 * np.sum(node_mass[:, None] * velocity**2, axis=(0, 1))
     return velocity, mesh_velocity, kinetic_before, loss
 
