@@ -371,6 +371,7 @@ def _run(args) -> int:
             print(f"error: {error}", file=sys.stderr)
         return EXIT_BAD_INPUT
 
+    from ale_xfem.lagrange.compile_clock import compile_seconds
     from ale_xfem.output.files import remove_earlier_outputs, write_outputs
     from ale_xfem.problem import build_problem
     from ale_xfem.run import Progress, simulate
@@ -395,6 +396,7 @@ def _run(args) -> int:
             print(f"error: --interface-solve = {args.interface_solve}: one of {', '.join(INTERFACE_SOLVES)}",
                   file=sys.stderr)
         return EXIT_BAD_INPUT
+    compiled_before = compile_seconds()  # (kernels compile while the problem is built too)
     try:
         problem = build_problem(scene)  # 2D: region coverage is checked on the mesh
         if ranks() > 1 and not args.explain:
@@ -466,6 +468,7 @@ def _run(args) -> int:
     observe_from = series.observe_from if series and not history else None
     result = simulate(problem, progress, observe=observe, observe_from=observe_from,
                       interface_solve=args.interface_solve)
+    result.compile_seconds = compile_seconds() - compiled_before  # the run's and the build's
     if series is not None:  # (every rank: the VTX files are written together)
         series.finish(result.state, problem)
     if not root:
