@@ -121,7 +121,7 @@ def _parser() -> argparse.ArgumentParser:
                             "single-velocity mixed cells, Lagrangian and Eulerian (remapped), on a quarter of "
                             "them; about 50 steps, by phase with the communication, speed-up against the first "
                             "number of ranks")
-    bench.add_argument("--out", type=Path, default=Path("out") / "bench-peers",
+    bench.add_argument("--out", type=Path, default=None,
                        help="with --peers: output folder (default: out/bench-peers)")
     # an unknown option is reported with the usage of the (sub)command it was given to
     for command_parser in (run, commands.choices["list"], accuracy, stability, interface, bench):
@@ -248,6 +248,18 @@ def _study(args) -> int:
 
 def _bench(args) -> int:
     from ale_xfem.studies.bench import run_bench, run_phase_bench
+
+    modes = [f"--{name}" for name in ("phases", "enriched", "plic", "peers") if getattr(args, name)]
+    modes += ["--ranks"] if args.ranks is not None else []
+    if len(modes) > 1:
+        print(f"error: {' '.join(modes)}: one of them at a time (each is a bench of its own)", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    if args.out is not None and not args.peers:
+        print(f"error: --out = {args.out}: acts with --peers only (the other benches print their tables and "
+              "write nothing)", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    if args.out is None:
+        args.out = Path("out") / "bench-peers"
 
     if args.cell_type is not None and not (args.enriched or (args.phases and args.dimension == 2)):
         print(f"error: --cell-type = {args.cell_type!r}: acts with --enriched or --phases --dimension 2 only "

@@ -241,6 +241,21 @@ def test_bench_rejects_bad_sizes(capsys):
     assert main(["bench", "--cells", "10,x"]) == 2
 
 
+@pytest.mark.parametrize("argv, message", [
+    (["--plic", "--enriched"], "error: --enriched --plic: one of them at a time"),
+    (["--phases", "--ranks", "1,2"], "error: --phases --ranks: one of them at a time"),
+    (["--cells", "1000", "--out", "{out}"], "error: --out = {out}: acts with --peers only"),
+])
+def test_bench_rejects_options_that_cannot_act_together(argv, message, capsys, tmp_path):
+    """Two benches at once, or an output folder for a bench that writes none: one line,
+    exit 2, nothing run or made (they were silently one of them, or ignored)."""
+    out = tmp_path / "never"
+    assert main(["bench", *[a.format(out=out) for a in argv]]) == 2
+    captured = capsys.readouterr()
+    assert captured.out == "" and captured.err.startswith(message.format(out=out)), captured.err
+    assert captured.err.count("\n") == 1 and not out.exists()
+
+
 @pytest.mark.parametrize("argv", [["--cell-type", "triangle"], ["--plic", "--cell-type", "triangle"],
                                   ["--peers", "--cell-type", "quadrilateral"], ["--phases", "--cell-type", "triangle"]])
 def test_bench_rejects_a_cell_type_without_the_enriched_bench(argv, capsys):
