@@ -183,20 +183,22 @@ def _list() -> int:
     from ale_xfem.scene import SceneError, load_scene, shipped_scenes
     from ale_xfem.studies.accuracy import load_study, shipped_studies
 
+    scenes, studies = shipped_scenes(), shipped_studies()
+    width = max(len(path.stem) for path in scenes + studies) + 2  # (names in one column)
     print("scenes (ale-xfem run NAME):")
-    for path in shipped_scenes():
+    for path in scenes:
         try:
             description = load_scene(path).description
         except SceneError as error:
             description = f"(invalid: {error})"
-        print(f"  {path.stem:<24} {description}")
+        print(f"  {path.stem:<{width}}{description}")
     print("studies (ale-xfem study accuracy NAME):")
-    for path in shipped_studies():
+    for path in studies:
         try:
             description = load_study(path).description
         except (SceneError, KeyError) as error:
             description = f"(invalid: {error})"
-        print(f"  {path.stem:<24} {description}")
+        print(f"  {path.stem:<{width}}{description}")
     return EXIT_OK
 
 

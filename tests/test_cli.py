@@ -109,6 +109,10 @@ def test_list_shows_every_shipped_scene_with_its_description(capsys):
     names = {line.split()[0] for line in lines}
     assert {"sod", "sod-two-gamma", "plate-impact", "water-air", "piston", "blast-symmetric"} <= names
     assert all(len(line.split(maxsplit=1)) == 2 for line in lines)
+    # the descriptions start in one column, after the longest name and two spaces
+    entries = [line for line in lines if line.startswith("  ")]
+    starts = {len(line) - len(line[2:].split(maxsplit=1)[1]) for line in entries}
+    assert len(starts) == 1 and starts.pop() == 2 + max(len(line.split()[0]) for line in entries) + 2
 
 
 def test_bench_prints_zone_cycles_per_second(capsys):
