@@ -385,10 +385,9 @@ def _run(args) -> int:
             print(f"error: {error}", file=sys.stderr)
         return EXIT_BAD_INPUT
 
-    from ale_xfem.lagrange.compile_clock import compile_seconds
     from ale_xfem.output.files import remove_earlier_outputs, write_outputs
     from ale_xfem.problem import build_problem
-    from ale_xfem.run import Progress, simulate
+    from ale_xfem.run import Progress, compiled_so_far, simulate
 
     out = args.out if args.out is not None else Path("out") / scene.name
     if args.xt and scene.dimension != 1:
@@ -410,7 +409,7 @@ def _run(args) -> int:
             print(f"error: --interface-solve = {args.interface_solve}: one of {', '.join(INTERFACE_SOLVES)}",
                   file=sys.stderr)
         return EXIT_BAD_INPUT
-    compiled_before = compile_seconds()  # (kernels compile while the problem is built too)
+    compiled_before = compiled_so_far()  # (kernels compile while the problem is built too)
     try:
         problem = build_problem(scene)  # 2D: region coverage is checked on the mesh
         if ranks() > 1 and not args.explain:
@@ -482,7 +481,7 @@ def _run(args) -> int:
     observe_from = series.observe_from if series and not history else None
     result = simulate(problem, progress, observe=observe, observe_from=observe_from,
                       interface_solve=args.interface_solve)
-    result.compile_seconds = compile_seconds() - compiled_before  # the run's and the build's
+    result.compile_seconds = compiled_so_far() - compiled_before  # the run's and the build's
     if series is not None:  # (every rank: the VTX files are written together)
         series.finish(result.state, problem)
     if not root:

@@ -16,6 +16,7 @@ import numpy as np
 from tqdm.auto import tqdm
 
 from ale_xfem.lagrange.breakdown import Breakdown
+from ale_xfem.lagrange import compile_clock
 from ale_xfem.lagrange.compile_clock import compile_seconds, own_clock
 from ale_xfem.lagrange.memory import keep_freed_memory
 from ale_xfem.lagrange.wilkins import ExplicitWilkins
@@ -56,6 +57,13 @@ class RunResult:
     def zone_cycles_per_second(self) -> float:
         cells = self.state.material_mass.shape[1]
         return cells * self.steps / self.wall_seconds if self.wall_seconds > 0 else 0.0
+
+
+def compiled_so_far() -> float:
+    """Seconds this process has spent compiling compiled kernels so far
+    (ale_xfem.lagrange.compile_clock): read before a problem is built and after its run, the
+    compiling a whole command did."""
+    return compile_clock.compile_seconds()
 
 
 class Progress:
