@@ -1326,7 +1326,7 @@ def test_a_trace_goes_to_the_neighbour_holding_the_most_of_its_material():
 
 
 def test_a_trace_that_was_there_before_the_remap_stays():
-    """A material below TRACE before the remap (the set-up's exact areas leave such slivers)
+    """A material below the trace fraction before the remap (the set-up's exact areas leave such slivers)
     is not moved: a remap onto an unmoved mesh must change nothing."""
     remapper, area, cell, volume, mass, energy = _trace_fixture()
     centre, right = cell[1, 1], cell[2, 1]

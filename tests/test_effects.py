@@ -124,6 +124,27 @@ def test_numerics_keys_that_cannot_act_in_a_1d_tube_are_errors(override, key):
     assert error.value.key == key
 
 
+@pytest.mark.parametrize("scene, overrides, why", [
+    ("sod-two-gamma-enriched", ["mesh.motion=eulerian"], "a 1D mesh"),  # the 1D remap leaves no traces
+    ("sod-2d", ["mesh.motion=eulerian"], "no [interface] table"),  # one material
+    ("rotated-tube", ["mesh.motion=lagrangian", "interface.model=single_velocity"], "nothing is remapped"),
+])
+def test_the_trace_fraction_acts_only_in_a_2d_remap_with_an_interface(scene, overrides, why):
+    """numerics.trace_fraction: where a 2D remap leaves a material below it in a cell (the
+    remapper's traces) — an error elsewhere, naming why; left out of the resolved scene where
+    it cannot act, and the remapper takes the scene's value where it can."""
+    from ale_xfem.remap.remapper_2d import Remapper2D
+
+    with pytest.raises(SceneError) as error:
+        load_scene(resolve_scene_path(scene), [*overrides, "numerics.trace_fraction=1e-6"])
+    assert error.value.key == "numerics.trace_fraction" and why in str(error.value)
+    assert "trace_fraction" not in load_scene(resolve_scene_path(scene), overrides).resolved["numerics"]
+    for overrides, fraction in (([], 1e-4), (["numerics.trace_fraction=1e-7"], 1e-7)):
+        problem = build_problem(load_scene(resolve_scene_path("rotated-tube"), ["mesh.cells=[4,4]",
+                                                                                 "mesh.motion=eulerian", *overrides]))
+        assert Remapper2D(problem, "eulerian", 2).trace == fraction
+
+
 def test_the_hourglass_key_on_triangles_is_an_error_and_acts_on_quadrilaterals():
     with pytest.raises(SceneError) as error:
         load_scene(resolve_scene_path("noh"), ["mesh.cell_type=triangle", "numerics.hourglass=0.1"])

@@ -86,6 +86,8 @@ BAD = {
                                         "regions[1].interval", "inside cell 201"),
     "bad boundary": (lambda d: set_path(d, ["boundaries", "left"], "sticky"), "boundaries.left", "'wall'"),
     "bad cfl": (lambda d: d.setdefault("numerics", {}).update(cfl=1.5), "numerics.cfl", "(0, 1]"),
+    "bad trace fraction": (lambda d: d.setdefault("numerics", {}).update(trace_fraction=0.1),
+                           "numerics.trace_fraction", "(0, 0.01]"),
     "remapped mesh without [interface]": (lambda d: set_path(d, ["mesh", "motion"], "eulerian"),
                                           "mesh.motion", "unless the scene has [interface]"),
     "eulerian mesh with a free end": (lambda d: [d.update(interface={"model": "enriched"}),

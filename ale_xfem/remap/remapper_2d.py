@@ -35,7 +35,7 @@ energy is conserved too — including what the walls take when they hold the rem
 velocities (done here, their impulse reported as ``wall_impulse``; a piston's imposed
 velocity is boundary work, ``wall_work``).  Only the nodes' losses are deposited, scaled to
 the total (a node can gain a little where its neighbours lose): cold gas is never cooled.  A cell that ends with
-a material below ``TRACE`` (10⁻⁴) of its area hands that material's mass and energy to the
+a material below ``numerics.trace_fraction`` (10⁻⁴ by default) of its area hands that material's mass and energy to the
 cell around it (sharing a node) holding the most of it (the first of those holding as much to
 10⁻⁹) — or, if none holds more, to the
 cell around those holding the most — and its volume to its own largest material: each
@@ -70,20 +70,25 @@ from ale_xfem.remap.kinetic_energy import losses_only, made_kinetic_energy_facto
 from ale_xfem.remap.scope import WholeMesh, first_cell
 from ale_xfem.model.state import density_of, thermodynamics
 
-# A material that falls below this fraction of its cell's area in a remap leaves the cell (its mass and energy go
-# to a neighbour holding more of it: Remapper2D._move_traces).  Measured on the shock on a
+# Traces.  A material that falls below ``numerics.trace_fraction`` of its cell's area in a remap
+# leaves the cell (its mass and energy go to a neighbour holding more of it:
+# Remapper2D._move_traces).  The default, 10⁻⁴, was measured on the shock on a
 # heavy disk (80 × 40, smoothed mesh, before boundary nodes slid and losses were deposited
 # only where lost, traces then merged into their cell's other material): 1e-6 left 453 mixed
 # cells of debris, 1e-4 60, 1e-3 51; with 1e-4, traces moved to neighbours and the part of
 # a swept region outside its mixed donor split by the donor's interface line
 # (Remapper2D._mixed_donor_volumes) now: 54 mixed cells at the end, the disk's mass kept to the
 # six digits the demo prints (it lost 0.04 % while traces merged in place) (`python
-# demos/shock_disk.py --cells 80`).  A larger fraction cleans more
-# but each trace moved perturbs the pressures of its two cells by about its fraction.
+# demos/shock_disk.py --cells 80`); with traces moved so, 10⁻⁸ leaves as many (54) on the
+# same mesh.  A larger fraction cleans more, but each trace moved perturbs the pressure of
+# its cell's other material, which takes its volume, by about ρc² × its fraction: nothing for
+# gases near their own pressure, but water (ρc² = 2.6 × 10⁹ Pa) beside air at 10⁵ Pa moves by
+# up to 2.6 × 10⁵ Pa (an air disk carried through water by a uniform flow: 1.8 × 10⁵ Pa at
+# 10⁻⁴, 53 Pa at 10⁻⁶, 10⁻⁴ Pa at 10⁻⁸; tests/test_enriched_2d_run.py), where a smaller
+# fraction is the scene's choice (README, "traces": not more accurate everywhere).
 # A material already below it before the remap (the set-up's exact areas leave such slivers
 # on a curved interface) stays: moving it perturbed a disk at rest on an Eulerian 40 × 40
 # mesh by 1.8e-3 in pressure by t = 0.01 (a remap onto an unmoved mesh must change nothing).
-TRACE = 1e-4
 MAX_TRACE_PASSES = 8  # a trace moved onto a trace moves on, at most this many times a remap
 
 
@@ -123,6 +128,7 @@ class Remapper2D:
         # (a remap in place sweeps nothing: no reconstruction in the donors to pay for)
         self.motion, self.order = motion, (1 if motion == "lagrangian" else order)
         self.heat = problem.scene.numerics.remap_energy == "total"
+        self.trace = problem.scene.numerics.trace_fraction  # (see "Traces" above)
         self.initial = mesh.node_position.copy()
         self.a, self.b, self.plus, self.minus = mesh_edges(mesh.cell_nodes)
         interior = self.minus >= 0
@@ -218,11 +224,11 @@ class Remapper2D:
             mass += state.material_crossing[0]
             energy += state.material_crossing[1]
         old_cell_mass = mass.sum(axis=0)
-        # materials already below TRACE of their cell (the set-up's geometry made them, or an
+        # materials already below the trace fraction of their cell (the set-up's geometry made them, or an
         # earlier remap kept them): they stay while the remap leaves them as they are (to
         # round-off), so that a state remapped onto an unmoved mesh is left as it is
         Xa, Xb, area = self._target_geometry(X)  # the target's edge ends and cell areas
-        standing, standing_where, standing_volume = swept_kernels_2d.standing_traces(volume, area, TRACE)
+        standing, standing_where, standing_volume = swept_kernels_2d.standing_traces(volume, area, self.trace)
 
         # -- the swept regions (compiled: ale_xfem.remap.swept_kernels_2d) --------------------
         is_mixed = np.zeros(n_cells, dtype=bool)
@@ -297,7 +303,7 @@ class Remapper2D:
         """The remapped state from each material's (n_materials, n_cells) volume, mass and
         internal energy, back in slots; returns what :meth:`apply` returns."""
         count, cell_material, slot_mass, slot_volume, slot_energy = swept_kernels_2d.material_slots(
-            volume, mass, energy, area, standing, TRACE)
+            volume, mass, energy, area, standing, self.trace)
         scope = self.scope
         if scope.anywhere(cell_material.shape[0] == 2) and cell_material.shape[0] == 1:
             # on several ranks: a rank whose cells all hold one material takes a second slot,
@@ -412,7 +418,7 @@ class Remapper2D:
         Returns (the mesh's velocity: each node's own material's, the total nodal masses,
         the kinetic energy change, the state's material fields)."""
         mesh = self.mesh
-        present = (volume > TRACE * area) | (standing & (mass != 0.0))
+        present = (volume > self.trace * area) | (standing & (mass != 0.0))
         cells = np.flatnonzero(present.sum(axis=0) == 2)
         kept_volume, kept_mass = np.where(present, volume, 0.0), np.where(present, mass, 0.0)
         corner_mass, node_mass, owner, internal = self.material_geometry(X, kept_volume, kept_mass, cells)
@@ -478,8 +484,8 @@ class Remapper2D:
         mesh_velocity[:, both] = merged
 
     def _move_traces(self, volume, mass, energy, area, standing, carried=()):
-        """A material left below ``TRACE`` of a cell's area leaves the cell — unless it was
-        there below TRACE before this remap (``standing``): its mass and
+        """A material left below ``self.trace`` of a cell's area leaves the cell — unless it was
+        there below that before this remap (``standing``): its mass and
         internal energy go to the cell around it (sharing a node) that holds the most of that
         material, if more than the trace, its volume to the cell's largest material — each
         material's mass and energy conserved; if none holds more, the cells around those
@@ -490,10 +496,10 @@ class Remapper2D:
         with the mass (each material's momentum, per component)."""
         scope = self.scope  # (on several ranks every rank takes each pass, the ghost cells refreshed after it)
         for _ in range(MAX_TRACE_PASSES):
-            material, cells = swept_kernels_2d.traces(volume, mass, area, standing, TRACE)
+            material, cells = swept_kernels_2d.traces(volume, mass, area, standing, self.trace)
             if not scope.anywhere(cells.size > 0):
                 return
-            present = swept_kernels_2d.present_materials(volume[:, cells], area[cells], standing[:, cells], TRACE)
+            present = swept_kernels_2d.present_materials(volume[:, cells], area[cells], standing[:, cells], self.trace)
             keeper = np.argmax(np.where(present, volume[:, cells], -np.inf), axis=0)
             candidates = self.node_neighbours[cells]
             held = np.where(candidates >= 0, volume[material[:, None], candidates], -np.inf)
@@ -511,9 +517,9 @@ class Remapper2D:
                 _hand_over(quantity, (material, cells), (material, receiver))
             _hand_over(volume, (material, cells), (keeper, cells))
             scope.cells(mass, energy, *carried, volume)
-        material, cells = swept_kernels_2d.traces(volume, mass, area, standing, TRACE)
+        material, cells = swept_kernels_2d.traces(volume, mass, area, standing, self.trace)
         if cells.size:  # flecks: merged into their own cell's largest material
-            present = swept_kernels_2d.present_materials(volume[:, cells], area[cells], standing[:, cells], TRACE)
+            present = swept_kernels_2d.present_materials(volume[:, cells], area[cells], standing[:, cells], self.trace)
             keeper = np.argmax(np.where(present, volume[:, cells], -np.inf), axis=0)
             for quantity in (mass, energy, volume, *carried):
                 _hand_over(quantity, (material, cells), (keeper, cells))

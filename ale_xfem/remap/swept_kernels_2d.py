@@ -133,7 +133,7 @@ def untouched_traces(standing, where, before, volume):  # pragma: no cover (comp
 def present_materials(volume, area, standing, trace):  # pragma: no cover (compiled)
     """(n_materials, n): whether each material counts in each of the cells whose areas
     ``area`` (n,) are given — above ``trace`` of the area, or a ``standing`` trace with
-    volume (remapper_2d.TRACE)."""
+    volume (numerics.trace_fraction: remapper_2d, "Traces")."""
     n_materials, n = volume.shape
     present = np.empty((n_materials, n), dtype=np.bool_)
     for m in range(n_materials):

@@ -45,6 +45,11 @@ NUMERICS_DEFAULTS = {
     # total: the kinetic energy the momentum remap loses goes into the internal energy of
     # the cells around each node (total energy conserved); internal: it is lost (reported)
     "remap_energy": "total",
+    # 2D remap with [interface]: a material the remap leaves below this fraction of a cell's
+    # area leaves the cell (its mass and energy to a neighbour holding more of it, its volume
+    # to the cell's other material, whose pressure moves by about ρc² × the fraction):
+    # ale_xfem.remap.remapper_2d, "Traces"
+    "trace_fraction": 1e-4,
     # 2D quadrilaterals: viscous hourglass control, f_i = −(κ/4) ρ c √A (Σ_j γ_j u_j) γ_i;
     # 0.3: with 0.1 a cell of the rotated tube (50 × 50) turned a corner inside out
     "hourglass": 0.3,
@@ -139,6 +144,7 @@ class Numerics:
     interface_max_iterations: int = 50
     remap_order: int = 2
     remap_energy: str = "total"
+    trace_fraction: float = 1e-4
     hourglass: float = 0.3
     viscous_time_step: bool = True
 
@@ -549,6 +555,8 @@ def _validate_numerics(table: Any) -> Numerics:
                                           "numerics.interface_max_iterations"),
         remap_order=_choice_int(table["remap_order"], "numerics.remap_order", (1, 2)),
         remap_energy=_choice(table["remap_energy"], "numerics.remap_energy", ("total", "internal")),
+        trace_fraction=_real(table["trace_fraction"], "numerics.trace_fraction", lambda v: 0 < v <= 1e-2,
+                             "a real number in (0, 0.01]"),
         hourglass=_real(table["hourglass"], "numerics.hourglass", lambda v: 0 <= v <= 1, "a real number in [0, 1]"),
         viscous_time_step=_boolean(table["viscous_time_step"], "numerics.viscous_time_step"),
     )
@@ -571,6 +579,13 @@ def _numerics_that_act(scene: Scene, written: set) -> None:
         "remap_energy": (effects.sweeps(scene) or effects.remaps_in_place(scene, interface is not None),
                          f"mesh.motion = '{motion}': nothing is remapped (remove it, or set mesh.motion = "
                          "'eulerian' or 'smoothed')"),
+        "trace_fraction": (scene.dimension == 2 and interface is not None
+                           and (effects.sweeps(scene) or effects.remaps_in_place(scene, True)),
+                           "a 1D mesh: its remap leaves no traces (remove it)" if scene.dimension == 1
+                           else "no [interface] table: a cell never holds two materials (remove it)"
+                           if interface is None else f"mesh.motion = '{motion}' with "
+                           f"interface.model = '{interface.model}': nothing is remapped (remove it, or set "
+                           "mesh.motion = 'eulerian' or 'smoothed')"),
         "hourglass": (effects.has_hourglass_modes(scene),
                       (f"mesh.cell_type = '{cell_type}': triangles have no hourglass modes" if scene.dimension == 2
                        else "a 1D mesh: intervals have no hourglass modes") + " (remove it)"),
