@@ -87,6 +87,12 @@ GHOST_VISCOSITY = {"quadrilateral": 0.3, "triangle": 1.0}
 CROSSING_SHARE = 0.5
 
 
+def held_components(boundary) -> list[int]:
+    """The velocity components a boundary constraint holds: a wall its normal one, a piston
+    both."""
+    return [int(np.argmax(np.abs(boundary.normal)))] if boundary.kind == "wall" else [0, 1]
+
+
 def held_nodes(step, nodes, d: int) -> np.ndarray:
     """The ``nodes`` whose component ``d`` a wall or a piston of the step holds."""
     held = [b.nodes for b in step.constraints if b.kind == "velocity" or abs(b.normal[d]) > 0.5]
@@ -247,8 +253,7 @@ class EnrichedClosure2D(SharedClosure):
             internal_force += 0.5 * walls[:, system_nodes].sum(axis=1)  # (the walls' to cancel)
             for boundary in step.constraints:
                 held = np.zeros(2) if boundary.kind == "wall" else boundary.velocity[:2]
-                axes = [int(np.argmax(np.abs(boundary.normal)))] if boundary.kind == "wall" else [0, 1]
-                for d in axes:
+                for d in held_components(boundary):
                     held_inertia[d, boundary.nodes] = HELD_INERTIA
                     rhs[d, boundary.nodes] = HELD_INERTIA * held[d]
             inertia.append(held_inertia)
@@ -374,8 +379,7 @@ class EnrichedClosure2D(SharedClosure):
         taken = np.zeros_like(force)
         for boundary in step.constraints:
             external = boundary.nodes[~internal[boundary.nodes]]
-            axes = [int(np.argmax(np.abs(boundary.normal)))] if boundary.kind == "wall" else [0, 1]
-            for d in axes:
+            for d in held_components(boundary):
                 taken[d, external] = force[d, external]
                 force[d, external] = 0.0
         return taken

@@ -34,11 +34,11 @@ cells' internal energy by corner mass (``numerics.remap_energy = "total"``), so 
 energy is conserved too — including what the walls take when they hold the remapped
 velocities (done here, their impulse reported as ``wall_impulse``; a piston's imposed
 velocity is boundary work, ``wall_work``).  Only the nodes' losses are deposited, scaled to
-the total (a node can gain a little where its neighbours lose): cold gas is never cooled.  A cell that ends with
-a material below ``numerics.trace_fraction`` (10⁻⁴ by default) of its area hands that material's mass and energy to the
-cell around it (sharing a node) holding the most of it (the first of those holding as much to
-10⁻⁹) — or, if none holds more, to the
-cell around those holding the most — and its volume to its own largest material: each
+the total (a node can gain a little where its neighbours lose): cold gas is never cooled.
+A cell that ends with a material below ``numerics.trace_fraction`` (10⁻⁴ by default) of
+its area hands that material's mass and energy to the cell around it (sharing a node)
+holding the most of it (the first of those holding as much to 10⁻⁹) — or, if none holds
+more, to the cell around those holding the most — and its volume to its own largest material: each
 material's mass and internal energy stay exact to round-off (reported as
 ``conservation["material_mass"]``) — except for a fleck with no larger cell within those two
 rings, merged into its own cell's other material (``lone_traces``); a cell receiving a third
