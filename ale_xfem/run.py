@@ -63,7 +63,7 @@ def compiled_so_far() -> float:
     """Seconds this process has spent compiling compiled kernels so far
     (ale_xfem.lagrange.compile_clock): read before a problem is built and after its run, the
     compiling a whole command did."""
-    return compile_clock.compile_seconds()
+    return compile_clock.compile_seconds()  # (through the module: a test stands in a clock for it)
 
 
 class Progress:
